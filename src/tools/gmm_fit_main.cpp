@@ -1,0 +1,316 @@
+// gmm_fit: point cloud or mesh -> GMM map file (see docs/map_builder.md).
+#include <unistd.h>
+
+#include <omp.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "gmm_mcl/fit/cloud_filter.h"
+#include "gmm_mcl/fit/em_fitter.h"
+#include "gmm_mcl/fit/fit_error.h"
+#include "gmm_mcl/fit/point_cloud_io.h"
+#include "gmm_mcl/fit/seven_scenes_cloud.h"
+#include "gmm_mcl/map/gmm_map_io.h"
+
+namespace {
+
+using namespace gmm_mcl;
+
+const char* kUsage =
+    "usage: gmm_fit INPUT -o MAP [options]\n"
+    "       gmm_fit --7scenes DATA_DIR -o MAP [options]\n"
+    "\n"
+    "INPUT is a point cloud (.pcd ascii/binary/binary_compressed, .ply vertices, .xyz/.txt) or a\n"
+    "PLY triangle mesh (faces present: points are sampled area-uniformly on its surface).\n"
+    "\n"
+    "output:\n"
+    "  -o, --output PATH        map file to write (gmm_mcl map format)\n"
+    "  --save-cloud PATH        also write the prepared cloud (.pcd binary or .xyz)\n"
+    "  --stats-json PATH        write fit statistics (times, iterations, log-likelihood) as JSON\n"
+    "  -q, --quiet              no progress or summary (errors only)\n"
+    "EM:\n"
+    "  -m, --components M       mixture components (1000)\n"
+    "  --max-iter N             EM iteration cap (100)\n"
+    "  --tol T                  stop when the mean log-likelihood per point changes < T (1e-3)\n"
+    "  --reg-covar V            added to covariance diagonals, m^2 (1e-6, as scikit-learn)\n"
+    "  --init kmeans|kmeans++   k-means++ seeding with/without Lloyd refinement (kmeans)\n"
+    "  --kmeans-iter N          Lloyd iterations for --init kmeans (10)\n"
+    "  --init-means FILE        start from these M means (.xyz/.pcd), as scikit-learn means_init\n"
+    "  --seed S                 random seed (1); same seed, same map\n"
+    "  --prune-sigma S          E-step skips components beyond S sigma (6); 0 = exact\n"
+    "  --cell-size M            pruning grid cell, m (automatic)\n"
+    "  --threads N              OpenMP threads (OMP_NUM_THREADS or all cores)\n"
+    "cloud preparation (in this order):\n"
+    "  --crop-box X0 Y0 Z0 X1 Y1 Z1   keep points inside the box (m)\n"
+    "  --crop-range MIN MAX     keep MIN <= |p - centre| <= MAX (MAX 0 = no limit)\n"
+    "  --range-centre X Y Z     centre for --crop-range (origin)\n"
+    "  --voxel M                voxel-grid centroids at M metres (off)\n"
+    "  --mesh-samples N         points sampled on a mesh (1000000)\n"
+    "  --use-vertices           for a PLY mesh, fit its vertices instead of sampling faces\n"
+    "7-Scenes (DESIGN.md accuracy protocol):\n"
+    "  --7scenes DIR            stitch DIR/frame-NNNNNN.depth.png with frame-NNNNNN.pose.txt\n"
+    "  --first F --last L --step S    frames F, F+S, ..., <= L (0, 990, 10)\n"
+    "  --min-depth M --max-depth M    keep depth in (min, max] (0.1, 4.0); voxel default 0.02\n";
+
+[[noreturn]] void usageError(const std::string& what) {
+  std::cerr << "gmm_fit: " << what << "\n\n" << kUsage;
+  std::exit(2);
+}
+
+struct Args {
+  std::vector<std::string> v;
+  size_t i = 1;
+  std::string next(const std::string& opt) {
+    if (i >= v.size()) usageError(opt + " needs a value");
+    return v[i++];
+  }
+  double number(const std::string& opt) {
+    const std::string s = next(opt);
+    char* end = nullptr;
+    const double x = std::strtod(s.c_str(), &end);
+    if (end == s.c_str() || *end != '\0') usageError(opt + ": '" + s + "' is not a number");
+    return x;
+  }
+  long integer(const std::string& opt) {
+    const std::string s = next(opt);
+    char* end = nullptr;
+    const long x = std::strtol(s.c_str(), &end, 10);
+    if (end == s.c_str() || *end != '\0') usageError(opt + ": '" + s + "' is not an integer");
+    return x;
+  }
+};
+
+std::string jsonNumber(double v) {
+  if (!std::isfinite(v)) return "null";
+  std::ostringstream o;
+  o.precision(10);
+  o << v;
+  return o.str();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Args a;
+  a.v.assign(argv, argv + argc);
+  std::string input, output, save_cloud, stats_json, init_means_path, seven_dir;
+  bool quiet = false, use_vertices = false, voxel_set = false;
+  size_t mesh_samples = 1000000;
+  int threads = 0;
+  EmParams em;
+  CloudFilterParams filter;
+  SevenScenesCloudParams seven;
+  while (a.i < a.v.size()) {
+    const std::string opt = a.v[a.i++];
+    if (opt == "-h" || opt == "--help") {
+      std::cout << kUsage;
+      return 0;
+    } else if (opt == "-o" || opt == "--output") {
+      output = a.next(opt);
+    } else if (opt == "--save-cloud") {
+      save_cloud = a.next(opt);
+    } else if (opt == "--stats-json") {
+      stats_json = a.next(opt);
+    } else if (opt == "-q" || opt == "--quiet") {
+      quiet = true;
+    } else if (opt == "-m" || opt == "--components") {
+      em.components = static_cast<int>(a.integer(opt));
+    } else if (opt == "--max-iter") {
+      em.max_iterations = static_cast<int>(a.integer(opt));
+    } else if (opt == "--tol") {
+      em.tolerance = a.number(opt);
+    } else if (opt == "--reg-covar") {
+      em.reg_covar_m2 = a.number(opt);
+    } else if (opt == "--init") {
+      const std::string s = a.next(opt);
+      if (s == "kmeans") em.init = EmInit::kKMeans;
+      else if (s == "kmeans++" || s == "k-means++") em.init = EmInit::kKMeansPlusPlus;
+      else usageError("--init must be kmeans or kmeans++");
+    } else if (opt == "--kmeans-iter") {
+      em.kmeans_iterations = static_cast<int>(a.integer(opt));
+    } else if (opt == "--init-means") {
+      init_means_path = a.next(opt);
+    } else if (opt == "--seed") {
+      em.seed = static_cast<uint64_t>(a.integer(opt));
+    } else if (opt == "--prune-sigma") {
+      em.prune_sigma = a.number(opt);
+    } else if (opt == "--cell-size") {
+      em.cell_size_m = a.number(opt);
+    } else if (opt == "--threads") {
+      threads = static_cast<int>(a.integer(opt));
+    } else if (opt == "--crop-box") {
+      filter.use_box = true;
+      for (int k = 0; k < 3; ++k) filter.box_min_m[k] = static_cast<float>(a.number(opt));
+      for (int k = 0; k < 3; ++k) filter.box_max_m[k] = static_cast<float>(a.number(opt));
+    } else if (opt == "--crop-range") {
+      filter.min_range_m = static_cast<float>(a.number(opt));
+      filter.max_range_m = static_cast<float>(a.number(opt));
+    } else if (opt == "--range-centre" || opt == "--range-center") {
+      for (int k = 0; k < 3; ++k) filter.range_centre_m[k] = static_cast<float>(a.number(opt));
+    } else if (opt == "--voxel") {
+      filter.voxel_m = static_cast<float>(a.number(opt));
+      voxel_set = true;
+    } else if (opt == "--mesh-samples") {
+      const long n = a.integer(opt);
+      if (n < 1) usageError("--mesh-samples must be >= 1");
+      mesh_samples = static_cast<size_t>(n);
+    } else if (opt == "--use-vertices") {
+      use_vertices = true;
+    } else if (opt == "--7scenes") {
+      seven_dir = a.next(opt);
+    } else if (opt == "--first") {
+      seven.first_frame = static_cast<int>(a.integer(opt));
+    } else if (opt == "--last") {
+      seven.last_frame = static_cast<int>(a.integer(opt));
+    } else if (opt == "--step") {
+      seven.frame_step = static_cast<int>(a.integer(opt));
+    } else if (opt == "--min-depth") {
+      seven.min_depth_m = static_cast<float>(a.number(opt));
+    } else if (opt == "--max-depth") {
+      seven.max_depth_m = static_cast<float>(a.number(opt));
+    } else if (!opt.empty() && opt[0] == '-') {
+      usageError("unknown option " + opt);
+    } else if (input.empty()) {
+      input = opt;
+    } else {
+      usageError("more than one input given ('" + input + "', '" + opt + "')");
+    }
+  }
+  if (input.empty() == seven_dir.empty()) usageError("give one INPUT file or --7scenes DIR");
+  if (output.empty() && save_cloud.empty()) usageError("no output: give -o MAP (or --save-cloud)");
+  if (threads < 0) usageError("--threads must be >= 1");
+  if (threads > 0) omp_set_num_threads(threads);
+  const bool tty = isatty(fileno(stderr)) != 0;
+
+  try {
+    PointCloud cloud;
+    if (!seven_dir.empty()) {
+      if (voxel_set) seven.voxel_m = filter.voxel_m;
+      filter.voxel_m = 0.f;  // downsampled while stitching
+      SevenScenesCloudStats st;
+      cloud = buildSevenScenesCloud(seven_dir, seven, &st);
+      if (!quiet) {
+        std::cerr << "7-Scenes: " << st.frames << " frames, " << st.points_back_projected
+                  << " points in (" << seven.min_depth_m << ", " << seven.max_depth_m << "] m -> "
+                  << st.voxels << " voxels of " << seven.voxel_m << " m\n";
+      }
+    } else {
+      CloudFile file = readCloudFile(input);
+      if (file.hasFaces() && !use_vertices) {
+        cloud = sampleMeshSurface(file.mesh, mesh_samples, em.seed);
+        if (!quiet) {
+          std::cerr << input << ": mesh with " << file.mesh.vertices_m.size() << " vertices, "
+                    << file.mesh.triangles.size() << " triangles -> " << cloud.size()
+                    << " surface samples\n";
+        }
+      } else {
+        cloud = std::move(file.points);
+        if (!quiet) std::cerr << input << ": " << cloud.size() << " points\n";
+      }
+    }
+    CloudFilterStats fs;
+    cloud = filterCloud(cloud, filter, &fs);
+    if (!quiet && (fs.non_finite || fs.cropped || filter.voxel_m > 0.f)) {
+      std::cerr << "prepared cloud: " << fs.output << " points (dropped " << fs.non_finite
+                << " NaN/Inf, " << fs.cropped << " cropped";
+      if (filter.voxel_m > 0.f) std::cerr << "; voxel " << filter.voxel_m << " m";
+      std::cerr << ")\n";
+    }
+    if (cloud.empty()) throw FitError((input.empty() ? seven_dir : input) + ": no usable points");
+    if (!save_cloud.empty()) {
+      if (save_cloud.size() > 4 && save_cloud.substr(save_cloud.size() - 4) == ".pcd") {
+        writePcd(cloud, save_cloud);
+      } else {
+        writeXyz(cloud, save_cloud);
+      }
+      if (!quiet) std::cerr << "wrote cloud " << save_cloud << "\n";
+    }
+    if (output.empty()) return 0;
+
+    if (!init_means_path.empty()) {
+      const CloudFile means = readCloudFile(init_means_path);
+      em.init = EmInit::kGivenMeans;
+      em.initial_means_m.clear();
+      for (const auto& p : means.points) em.initial_means_m.push_back(p.cast<double>());
+      if (em.initial_means_m.size() != static_cast<size_t>(em.components)) {
+        throw FitError(init_means_path + ": has " + std::to_string(em.initial_means_m.size()) +
+                       " means but --components is " + std::to_string(em.components));
+      }
+    }
+    if (!quiet) {
+      std::cerr << "EM: M=" << em.components << ", " << cloud.size() << " points, tol "
+                << em.tolerance << ", max " << em.max_iterations << " iterations, reg_covar "
+                << em.reg_covar_m2 << " m^2, prune " << em.prune_sigma << " sigma, "
+                << omp_get_max_threads() << " threads, seed " << em.seed << "\n";
+    }
+    EmProgress progress;
+    if (!quiet) {
+      progress = [&](const EmIteration& it) {
+        char line[160];
+        std::snprintf(line, sizeof(line),
+                      "iter %4d/%d  mean log-lik %12.6f  %8.2f s  %6.1f comps/pt", it.iteration,
+                      em.max_iterations, it.mean_log_likelihood, it.elapsed_s,
+                      it.mean_candidates);
+        if (tty) {
+          std::cerr << "\r" << line << std::flush;
+        } else {
+          std::cerr << line << "\n";
+        }
+      };
+    }
+    const EmResult fit = fitGmm(cloud, em, progress);
+    if (!quiet && tty) std::cerr << "\n";
+    int repaired = 0;
+    const GmmMap map = makeStorableMap(fit.components, em.reg_covar_m2, output, &repaired);
+    saveMap(map, output);
+    loadMap(output);  // read back: the file validates as every consumer will see it
+    const size_t bytes = encodeMap(map).size();
+    if (!quiet) {
+      std::cerr << (fit.converged ? "converged" : "stopped at the iteration cap") << " after "
+                << fit.iterations << " iterations; final mean log-lik "
+                << fit.final_mean_log_likelihood << "; init " << fit.init_s << " s, total "
+                << fit.total_s << " s\n";
+      if (fit.regularised_components || repaired || fit.empty_components) {
+        std::cerr << "note: " << fit.regularised_components
+                  << " covariances needed extra diagonal loading, " << repaired
+                  << " were repaired for float32 storage, " << fit.empty_components
+                  << " components are (numerically) empty\n";
+      }
+      std::cerr << "wrote " << output << " (" << map.size() << " components, " << bytes
+                << " bytes)\n";
+    }
+    if (!stats_json.empty()) {
+      std::ofstream js(stats_json);
+      js << "{\"points\": " << cloud.size() << ", \"components\": " << map.size()
+         << ", \"iterations\": " << fit.iterations
+         << ", \"converged\": " << (fit.converged ? "true" : "false")
+         << ", \"final_mean_log_likelihood\": " << jsonNumber(fit.final_mean_log_likelihood)
+         << ", \"init_s\": " << jsonNumber(fit.init_s)
+         << ", \"total_s\": " << jsonNumber(fit.total_s) << ", \"file_bytes\": " << bytes
+         << ", \"reg_covar_m2\": " << jsonNumber(em.reg_covar_m2)
+         << ", \"threads\": " << omp_get_max_threads() << ", \"history\": [";
+      for (size_t i = 0; i < fit.history.size(); ++i) {
+        const EmIteration& h = fit.history[i];
+        js << (i ? ", " : "") << "{\"iteration\": " << h.iteration
+           << ", \"mean_log_likelihood\": " << jsonNumber(h.mean_log_likelihood)
+           << ", \"elapsed_s\": " << jsonNumber(h.elapsed_s)
+           << ", \"mean_candidates\": " << jsonNumber(h.mean_candidates) << "}";
+      }
+      js << "]}\n";
+      if (!js) throw FitError(stats_json + ": write failed");
+    }
+  } catch (const std::exception& e) {
+    if (tty && !quiet) std::cerr << "\n";
+    std::cerr << "gmm_fit: error: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}
