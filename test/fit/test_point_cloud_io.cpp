@@ -1,0 +1,207 @@
+#include "gmm_mcl/fit/point_cloud_io.h"
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include "gmm_mcl/fit/cloud_filter.h"
+#include "gmm_mcl/fit/fit_error.h"
+
+namespace gmm_mcl {
+namespace {
+
+std::string tempPath(const std::string& name) {
+  return ::testing::TempDir() + "gmm_fit_io_" + std::to_string(::getpid()) + "_" + name;
+}
+
+void writeBytes(const std::string& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+
+std::string floatBytes(std::initializer_list<float> v) {
+  std::string s;
+  for (float f : v) s.append(reinterpret_cast<const char*>(&f), 4);
+  return s;
+}
+
+TEST(PointCloudIo, PcdBinaryRoundTrip) {
+  const PointCloud pts = {{1.f, 2.f, 3.f}, {-4.5f, 0.25f, 1e-3f}};
+  const std::string path = tempPath("rt.pcd");
+  writePcd(pts, path);
+  const PointCloud back = readCloudFile(path).points;
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_EQ(back[0], pts[0]);
+  EXPECT_EQ(back[1], pts[1]);
+  std::remove(path.c_str());
+}
+
+TEST(PointCloudIo, PcdAsciiWithExtraFieldsAndNan) {
+  const std::string path = tempPath("a.pcd");
+  writeBytes(path,
+             "VERSION .7\nFIELDS intensity x y z\nSIZE 4 4 4 4\nTYPE U F F F\nCOUNT 1 1 1 1\n"
+             "WIDTH 3\nHEIGHT 1\nPOINTS 3\nDATA ascii\n7 1 2 3\n8 nan 0 0\n9 -1 -2 -3.5\n");
+  const PointCloud p = readPcd(path);
+  ASSERT_EQ(p.size(), 3u);
+  EXPECT_EQ(p[0], Eigen::Vector3f(1, 2, 3));
+  EXPECT_FALSE(p[1].allFinite());  // kept: the caller drops non-finite points
+  EXPECT_EQ(p[2], Eigen::Vector3f(-1, -2, -3.5f));
+  std::remove(path.c_str());
+}
+
+TEST(PointCloudIo, PcdBinaryCompressedLzf) {
+  // Two points, fields x y z stored field-major after LZF: x0 x1 y0 y1 z0 z1 (24 bytes).
+  // Literal run of the first 12 bytes, then a 12-byte back-reference at distance 12 (the
+  // y and z arrays repeat x: both points are (1,2)).
+  const std::string raw = floatBytes({1.f, 2.f, 1.f, 2.f, 1.f, 2.f});
+  std::string lzf;
+  lzf += static_cast<char>(7);  // literal, 8 bytes
+  lzf += raw.substr(0, 8);
+  // back-reference: length 16 = 7 + 7 + 2 -> ctrl (7 << 5) | hi(offset-1), extra 7, lo(offset-1)
+  lzf += static_cast<char>(7 << 5);
+  lzf += static_cast<char>(7);
+  lzf += static_cast<char>(7);  // offset 8
+  std::string body;
+  const uint32_t csize = static_cast<uint32_t>(lzf.size()), usize = 24;
+  body.append(reinterpret_cast<const char*>(&csize), 4);
+  body.append(reinterpret_cast<const char*>(&usize), 4);
+  body += lzf;
+  const std::string path = tempPath("c.pcd");
+  writeBytes(path, "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\n"
+                   "HEIGHT 1\nPOINTS 2\nDATA binary_compressed\n" + body);
+  const PointCloud p = readPcd(path);
+  ASSERT_EQ(p.size(), 2u);
+  EXPECT_EQ(p[0], Eigen::Vector3f(1, 1, 1));
+  EXPECT_EQ(p[1], Eigen::Vector3f(2, 2, 2));
+  std::remove(path.c_str());
+}
+
+TEST(PointCloudIo, PlyAsciiQuadIsTwoTriangles) {
+  const std::string path = tempPath("q.ply");
+  writeBytes(path,
+             "ply\nformat ascii 1.0\ncomment unit square\nelement vertex 4\nproperty float x\n"
+             "property float y\nproperty float z\nproperty uchar red\nelement face 1\n"
+             "property list uchar int vertex_indices\nend_header\n0 0 0 1\n1 0 0 2\n1 1 0 3\n"
+             "0 1 0 4\n4 0 1 2 3\n");
+  const CloudFile f = readCloudFile(path);
+  ASSERT_EQ(f.points.size(), 4u);
+  ASSERT_TRUE(f.hasFaces());
+  ASSERT_EQ(f.mesh.triangles.size(), 2u);
+  const PointCloud s = sampleMeshSurface(f.mesh, 1000, 3);
+  for (const auto& p : s) {
+    EXPECT_GE(p.x(), 0.f);
+    EXPECT_LE(p.x(), 1.f);
+    EXPECT_GE(p.y(), 0.f);
+    EXPECT_LE(p.y(), 1.f);
+    EXPECT_EQ(p.z(), 0.f);
+  }
+  std::remove(path.c_str());
+}
+
+TEST(PointCloudIo, PlyBinaryBigEndianVertices) {
+  std::string body;
+  for (float v : {1.5f, -2.f, 3.25f}) {
+    uint32_t bits;
+    std::memcpy(&bits, &v, 4);
+    for (int k = 3; k >= 0; --k) body += static_cast<char>((bits >> (8 * k)) & 0xFF);
+  }
+  const std::string path = tempPath("be.ply");
+  writeBytes(path, "ply\nformat binary_big_endian 1.0\nelement vertex 1\nproperty float x\n"
+                   "property float y\nproperty float z\nend_header\n" + body);
+  const CloudFile f = readCloudFile(path);
+  ASSERT_EQ(f.points.size(), 1u);
+  EXPECT_EQ(f.points[0], Eigen::Vector3f(1.5f, -2.f, 3.25f));
+  EXPECT_FALSE(f.hasFaces());
+  std::remove(path.c_str());
+}
+
+TEST(PointCloudIo, BadFilesAreClearErrors) {
+  EXPECT_THROW(readCloudFile(tempPath("missing.pcd")), FitError);
+  const std::string empty = tempPath("empty.pcd");
+  writeBytes(empty, "");
+  try {
+    readCloudFile(empty);
+    FAIL() << "empty file accepted";
+  } catch (const FitError& e) {
+    EXPECT_NE(std::string(e.what()).find(empty), std::string::npos) << e.what();
+  }
+  const std::string trunc = tempPath("trunc.pcd");
+  writeBytes(trunc, "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 10\nHEIGHT 1\nDATA binary\n" +
+                        floatBytes({1, 2, 3}));
+  EXPECT_THROW(readPcd(trunc), FitError);
+  const std::string badface = tempPath("badface.ply");
+  writeBytes(badface,
+             "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+             "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+             "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
+  EXPECT_THROW(readPly(badface), FitError);
+  EXPECT_THROW(readCloudFile(tempPath("cloud.las")), FitError);
+  for (const auto& p : {empty, trunc, badface}) std::remove(p.c_str());
+}
+
+TEST(PointCloudIo, ReplicaMeshWhenAvailable) {
+  const char* env = std::getenv("GMM_MCL_DATASETS");
+  const char* def = std::getenv("GMM_MCL_DATASETS_DEFAULT");
+  const std::string root = env ? env : (def ? def : GMM_MCL_TEST_DATASETS);
+  const std::string path = root + "/replica_office0/office0_mesh.ply";
+  if (!std::ifstream(path)) GTEST_SKIP() << "data set not found: " << path;
+  const CloudFile f = readCloudFile(path);
+  EXPECT_EQ(f.points.size(), 25149u);
+  EXPECT_EQ(f.mesh.triangles.size(), 50000u);
+}
+
+TEST(CloudFilter, VoxelCentroidsAndCrops) {
+  const PointCloud pts = {{0.01f, 0.01f, 0.01f}, {0.03f, 0.03f, 0.03f}, {0.5f, 0.5f, 0.5f},
+                          {NAN, 0.f, 0.f}, {5.f, 5.f, 5.f}};
+  CloudFilterParams p;
+  p.use_box = true;
+  p.box_min_m.setConstant(-1.f);
+  p.box_max_m.setConstant(1.f);
+  p.voxel_m = 0.1f;
+  CloudFilterStats st;
+  const PointCloud out = filterCloud(pts, p, &st);
+  EXPECT_EQ(st.non_finite, 1u);
+  EXPECT_EQ(st.cropped, 1u);
+  ASSERT_EQ(out.size(), 2u);
+  EXPECT_NEAR(out[0].x(), 0.02f, 1e-6f);
+  EXPECT_NEAR(out[1].x(), 0.5f, 1e-6f);
+  CloudFilterParams r;
+  r.min_range_m = 0.1f;
+  r.max_range_m = 1.0f;
+  EXPECT_EQ(filterCloud(pts, r).size(), 1u);
+  CloudFilterParams bad;
+  bad.voxel_m = -1.f;
+  EXPECT_FALSE(bad.validate().empty());
+  EXPECT_TRUE(CloudFilterParams().validate().empty());
+}
+
+TEST(MeshSampling, AreaUniform) {
+  TriangleMesh mesh;
+  mesh.vertices_m = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {10, 0, 0}, {13, 0, 0}, {10, 1, 0},
+                     {20, 0, 0}, {20, 0, 0}, {20, 0, 0}};  // areas 0.5, 1.5 and degenerate 0
+  mesh.triangles = {{0, 1, 2}, {3, 4, 5}, {6, 7, 8}};
+  const PointCloud s = sampleMeshSurface(mesh, 40000, 11);
+  size_t small = 0, degenerate = 0;
+  for (const auto& p : s) {
+    small += p.x() < 5.f ? 1 : 0;
+    degenerate += p.x() >= 19.f ? 1 : 0;
+  }
+  EXPECT_EQ(degenerate, 0u);
+  EXPECT_NEAR(static_cast<double>(small) / s.size(), 0.25, 0.01);
+  EXPECT_EQ(sampleMeshSurface(mesh, 100, 11), sampleMeshSurface(mesh, 100, 11));
+  TriangleMesh flat;
+  flat.vertices_m = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}};
+  flat.triangles = {{0, 1, 2}};
+  EXPECT_THROW(sampleMeshSurface(flat, 10, 1), FitError);
+  EXPECT_THROW(sampleMeshSurface(TriangleMesh(), 10, 1), FitError);
+}
+
+}  // namespace
+}  // namespace gmm_mcl
