@@ -1,0 +1,26 @@
+// CPU likelihood backend: OpenMP over particles, a vectorised float32 kernel per patch.
+#pragma once
+
+#include "gmm_mcl/backend/likelihood_backend_base.h"
+#include "gmm_mcl/measurement/likelihood.h"
+
+namespace gmm_mcl {
+
+class CpuBackend : public LikelihoodBackend {
+ public:
+  // num_threads <= 0: OpenMP's default.
+  explicit CpuBackend(int num_threads = 0) : num_threads_(num_threads) {}
+  std::string name() const override { return "cpu"; }
+  void setMap(const GmmMap& map) override { components_ = map.packed(); }
+  void evaluate(const DepthFrame& frame, const std::vector<RigidTransformF>& T_map_cam,
+                const MeasurementParams& params, BackendOutput* out) override;
+  void membership(const DepthFrame& frame, const RigidTransformF& T_map_cam,
+                  const MeasurementParams& params, PatchMembership* out) override;
+
+ private:
+  int num_threads_;
+  std::vector<ComponentF> components_;
+  std::vector<LikelihoodScratch> scratch_;  // one per thread
+};
+
+}  // namespace gmm_mcl

@@ -1,0 +1,101 @@
+// The localizer: owns the predict / update / resample / recover / reset policy. Inputs are
+// plain values (no ROS); the nodelet, replay and demo all drive it through step().
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "gmm_mcl/backend/likelihood_backend_base.h"
+#include "gmm_mcl/camera/depth_image.h"
+#include "gmm_mcl/filter/particle_filter.h"
+
+namespace gmm_mcl {
+
+enum class StepStatus {
+  kOk,                 // predicted and updated
+  kPredictOnly,        // no depth frame given: predicted only
+  kNoValidPixels,      // frame had no usable pixel: predicted only, weights kept
+  kBadFrame,           // frame could not be used (size mismatch, layout): predicted only
+  kDegenerateWeights,  // every likelihood non-finite or every weight zero: weights kept
+  kBackendError,       // the backend failed: weights kept
+  kTimeJumpBack,       // stamp went backwards: filter re-initialised from the initial region
+};
+const char* stepStatusName(StepStatus status);
+
+struct StepInput {
+  double stamp_s = 0.0;
+  bool has_odometry = false;
+  Eigen::Isometry3d T_odom_base = Eigen::Isometry3d::Identity();
+  bool has_attitude = false;  // roll/pitch from the IMU; else from odometry orientation
+  double roll_rad = 0.0;
+  double pitch_rad = 0.0;
+  const DepthImage* depth = nullptr;  // nullptr: predict only
+  Intrinsics intrinsics;
+};
+
+struct StepTimings {
+  double predict_ms = 0, frame_prep_ms = 0, projection_membership_ms = 0, likelihood_ms = 0,
+         weights_ms = 0, resample_ms = 0, estimate_ms = 0, total_ms = 0;
+};
+
+struct StepResult {
+  StepStatus status = StepStatus::kOk;
+  std::string message;        // why, for any status but kOk
+  bool odometry_jump = false;  // an odometry step over max_odometry_step_m was ignored
+  bool resampled = false;
+  int reinitialised = 0;      // augmented-MCL reinitialised particles
+  PoseEstimate estimate;
+  double neff = 0.0;          // effective sample size after the update (before resampling)
+  int pixels = 0;             // used pixels
+  double best_loglik_per_pixel = 0.0;
+  double mean_loglik_per_pixel = 0.0;  // weighted mean over particles
+  double floor_hit_fraction = 0.0;     // of used pixels, at the best particle
+  double relevant_per_patch = 0.0;     // average members per patch with pixels
+  long long evaluations = 0;
+  StepTimings timings;
+};
+
+class Localizer {
+ public:
+  // Validates params (throws std::invalid_argument naming every fault), initialises uniformly
+  // over params.init. backend == nullptr: made from params.backend (CPU fallback).
+  Localizer(const LocalizerParams& params, GmmMap map,
+            std::unique_ptr<LikelihoodBackend> backend = nullptr);
+
+  StepResult step(const StepInput& input);
+
+  // Uniform over a region (e.g. global localisation over mapBounds()); becomes the region that
+  // recovery draws from.
+  void reset(const InitRegion& region);
+  // Gaussian around a pose (e.g. /initialpose), sigmas for x, y, z, yaw.
+  void resetToPose(const Particle& pose, const Eigen::Vector4d& sigma);
+  // The map's bounding box (means, padded by 3 sigma) with the full yaw range.
+  InitRegion mapBounds() const;
+
+  const ParticleFilter& filter() const { return filter_; }
+  const GmmMap& map() const { return map_; }
+  const LocalizerParams& params() const { return params_; }
+  LikelihoodBackend& backend() { return *backend_; }
+  const std::string& backendWarning() const { return backend_warning_; }
+  Eigen::Isometry3d meanPose() const;
+  double rollRad() const { return roll_rad_; }
+  double pitchRad() const { return pitch_rad_; }
+
+ private:
+  LocalizerParams params_;
+  GmmMap map_;
+  std::unique_ptr<LikelihoodBackend> backend_;
+  std::string backend_warning_;
+  ParticleFilter filter_;
+  InitRegion region_;
+  bool have_odometry_ = false;
+  Eigen::Isometry3d last_odom_ = Eigen::Isometry3d::Identity();
+  bool have_stamp_ = false;
+  double last_stamp_s_ = 0.0;
+  double roll_rad_ = 0.0;
+  double pitch_rad_ = 0.0;
+  std::vector<RigidTransformF> poses_;
+  BackendOutput output_;
+};
+
+}  // namespace gmm_mcl

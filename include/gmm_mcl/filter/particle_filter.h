@@ -1,0 +1,66 @@
+// Particle set over (x, y, z, yaw) with seeded sampling, prediction, weighting, resampling,
+// augmented-MCL reinitialisation and the pose estimate.
+#pragma once
+
+#include <random>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "gmm_mcl/filter/params.h"
+#include "gmm_mcl/filter/pose.h"
+#include "gmm_mcl/filter/resampling.h"
+
+namespace gmm_mcl {
+
+// Mean base pose and its covariance in ROS order (x, y, z, roll, pitch, yaw).
+struct PoseEstimate {
+  Particle mean;
+  Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
+};
+
+class ParticleFilter {
+ public:
+  explicit ParticleFilter(const ParticleFilterParams& params);  // throws std::invalid_argument
+
+  const ParticleFilterParams& params() const { return params_; }
+  const std::vector<Particle>& particles() const { return particles_; }
+  const std::vector<double>& weights() const { return weights_; }
+  int size() const { return static_cast<int>(particles_.size()); }
+
+  // Uniform over the region; equal weights; resets the augmented-MCL averages.
+  void initialiseUniform(const InitRegion& region);
+  // Gaussian around a pose (sigmas for x, y, z, yaw); equal weights.
+  void initialiseGaussian(const Particle& mean, const Eigen::Vector4d& sigma);
+  // Applies the odometry delta in each particle's yaw frame, then process noise.
+  void predict(const PlanarDelta& delta);
+
+  // Turns per-particle log-likelihoods into weights (multiplied into the current ones) with the
+  // configured mode. Non-finite entries get zero weight. Returns false, leaving the weights
+  // unchanged, when no entry is finite or all weights would vanish.
+  bool updateWeights(const std::vector<double>& log_likelihood, int pixels);
+  double effectiveSampleSize() const { return gmm_mcl::effectiveSampleSize(weights_); }
+  // Resamples when Neff < resample_neff_fraction * N; returns whether it did.
+  bool resampleIfNeeded();
+  void resample();
+  // Augmented MCL: feeds the frame's average per-pixel likelihood and reinitialises that many
+  // randomly chosen particles from `region`. Returns the count.
+  int recover(const std::vector<double>& log_likelihood, int pixels, const InitRegion& region);
+
+  PoseEstimate estimate() const;
+  // Overrides the particle set (tests, tools); weights normalised here.
+  void setParticles(const std::vector<Particle>& particles, const std::vector<double>& weights);
+
+ private:
+  Particle sampleUniform(const InitRegion& region);
+
+  ParticleFilterParams params_;
+  std::mt19937_64 rng_;
+  std::vector<Particle> particles_;
+  std::vector<double> weights_;
+  AugmentedMcl augmented_;
+  std::vector<int> indices_;
+  std::vector<Particle> swap_;
+};
+
+}  // namespace gmm_mcl

@@ -1,0 +1,41 @@
+// 4-DoF particle state (x, y, z, yaw of the base in the map) and rotation helpers.
+// Roll and pitch come from the attitude input and are shared by all particles (DESIGN.md).
+#pragma once
+
+#include <Eigen/Geometry>
+
+#include "gmm_mcl/common/types.h"
+
+namespace gmm_mcl {
+
+struct Particle {
+  double x_m = 0.0;
+  double y_m = 0.0;
+  double z_m = 0.0;
+  double yaw_rad = 0.0;
+};
+
+// Wraps an angle into [-pi, pi).
+double wrapAngle(double a_rad);
+// R = Rz(yaw) * Ry(pitch) * Rx(roll) (REP-103 fixed-axis roll, pitch, yaw).
+Eigen::Matrix3d rotationFromRpy(double roll_rad, double pitch_rad, double yaw_rad);
+// Inverse of rotationFromRpy (pitch in [-pi/2, pi/2]).
+void rpyFromRotation(const Eigen::Matrix3d& R, double* roll_rad, double* pitch_rad,
+                     double* yaw_rad);
+double yawFromRotation(const Eigen::Matrix3d& R);
+
+// Full 6-DoF base pose of a particle with the shared roll and pitch.
+Eigen::Isometry3d particleToPose(const Particle& p, double roll_rad, double pitch_rad);
+Particle poseToParticle(const Eigen::Isometry3d& T_map_base);
+
+RigidTransformF toRigidF(const Eigen::Isometry3d& T);
+
+// Motion between two odometry poses expressed in the gravity-aligned frame of the first
+// (rotated by its yaw only), so that it applies to a particle regardless of roll and pitch.
+struct PlanarDelta {
+  Eigen::Vector3d translation_m = Eigen::Vector3d::Zero();
+  double yaw_rad = 0.0;
+};
+PlanarDelta odometryDelta(const Eigen::Isometry3d& T_odom_prev, const Eigen::Isometry3d& T_odom_cur);
+
+}  // namespace gmm_mcl

@@ -1,0 +1,49 @@
+// Frame log-likelihood of a camera pose (paper Eq. approx_likelihood_3d) with the floor of
+// MeasurementParams: per pixel ln(exp(floor) + sum over relevant components of lambda_j N_j).
+#pragma once
+
+#include <Eigen/Geometry>
+#include <vector>
+
+#include "gmm_mcl/camera/depth_frame.h"
+#include "gmm_mcl/map/gmm_map.h"
+#include "gmm_mcl/measurement/membership.h"
+
+namespace gmm_mcl {
+
+struct FrameLikelihood {
+  double log_likelihood = 0.0;  // nats, sum over used pixels
+  int pixels = 0;               // used pixels
+  int floor_hits = 0;           // pixels whose mixture density is below exp(floor)
+  long long evaluations = 0;    // Gaussian evaluations performed
+};
+
+// Reusable per-thread buffers of the CPU evaluation (no allocation per call once warm).
+struct LikelihoodScratch {
+  std::vector<ProjectedComponent> projected;
+  std::vector<char> valid;
+  PatchMembership membership;
+  std::vector<float> values;  // component x pixel-chunk log-densities
+};
+
+// Pixels evaluated together in the CPU kernel (one chunk of a patch).
+constexpr int kPixelChunk = 64;
+
+// Approximate likelihood with the given membership (float32 kernel, double accumulation).
+// T_map_cam maps camera points into the map frame.
+FrameLikelihood frameLogLikelihood(const std::vector<ComponentF>& components,
+                                   const DepthFrame& frame, const RigidTransformF& T_map_cam,
+                                   const PatchMembership& membership, float floor_log_density,
+                                   std::vector<float>* values);
+
+// Membership plus approximate likelihood for one pose: what a backend computes per particle.
+FrameLikelihood poseLogLikelihood(const std::vector<ComponentF>& components,
+                                  const DepthFrame& frame, const RigidTransformF& T_map_cam,
+                                  const MeasurementParams& params, LikelihoodScratch* scratch);
+
+// Exact reference: every pixel against every component, in double precision.
+FrameLikelihood exactFrameLogLikelihood(const GmmMap& map, const DepthFrame& frame,
+                                        const Eigen::Isometry3d& T_map_cam,
+                                        float floor_log_density);
+
+}  // namespace gmm_mcl

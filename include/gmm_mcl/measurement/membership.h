@@ -1,0 +1,37 @@
+// Patch membership (paper Sec. Fast Localization): component i is relevant to patch p when the
+// patch centre lies in the 3-sigma ellipse of its projection inflated by half the patch diagonal.
+#pragma once
+
+#include <vector>
+
+#include "gmm_mcl/camera/depth_frame.h"
+#include "gmm_mcl/measurement/measurement_params.h"
+#include "gmm_mcl/measurement/projection.h"
+
+namespace gmm_mcl {
+
+// Relevant components per patch, compressed rows: patch p's components (ascending index) are
+// comps[begin[p] .. begin[p + 1]).
+struct PatchMembership {
+  std::vector<int> begin;
+  std::vector<int> comps;
+  int countFor(int patch) const { return begin[patch + 1] - begin[patch]; }
+};
+
+// Half the diagonal of a square patch, the inflation of every ellipse (px).
+inline float patchInflation(int patch_size_px) { return 0.70710678f * patch_size_px; }
+
+// Projects every component for one camera pose and fills the membership table.
+// `projected` and `valid` are scratch (resized here); T_cam_map maps map points into the camera.
+void computeMembership(const std::vector<ComponentF>& components, const RigidTransformF& T_cam_map,
+                       const Intrinsics& K, const PatchGrid& grid, const MeasurementParams& params,
+                       std::vector<ProjectedComponent>* projected, std::vector<char>* valid,
+                       PatchMembership* out);
+
+// Brute-force reference: tests every (patch, component) pair with ellipseContains.
+void computeMembershipBruteForce(const std::vector<ComponentF>& components,
+                                 const RigidTransformF& T_cam_map, const Intrinsics& K,
+                                 const PatchGrid& grid, const MeasurementParams& params,
+                                 PatchMembership* out);
+
+}  // namespace gmm_mcl

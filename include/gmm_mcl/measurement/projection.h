@@ -1,0 +1,96 @@
+// Projection of a 3D GMM component into the image (paper Eq. proj) and the inflated 3-sigma
+// ellipse test of patch membership. Shared by the CPU and CUDA backends.
+#pragma once
+
+#include <math.h>
+
+#include "gmm_mcl/common/types.h"
+
+namespace gmm_mcl {
+
+// 2D Gaussian of a projected component plus its inflated membership ellipse in the form
+// (c - mean)^T Q (c - mean) <= 1, and the half-extent of that ellipse's bounding box.
+struct ProjectedComponent {
+  float u_px, v_px;        // pi(T_cam_map mu)
+  float cov_uu, cov_uv, cov_vv;  // J R Sigma R^T J^T (px^2)
+  float q_uu, q_uv, q_vv;  // quadratic form of the inflated ellipse (1/px^2)
+  float half_w_px, half_h_px;  // bounding-box half extent of the inflated ellipse
+  float depth_m;           // z of the mean in the camera frame
+};
+
+// Projects component c (map frame) seen from a camera at T_cam_map. Returns false when the
+// mean is behind the camera or nearer than min_depth_m (the component is dropped).
+// sigma_bound: ellipse radius in standard deviations (3); inflate_px: added to both semi-axes
+// (half the patch diagonal).
+GMM_MCL_HD bool projectComponent(const ComponentF& c, const RigidTransformF& T_cam_map,
+                                 const Intrinsics& K, float min_depth_m, float sigma_bound,
+                                 float inflate_px, ProjectedComponent* out) {
+  float m[3];
+  transformPoint(T_cam_map, c.mean_m, m);
+  if (!(m[2] >= min_depth_m)) return false;
+  const float* R = T_cam_map.R;
+  const float* S = c.cov_m2;  // xx xy xz yy yz zz
+  // A = R * S (3x3), then C = A * R^T (symmetric camera-frame covariance).
+  float A[9];
+  for (int r = 0; r < 3; ++r) {
+    const float r0 = R[r * 3 + 0], r1 = R[r * 3 + 1], r2 = R[r * 3 + 2];
+    A[r * 3 + 0] = r0 * S[0] + r1 * S[1] + r2 * S[2];
+    A[r * 3 + 1] = r0 * S[1] + r1 * S[3] + r2 * S[4];
+    A[r * 3 + 2] = r0 * S[2] + r1 * S[4] + r2 * S[5];
+  }
+  float C[6];  // xx xy xz yy yz zz
+  C[0] = A[0] * R[0] + A[1] * R[1] + A[2] * R[2];
+  C[1] = A[0] * R[3] + A[1] * R[4] + A[2] * R[5];
+  C[2] = A[0] * R[6] + A[1] * R[7] + A[2] * R[8];
+  C[3] = A[3] * R[3] + A[4] * R[4] + A[5] * R[5];
+  C[4] = A[3] * R[6] + A[4] * R[7] + A[5] * R[8];
+  C[5] = A[6] * R[6] + A[7] * R[7] + A[8] * R[8];
+  // Pinhole Jacobian at the mean: J = [[fx/z, 0, -fx x/z^2], [0, fy/z, -fy y/z^2]].
+  const float iz = 1.f / m[2];
+  const float j00 = K.fx_px * iz, j02 = -K.fx_px * m[0] * iz * iz;
+  const float j11 = K.fy_px * iz, j12 = -K.fy_px * m[1] * iz * iz;
+  // Sigma2 = J C J^T.
+  const float suu = j00 * j00 * C[0] + 2.f * j00 * j02 * C[2] + j02 * j02 * C[5];
+  const float suv = j00 * j11 * C[1] + j00 * j12 * C[2] + j02 * j11 * C[4] + j02 * j12 * C[5];
+  const float svv = j11 * j11 * C[3] + 2.f * j11 * j12 * C[4] + j12 * j12 * C[5];
+  out->u_px = K.cx_px + K.fx_px * m[0] * iz;
+  out->v_px = K.cy_px + K.fy_px * m[1] * iz;
+  out->cov_uu = suu;
+  out->cov_uv = suv;
+  out->cov_vv = svv;
+  out->depth_m = m[2];
+  // Eigen-decomposition of the symmetric 2x2 covariance.
+  const float half_tr = 0.5f * (suu + svv);
+  const float diff = 0.5f * (suu - svv);
+  const float rad = sqrtf(diff * diff + suv * suv);
+  const float l1 = fmaxf(half_tr + rad, 0.f);
+  const float l2 = fmaxf(half_tr - rad, 0.f);
+  // Unit eigenvector of l1 (the major axis).
+  float e1u, e1v;
+  if (rad > 0.f) {
+    const float ang = 0.5f * atan2f(suv, diff);
+    e1u = cosf(ang);
+    e1v = sinf(ang);
+  } else {
+    e1u = 1.f;
+    e1v = 0.f;
+  }
+  const float a = sigma_bound * sqrtf(l1) + inflate_px;  // semi-axis along e1
+  const float b = sigma_bound * sqrtf(l2) + inflate_px;  // semi-axis along e2 = (-e1v, e1u)
+  const float ia2 = 1.f / (a * a), ib2 = 1.f / (b * b);
+  out->q_uu = e1u * e1u * ia2 + e1v * e1v * ib2;
+  out->q_uv = e1u * e1v * (ia2 - ib2);
+  out->q_vv = e1v * e1v * ia2 + e1u * e1u * ib2;
+  out->half_w_px = sqrtf(a * a * e1u * e1u + b * b * e1v * e1v);
+  out->half_h_px = sqrtf(a * a * e1v * e1v + b * b * e1u * e1u);
+  return true;
+}
+
+// True when pixel point (u, v) lies within or on the inflated ellipse.
+GMM_MCL_HD bool ellipseContains(const ProjectedComponent& p, float u, float v) {
+  const float du = u - p.u_px;
+  const float dv = v - p.v_px;
+  return p.q_uu * du * du + 2.f * p.q_uv * du * dv + p.q_vv * dv * dv <= 1.f;
+}
+
+}  // namespace gmm_mcl

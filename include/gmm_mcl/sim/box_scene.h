@@ -1,0 +1,57 @@
+// A small analytic indoor scene (a room with box furniture) for tests and the offline demo:
+// exact ray casting for depth, a GMM made by tiling every surface with flat Gaussians, a smooth
+// drone-like trajectory. Deliberately asymmetric so that the pose is observable.
+#pragma once
+
+#include <random>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "gmm_mcl/camera/depth_image.h"
+#include "gmm_mcl/map/gmm_map.h"
+
+namespace gmm_mcl {
+namespace sim {
+
+struct Box {
+  Eigen::Vector3d min_m;
+  Eigen::Vector3d max_m;
+};
+
+struct BoxScene {
+  Box room;                 // seen from inside
+  std::vector<Box> blocks;  // solid furniture, seen from outside
+};
+
+// 8 m x 6 m x 3 m room with five blocks of different sizes, none symmetric to another.
+BoxScene makeDefaultScene();
+
+// Distance along a unit ray to the first surface; +inf when nothing is hit.
+double castRay(const BoxScene& scene, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir);
+
+struct DepthNoise {
+  double sigma_at_1m_m = 0.0;  // axial noise sigma = sigma_at_1m * z^2 (structured-light-like)
+  double dropout = 0.0;        // probability that a pixel is missing
+};
+
+// Renders z-depth (optical frame, pixel centres at integer coordinates) as 16UC1 millimetres
+// (0 = no return) or 32FC1 metres (NaN = no return). Returns beyond max_range_m are missing.
+DepthImage renderDepth(const BoxScene& scene, const Intrinsics& K,
+                       const Eigen::Isometry3d& T_map_cam, DepthEncoding encoding,
+                       double max_range_m, const DepthNoise& noise = DepthNoise(),
+                       std::mt19937_64* rng = nullptr);
+
+// Tiles every visible face with flat Gaussians on a grid of about spacing_m (in-plane sigma
+// 0.45 x the cell size, normal sigma normal_sigma_m), weights proportional to cell area.
+GmmMap tileScene(const BoxScene& scene, double spacing_m, double normal_sigma_m);
+
+// A smooth 6-DoF trajectory of the base through the room (x forward, z up; small roll/pitch),
+// n poses at 30 Hz, starting near `start`.
+std::vector<Eigen::Isometry3d> makeTrajectory(int n);
+
+// Fixed base -> camera optical frame: camera looking along base x, slightly down.
+Eigen::Isometry3d defaultBaseToCamera();
+
+}  // namespace sim
+}  // namespace gmm_mcl

@@ -1,0 +1,79 @@
+#include "gmm_mcl/filter/params.h"
+
+#include <cmath>
+#include <sstream>
+
+namespace gmm_mcl {
+
+bool parseWeightingMode(const std::string& name, WeightingMode* out) {
+  if (name == "paper") {
+    *out = WeightingMode::kPaper;
+    return true;
+  }
+  if (name == "tempered") {
+    *out = WeightingMode::kTempered;
+    return true;
+  }
+  return false;
+}
+
+const char* weightingModeName(WeightingMode mode) {
+  return mode == WeightingMode::kPaper ? "paper" : "tempered";
+}
+
+std::string InitRegion::validate() const {
+  std::ostringstream err;
+  if (!centre_m.allFinite()) err << "init centre must be finite; ";
+  if (!half_extent_m.allFinite() || (half_extent_m.array() < 0.0).any()) {
+    err << "init half extents must be finite and >= 0; ";
+  }
+  if (!std::isfinite(yaw_centre_rad)) err << "init yaw centre must be finite; ";
+  if (!(yaw_half_range_rad >= 0.0) || yaw_half_range_rad > M_PI) {
+    err << "init yaw half range must be in [0, pi] (got " << yaw_half_range_rad << "); ";
+  }
+  return err.str();
+}
+
+std::string ParticleFilterParams::validate() const {
+  std::ostringstream err;
+  auto positive = [&err](const char* name, double v) {
+    if (!(v > 0.0) || !std::isfinite(v)) err << name << " must be positive (got " << v << "); ";
+  };
+  auto non_negative = [&err](const char* name, double v) {
+    if (!(v >= 0.0) || !std::isfinite(v)) err << name << " must be >= 0 (got " << v << "); ";
+  };
+  if (num_particles < 1) err << "num_particles must be >= 1 (got " << num_particles << "); ";
+  non_negative("sigma_translation_m", sigma_translation_m);
+  non_negative("sigma_yaw_rad", sigma_yaw_rad);
+  non_negative("alpha_slow", alpha_slow);
+  non_negative("alpha_fast", alpha_fast);
+  if (alpha_fast > 1.0 || alpha_slow > 1.0) err << "alpha_slow and alpha_fast must be <= 1; ";
+  if (alpha_slow > 0.0 && !(alpha_slow < alpha_fast)) {
+    err << "alpha_slow (" << alpha_slow << ") must be smaller than alpha_fast (" << alpha_fast
+        << "), or 0 to disable recovery; ";
+  }
+  if (!(recovery_threshold > 0.0 && recovery_threshold <= 1.0)) {
+    err << "recovery_threshold must be in (0, 1] (got " << recovery_threshold << "); ";
+  }
+  positive("temperature", temperature);
+  non_negative("paper_min_nll_per_pixel", paper_min_nll_per_pixel);
+  if (resample_groups < 1 || resample_groups > num_particles) {
+    err << "resample_groups must be in [1, num_particles] (got " << resample_groups << "); ";
+  }
+  if (!(resample_neff_fraction >= 0.0 && resample_neff_fraction <= 1.0)) {
+    err << "resample_neff_fraction must be in [0, 1] (got " << resample_neff_fraction << "); ";
+  }
+  non_negative("attitude_sigma_rad", attitude_sigma_rad);
+  return err.str();
+}
+
+std::string LocalizerParams::validate() const {
+  std::string err = filter.validate() + frame.validate() + measurement.validate() +
+                    init.validate();
+  if (!T_base_cam.matrix().allFinite()) err += "T_base_cam must be finite; ";
+  if (!(max_odometry_step_m > 0.0)) err += "max_odometry_step_m must be positive; ";
+  if (backend != "cpu" && backend != "cuda") err += "backend must be 'cpu' or 'cuda' (got '" + backend + "'); ";
+  return err;
+}
+
+}  // namespace gmm_mcl

@@ -1,0 +1,181 @@
+#include "gmm_mcl/filter/particle_filter.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <stdexcept>
+
+namespace gmm_mcl {
+
+ParticleFilter::ParticleFilter(const ParticleFilterParams& params)
+    : params_(params), rng_(params.seed), augmented_(params.alpha_slow, params.alpha_fast, params.recovery_threshold) {
+  const std::string err = params.validate();
+  if (!err.empty()) throw std::invalid_argument("particle filter parameters: " + err);
+  particles_.resize(params.num_particles);
+  weights_.assign(params.num_particles, 1.0 / params.num_particles);
+}
+
+Particle ParticleFilter::sampleUniform(const InitRegion& r) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  Particle p;
+  p.x_m = r.centre_m.x() + r.half_extent_m.x() * u(rng_);
+  p.y_m = r.centre_m.y() + r.half_extent_m.y() * u(rng_);
+  p.z_m = r.centre_m.z() + r.half_extent_m.z() * u(rng_);
+  p.yaw_rad = wrapAngle(r.yaw_centre_rad + r.yaw_half_range_rad * u(rng_));
+  return p;
+}
+
+void ParticleFilter::initialiseUniform(const InitRegion& region) {
+  for (Particle& p : particles_) p = sampleUniform(region);
+  std::fill(weights_.begin(), weights_.end(), 1.0 / particles_.size());
+  augmented_.reset();
+}
+
+void ParticleFilter::initialiseGaussian(const Particle& mean, const Eigen::Vector4d& sigma) {
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (Particle& p : particles_) {
+    p.x_m = mean.x_m + sigma[0] * g(rng_);
+    p.y_m = mean.y_m + sigma[1] * g(rng_);
+    p.z_m = mean.z_m + sigma[2] * g(rng_);
+    p.yaw_rad = wrapAngle(mean.yaw_rad + sigma[3] * g(rng_));
+  }
+  std::fill(weights_.begin(), weights_.end(), 1.0 / particles_.size());
+  augmented_.reset();
+}
+
+void ParticleFilter::predict(const PlanarDelta& delta) {
+  std::normal_distribution<double> g(0.0, 1.0);
+  const double st = params_.sigma_translation_m;
+  const double sy = params_.sigma_yaw_rad;
+  for (Particle& p : particles_) {
+    const double c = std::cos(p.yaw_rad), s = std::sin(p.yaw_rad);
+    p.x_m += c * delta.translation_m.x() - s * delta.translation_m.y() + st * g(rng_);
+    p.y_m += s * delta.translation_m.x() + c * delta.translation_m.y() + st * g(rng_);
+    p.z_m += delta.translation_m.z() + st * g(rng_);
+    p.yaw_rad = wrapAngle(p.yaw_rad + delta.yaw_rad + sy * g(rng_));
+  }
+}
+
+bool ParticleFilter::updateWeights(const std::vector<double>& ll, int pixels) {
+  const int n = size();
+  if (static_cast<int>(ll.size()) != n || pixels <= 0) return false;
+  double best = -std::numeric_limits<double>::infinity();
+  for (double l : ll) {
+    if (std::isfinite(l)) best = std::max(best, l);
+  }
+  if (!std::isfinite(best)) return false;
+  std::vector<double> w(n, 0.0);
+  if (params_.weighting == WeightingMode::kTempered) {
+    const double scale = 1.0 / (params_.temperature * pixels);
+    for (int i = 0; i < n; ++i) {
+      if (std::isfinite(ll[i])) w[i] = weights_[i] * std::exp((ll[i] - best) * scale);
+    }
+  } else {
+    // NLL_i = -L_i; guard keeps the best NLL at least the margin (see WeightingMode::kPaper).
+    const double margin = params_.paper_min_nll_per_pixel * pixels;
+    const double shift = std::max(0.0, margin - (-best));
+    const double floor_nll = std::max(margin, std::numeric_limits<double>::min());
+    for (int i = 0; i < n; ++i) {
+      if (std::isfinite(ll[i])) w[i] = weights_[i] / std::max(-ll[i] + shift, floor_nll);
+    }
+  }
+  double total = 0.0;
+  for (double v : w) total += v;
+  if (!(total > 0.0) || !std::isfinite(total)) return false;
+  for (int i = 0; i < n; ++i) weights_[i] = w[i] / total;
+  return true;
+}
+
+void ParticleFilter::resample() {
+  stratifiedLowVarianceResample(weights_, params_.resample_groups, size(), &rng_, &indices_);
+  swap_.resize(particles_.size());
+  for (size_t i = 0; i < indices_.size(); ++i) swap_[i] = particles_[indices_[i]];
+  particles_.swap(swap_);
+  std::fill(weights_.begin(), weights_.end(), 1.0 / particles_.size());
+}
+
+bool ParticleFilter::resampleIfNeeded() {
+  if (effectiveSampleSize() >= params_.resample_neff_fraction * size()) return false;
+  resample();
+  return true;
+}
+
+int ParticleFilter::recover(const std::vector<double>& ll, int pixels, const InitRegion& region) {
+  if (params_.alpha_slow <= 0.0 || pixels <= 0) return 0;
+  // Average per-pixel likelihood exp(L_i / pixels) over the particles, in log space.
+  double mx = -std::numeric_limits<double>::infinity();
+  int finite = 0;
+  for (double l : ll) {
+    if (std::isfinite(l)) {
+      mx = std::max(mx, l / pixels);
+      ++finite;
+    }
+  }
+  if (finite == 0) return 0;
+  double sum = 0.0;
+  for (double l : ll) {
+    if (std::isfinite(l)) sum += std::exp(l / pixels - mx);
+  }
+  const double average = std::exp(mx) * sum / size();
+  const int count = augmented_.update(average, size());
+  if (count == 0) return 0;
+  // Reinitialise `count` distinct, randomly chosen particles.
+  std::vector<int> order(size());
+  std::iota(order.begin(), order.end(), 0);
+  for (int k = 0; k < count; ++k) {
+    std::uniform_int_distribution<int> pick(k, size() - 1);
+    std::swap(order[k], order[pick(rng_)]);
+    particles_[order[k]] = sampleUniform(region);
+    weights_[order[k]] = 1.0 / size();  // a fresh particle carries the average weight
+  }
+  const double total = std::accumulate(weights_.begin(), weights_.end(), 0.0);
+  for (double& w : weights_) w /= total;
+  return count;
+}
+
+PoseEstimate ParticleFilter::estimate() const {
+  PoseEstimate e;
+  double sx = 0, sy = 0, sz = 0, sc = 0, ss = 0;
+  for (int i = 0; i < size(); ++i) {
+    const double w = weights_[i];
+    sx += w * particles_[i].x_m;
+    sy += w * particles_[i].y_m;
+    sz += w * particles_[i].z_m;
+    sc += w * std::cos(particles_[i].yaw_rad);
+    ss += w * std::sin(particles_[i].yaw_rad);
+  }
+  e.mean.x_m = sx;
+  e.mean.y_m = sy;
+  e.mean.z_m = sz;
+  e.mean.yaw_rad = std::atan2(ss, sc);
+  // 4x4 covariance of (x, y, z, yaw) with yaw differences wrapped, placed in ROS order.
+  Eigen::Matrix4d c = Eigen::Matrix4d::Zero();
+  for (int i = 0; i < size(); ++i) {
+    const Eigen::Vector4d d(particles_[i].x_m - sx, particles_[i].y_m - sy,
+                            particles_[i].z_m - sz,
+                            wrapAngle(particles_[i].yaw_rad - e.mean.yaw_rad));
+    c += weights_[i] * d * d.transpose();
+  }
+  const int idx[4] = {0, 1, 2, 5};
+  for (int r = 0; r < 4; ++r) {
+    for (int k = 0; k < 4; ++k) e.covariance(idx[r], idx[k]) = c(r, k);
+  }
+  const double att = params_.attitude_sigma_rad * params_.attitude_sigma_rad;
+  e.covariance(3, 3) = att;
+  e.covariance(4, 4) = att;
+  return e;
+}
+
+void ParticleFilter::setParticles(const std::vector<Particle>& particles,
+                                  const std::vector<double>& weights) {
+  if (particles.size() != weights.size() || particles.empty()) {
+    throw std::invalid_argument("setParticles: sizes differ or empty");
+  }
+  particles_ = particles;
+  const double total = std::accumulate(weights.begin(), weights.end(), 0.0);
+  weights_.resize(weights.size());
+  for (size_t i = 0; i < weights.size(); ++i) weights_[i] = weights[i] / total;
+}
+
+}  // namespace gmm_mcl

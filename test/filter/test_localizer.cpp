@@ -1,0 +1,147 @@
+#include <cmath>
+#include <limits>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "gmm_mcl/backend/cpu_backend.h"
+#include "gmm_mcl/filter/localizer.h"
+#include "test_utils/synthetic_fixtures.h"
+
+namespace gmm_mcl {
+namespace {
+
+constexpr double kConvergedErrorM = 0.05;  // issue: converges below 5 cm
+
+LocalizerParams syntheticParams(const Eigen::Isometry3d& start) {
+  LocalizerParams p;
+  p.frame.pixel_stride = 4;
+  p.frame.max_range_m = 8.f;
+  p.T_base_cam = test::world().T_base_cam;
+  const Particle s = poseToParticle(start);
+  p.init.centre_m = Eigen::Vector3d(s.x_m, s.y_m, s.z_m);
+  p.init.yaw_centre_rad = s.yaw_rad;  // 4 m cube, yaw range pi (defaults)
+  return p;
+}
+
+struct RunResult {
+  double final_error_m;
+  double final_yaw_error_rad;
+  double max_error_last_30_m;
+};
+
+RunResult runSynthetic(const LocalizerParams& params, int frames, uint64_t noise_seed) {
+  const auto& w = test::world();
+  const Intrinsics K = test::smallCamera();
+  const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(frames);
+  Localizer loc(params, w.map);
+  std::mt19937_64 rng(noise_seed);
+  std::normal_distribution<double> g(0.0, 1.0);
+  Eigen::Isometry3d odom = truth[0];
+  RunResult r{0, 0, 0};
+  for (int f = 0; f < frames; ++f) {
+    if (f > 0) {
+      Eigen::Isometry3d delta = truth[f - 1].inverse() * truth[f];
+      delta.translation() += 0.005 * Eigen::Vector3d(g(rng), g(rng), g(rng));
+      odom = odom * delta;
+    }
+    const DepthImage depth = sim::renderDepth(w.scene, K, truth[f] * w.T_base_cam,
+                                              DepthEncoding::kMono16Millimetres, 9.0,
+                                              sim::DepthNoise{0.0015, 0.02}, &rng);
+    double roll, pitch, yaw;
+    rpyFromRotation(truth[f].linear(), &roll, &pitch, &yaw);
+    StepInput in;
+    in.stamp_s = f / 30.0;
+    in.has_odometry = true;
+    in.T_odom_base = odom;
+    in.has_attitude = true;
+    in.roll_rad = roll;
+    in.pitch_rad = pitch;
+    in.depth = &depth;
+    in.intrinsics = K;
+    const StepResult res = loc.step(in);
+    EXPECT_EQ(res.status, StepStatus::kOk) << res.message;
+    const Particle gt = poseToParticle(truth[f]);
+    const Particle est = res.estimate.mean;
+    r.final_error_m = std::sqrt(std::pow(est.x_m - gt.x_m, 2) + std::pow(est.y_m - gt.y_m, 2) +
+                                std::pow(est.z_m - gt.z_m, 2));
+    r.final_yaw_error_rad = std::abs(wrapAngle(est.yaw_rad - gt.yaw_rad));
+    if (f >= frames - 30) r.max_error_last_30_m = std::max(r.max_error_last_30_m, r.final_error_m);
+  }
+  return r;
+}
+
+TEST(LocalizerTest, ConvergesFromAUniformFourMetreCube) {
+  const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(1);
+  const LocalizerParams params = syntheticParams(truth[0]);
+  const RunResult r = runSynthetic(params, 120, 11);
+  std::printf("[ measured ] final error %.3f m, yaw %.2f deg, worst of last 30 frames %.3f m\n",
+              r.final_error_m, r.final_yaw_error_rad * 180 / M_PI, r.max_error_last_30_m);
+  EXPECT_LT(r.max_error_last_30_m, kConvergedErrorM);
+  EXPECT_LT(r.final_yaw_error_rad, 0.05);
+}
+
+TEST(LocalizerTest, BadFramesKeepTheStateAndSayWhy) {
+  const auto& w = test::world();
+  const Intrinsics K = test::smallCamera();
+  LocalizerParams params = syntheticParams(test::referenceBasePose());
+  params.filter.num_particles = 200;
+  params.filter.sigma_translation_m = 0.0;
+  params.filter.sigma_yaw_rad = 0.0;
+  Localizer loc(params, w.map);
+  StepInput in;
+  in.intrinsics = K;
+  const std::vector<Particle> before = loc.filter().particles();
+
+  // NaN-only depth.
+  const DepthImage nan_img = DepthImage::fromMetres(
+      K.width_px, K.height_px,
+      std::vector<float>(K.width_px * K.height_px, std::numeric_limits<float>::quiet_NaN()));
+  in.depth = &nan_img;
+  in.stamp_s = 1.0;
+  StepResult r = loc.step(in);
+  EXPECT_EQ(r.status, StepStatus::kNoValidPixels);
+  EXPECT_NE(r.message.find("no valid depth pixel"), std::string::npos);
+  EXPECT_TRUE(r.estimate.covariance.allFinite());
+
+  // Image size not matching the camera info.
+  const DepthImage small = DepthImage::fromMetres(10, 10, std::vector<float>(100, 1.f));
+  in.depth = &small;
+  in.stamp_s = 2.0;
+  r = loc.step(in);
+  EXPECT_EQ(r.status, StepStatus::kBadFrame);
+  EXPECT_NE(r.message.find("camera info"), std::string::npos) << r.message;
+  EXPECT_EQ(loc.filter().particles().size(), before.size());
+  for (size_t i = 0; i < before.size(); ++i) ASSERT_EQ(loc.filter().particles()[i].x_m, before[i].x_m);
+
+  // Time going backwards re-initialises.
+  in.depth = nullptr;
+  in.stamp_s = 0.5;
+  r = loc.step(in);
+  EXPECT_EQ(r.status, StepStatus::kTimeJumpBack);
+  EXPECT_NE(r.message.find("time jumped back"), std::string::npos);
+
+  // An odometry jump is ignored and reported.
+  in.stamp_s = 3.0;
+  in.has_odometry = true;
+  loc.step(in);
+  in.stamp_s = 3.1;
+  in.T_odom_base.translation() = Eigen::Vector3d(50.0, 0.0, 0.0);
+  r = loc.step(in);
+  EXPECT_TRUE(r.odometry_jump);
+  EXPECT_NE(r.message.find("exceeds"), std::string::npos);
+}
+
+TEST(LocalizerTest, InvalidParametersAreRejectedAtConstruction) {
+  LocalizerParams p;
+  p.filter.num_particles = -3;
+  try {
+    Localizer loc(p, test::world().map);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("num_particles"), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace gmm_mcl
