@@ -1,11 +1,10 @@
 #include "gmm_mcl/fit/cloud_filter.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <unordered_map>
-
-#include <Eigen/Geometry>
 
 #include "gmm_mcl/fit/fit_error.h"
 #include "gmm_mcl/fit/random.h"
@@ -66,9 +65,8 @@ PointCloud filterCloud(const PointCloud& input, const CloudFilterParams& params,
       ++s.non_finite;
       continue;
     }
-    if (params.use_box &&
-        !((p.array() >= params.box_min_m.array()).all() &&
-          (p.array() <= params.box_max_m.array()).all())) {
+    if (params.use_box && !((p.array() >= params.box_min_m.array()).all() &&
+                            (p.array() <= params.box_max_m.array()).all())) {
       ++s.cropped;
       continue;
     }

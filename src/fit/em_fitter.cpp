@@ -1,16 +1,16 @@
 #include "gmm_mcl/fit/em_fitter.h"
 
+#include <omp.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <numeric>
 #include <sstream>
-
-#include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
-#include <Eigen/LU>
-#include <omp.h>
 
 #include "gmm_mcl/fit/fit_error.h"
 #include "gmm_mcl/fit/random.h"
@@ -94,8 +94,7 @@ struct Model {
       bool was_loaded = false;
       const Eigen::Matrix3d L = robustCholesky(&c.cov_m2, reg, &was_loaded);
       loaded += was_loaded ? 1 : 0;
-      const Eigen::Matrix3d A =
-          L.triangularView<Eigen::Lower>().solve(Eigen::Matrix3d::Identity());
+      const Eigen::Matrix3d A = L.triangularView<Eigen::Lower>().solve(Eigen::Matrix3d::Identity());
       eval.mx[k] = c.mean_m.x();
       eval.my[k] = c.mean_m.y();
       eval.mz[k] = c.mean_m.z();
@@ -118,11 +117,11 @@ struct PruneGrid {
   bool exact = true;
   Eigen::Vector3d origin_m = Eigen::Vector3d::Zero();
   double cell_m = 1.0;
-  std::vector<size_t> cell_begin;          // occupied cell c holds sorted points [b[c], b[c+1])
+  std::vector<size_t> cell_begin;           // occupied cell c holds sorted points [b[c], b[c+1])
   std::vector<Eigen::Vector3i> cell_index;  // integer cell coordinates of occupied cell c
-  std::vector<size_t> cand_begin;          // candidates of cell c: cand[cand_begin[c]..]
+  std::vector<size_t> cand_begin;           // candidates of cell c: cand[cand_begin[c]..]
   std::vector<int> cand;
-  std::vector<size_t> chunk_cells;         // chunk i holds cells [chunk_cells[i], [i+1])
+  std::vector<size_t> chunk_cells;  // chunk i holds cells [chunk_cells[i], [i+1])
 
   size_t cellCount() const { return cell_index.size(); }
 };
@@ -342,8 +341,7 @@ void mStep(const std::vector<double>& acc, size_t chunks, size_t n_points, doubl
     nk[k] = n;
     const Eigen::Vector3d d(s[1] / n, s[2] / n, s[3] / n);
     Eigen::Matrix3d cov;
-    cov << s[4] / n, s[5] / n, s[6] / n, s[5] / n, s[7] / n, s[8] / n, s[6] / n, s[8] / n,
-        s[9] / n;
+    cov << s[4] / n, s[5] / n, s[6] / n, s[5] / n, s[7] / n, s[8] / n, s[6] / n, s[8] / n, s[9] / n;
     cov -= d * d.transpose();
     cov.diagonal().array() += reg;
     GaussianComponent& c = model->comps[k];
@@ -382,7 +380,7 @@ inline int nearest(const Centers& c, double px, double py, double pz, double* d2
 
 void assignAll(const PointsSoA& pts, const Centers& c, std::vector<int>* labels) {
   labels->resize(pts.size());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(dynamic, 2048)
   for (long i = 0; i < static_cast<long>(pts.size()); ++i) {
     (*labels)[i] = nearest(c, pts.x[i], pts.y[i], pts.z[i], nullptr);
   }

@@ -1,5 +1,6 @@
 #include "gmm_mcl/fit/map_inspect.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -9,8 +10,6 @@
 #include <limits>
 #include <sstream>
 #include <vector>
-
-#include <Eigen/Eigenvalues>
 
 #include "gmm_mcl/fit/fit_error.h"
 
@@ -87,16 +86,15 @@ void printMapSummary(const MapSummary& s, std::ostream& out, size_t file_bytes) 
   };
   auto stat = [](const Stat& st) {
     std::ostringstream o;
-    o << std::setprecision(4) << "min " << st.min << "  median " << st.median << "  max "
-      << st.max;
+    o << std::setprecision(4) << "min " << st.min << "  median " << st.median << "  max " << st.max;
     return o.str();
   };
   out << "components        " << s.components << "\n";
   if (file_bytes > 0) out << "file size         " << file_bytes << " bytes\n";
   out << "means within      " << vec(s.mean_min_m) << " .. " << vec(s.mean_max_m) << " m\n";
   out << "3-sigma boxes     " << vec(s.extent_min_m) << " .. " << vec(s.extent_max_m) << " m\n";
-  out << "weight            " << stat(s.weight) << "  sum " << std::setprecision(7)
-      << s.weight.sum << "\n";
+  out << "weight            " << stat(s.weight) << "  sum " << std::setprecision(7) << s.weight.sum
+      << "\n";
   out << "3-sigma volume    " << stat(s.volume_m3) << "  total " << std::setprecision(4)
       << s.volume_m3.sum << " m^3\n";
   out << "smallest sigma    " << stat(s.sigma_min_m) << " m\n";

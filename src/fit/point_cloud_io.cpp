@@ -22,7 +22,8 @@ namespace {
 std::vector<uint8_t> readAll(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) fail(path, std::string("cannot open: ") + std::strerror(errno));
-  std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                             std::istreambuf_iterator<char>());
   if (in.bad()) fail(path, "read error");
   if (bytes.empty()) fail(path, "file is empty");
   return bytes;
@@ -291,8 +292,8 @@ PointCloud readPcd(const std::string& path) {
       for (int a = 0; a < 3; ++a) {
         double v;
         if (!parseDouble(t[token_index[a]], &v)) {
-          fail(path, "ascii point " + std::to_string(n) + ": bad number '" + t[token_index[a]] +
-                         "'");
+          fail(path,
+               "ascii point " + std::to_string(n) + ": bad number '" + t[token_index[a]] + "'");
         }
         out[n][a] = static_cast<float>(v);
       }
@@ -321,8 +322,8 @@ PointCloud readPcd(const std::string& path) {
       for (size_t n = 0; n < points; ++n) {
         const uint8_t* r = b.data() + pos + n * record;
         for (int a = 0; a < 3; ++a) {
-          out[n][a] = static_cast<float>(decodeScalar(r + offset[a], scalarOf(fields[xyz[a]]),
-                                                      false));
+          out[n][a] =
+              static_cast<float>(decodeScalar(r + offset[a], scalarOf(fields[xyz[a]]), false));
         }
       }
     } else {
@@ -344,8 +345,8 @@ PointCloud readPcd(const std::string& path) {
         const PcdField& f = fields[xyz[a]];
         const size_t base = field_offset[xyz[a]] * points;
         for (size_t n = 0; n < points; ++n) {
-          out[n][a] = static_cast<float>(
-              decodeScalar(raw.data() + base + n * f.size, scalarOf(f), false));
+          out[n][a] =
+              static_cast<float>(decodeScalar(raw.data() + base + n * f.size, scalarOf(f), false));
         }
       }
     }
@@ -361,11 +362,11 @@ namespace {
 
 bool plyScalar(const std::string& name, Scalar* s) {
   static const std::pair<const char*, Scalar> kTypes[] = {
-      {"char", Scalar::kI8},     {"int8", Scalar::kI8},     {"uchar", Scalar::kU8},
-      {"uint8", Scalar::kU8},    {"short", Scalar::kI16},   {"int16", Scalar::kI16},
-      {"ushort", Scalar::kU16},  {"uint16", Scalar::kU16},  {"int", Scalar::kI32},
-      {"int32", Scalar::kI32},   {"uint", Scalar::kU32},    {"uint32", Scalar::kU32},
-      {"float", Scalar::kF32},   {"float32", Scalar::kF32}, {"double", Scalar::kF64},
+      {"char", Scalar::kI8},    {"int8", Scalar::kI8},     {"uchar", Scalar::kU8},
+      {"uint8", Scalar::kU8},   {"short", Scalar::kI16},   {"int16", Scalar::kI16},
+      {"ushort", Scalar::kU16}, {"uint16", Scalar::kU16},  {"int", Scalar::kI32},
+      {"int32", Scalar::kI32},  {"uint", Scalar::kU32},    {"uint32", Scalar::kU32},
+      {"float", Scalar::kF32},  {"float32", Scalar::kF32}, {"double", Scalar::kF64},
       {"float64", Scalar::kF64}};
   for (const auto& t : kTypes) {
     if (name == t.first) {
@@ -440,10 +441,14 @@ CloudFile readPly(const std::string& path) {
       break;
     }
     if (t[0] == "format" && t.size() >= 2) {
-      if (t[1] == "ascii") format = 0;
-      else if (t[1] == "binary_little_endian") format = 1;
-      else if (t[1] == "binary_big_endian") format = 2;
-      else fail(path, "unknown PLY format '" + t[1] + "'");
+      if (t[1] == "ascii")
+        format = 0;
+      else if (t[1] == "binary_little_endian")
+        format = 1;
+      else if (t[1] == "binary_big_endian")
+        format = 2;
+      else
+        fail(path, "unknown PLY format '" + t[1] + "'");
     } else if (t[0] == "element" && t.size() == 3) {
       elements.emplace_back();
       elements.back().name = t[1];

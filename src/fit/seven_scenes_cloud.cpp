@@ -1,11 +1,10 @@
 #include "gmm_mcl/fit/seven_scenes_cloud.h"
 
+#include <Eigen/Core>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <sstream>
-
-#include <Eigen/Core>
 
 #include "gmm_mcl/camera/depth_frame.h"
 #include "gmm_mcl/camera/depth_image.h"

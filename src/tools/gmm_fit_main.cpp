@@ -1,7 +1,6 @@
 // gmm_fit: point cloud or mesh -> GMM map file (see docs/map_builder.md).
-#include <unistd.h>
-
 #include <omp.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstdio>
@@ -131,9 +130,12 @@ int main(int argc, char** argv) {
       em.reg_covar_m2 = a.number(opt);
     } else if (opt == "--init") {
       const std::string s = a.next(opt);
-      if (s == "kmeans") em.init = EmInit::kKMeans;
-      else if (s == "kmeans++" || s == "k-means++") em.init = EmInit::kKMeansPlusPlus;
-      else usageError("--init must be kmeans or kmeans++");
+      if (s == "kmeans")
+        em.init = EmInit::kKMeans;
+      else if (s == "kmeans++" || s == "k-means++")
+        em.init = EmInit::kKMeansPlusPlus;
+      else
+        usageError("--init must be kmeans or kmeans++");
     } else if (opt == "--kmeans-iter") {
       em.kmeans_iterations = static_cast<int>(a.integer(opt));
     } else if (opt == "--init-means") {
@@ -257,8 +259,7 @@ int main(int argc, char** argv) {
         char line[160];
         std::snprintf(line, sizeof(line),
                       "iter %4d/%d  mean log-lik %12.6f  %8.2f s  %6.1f comps/pt", it.iteration,
-                      em.max_iterations, it.mean_log_likelihood, it.elapsed_s,
-                      it.mean_candidates);
+                      em.max_iterations, it.mean_log_likelihood, it.elapsed_s, it.mean_candidates);
         if (tty) {
           std::cerr << "\r" << line << std::flush;
         } else {

@@ -1,11 +1,10 @@
-#include "gmm_mcl/fit/em_fitter.h"
+#include <gtest/gtest.h>
+#include <omp.h>
 
 #include <cmath>
 #include <random>
 
-#include <gtest/gtest.h>
-#include <omp.h>
-
+#include "gmm_mcl/fit/em_fitter.h"
 #include "gmm_mcl/fit/fit_error.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 
@@ -21,7 +20,7 @@ PointCloud twoBlobs(size_t n, uint32_t seed) {
   for (size_t i = 0; i < n; ++i) {
     if (i % 4 == 0) {  // weight 0.25, sigma (0.1, 0.2, 0.05) at (1, 2, 3)
       pts.emplace_back(1.f + 0.1f * g(rng), 2.f + 0.2f * g(rng), 3.f + 0.05f * g(rng));
-    } else {           // weight 0.75, isotropic 0.3 at (-2, 0, 0)
+    } else {  // weight 0.75, isotropic 0.3 at (-2, 0, 0)
       pts.emplace_back(-2.f + 0.3f * g(rng), 0.3f * g(rng), 0.3f * g(rng));
     }
   }
@@ -149,10 +148,10 @@ TEST(EmFitter, BadInputIsAClearError) {
 TEST(EmFitter, DegenerateClustersGiveValidMaps) {
   PointCloud line, plane, same, dup;
   for (int i = 0; i < 2000; ++i) {
-    line.emplace_back(0.001f * i, 0.f, 1.f);                            // collinear
-    plane.emplace_back(0.01f * (i % 50), 0.01f * (i / 50), 2.f);        // planar
-    same.emplace_back(1.f, 1.f, 1.f);                                   // one point repeated
-    dup.emplace_back(static_cast<float>(i % 3), 0.f, 0.f);               // 3 distinct points
+    line.emplace_back(0.001f * i, 0.f, 1.f);                      // collinear
+    plane.emplace_back(0.01f * (i % 50), 0.01f * (i / 50), 2.f);  // planar
+    same.emplace_back(1.f, 1.f, 1.f);                             // one point repeated
+    dup.emplace_back(static_cast<float>(i % 3), 0.f, 0.f);        // 3 distinct points
   }
   for (const PointCloud* pts : {&line, &plane, &same, &dup}) {
     EmParams p = smallParams(10);

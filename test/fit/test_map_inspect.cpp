@@ -1,13 +1,12 @@
-#include "gmm_mcl/fit/map_inspect.h"
+#include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <fstream>
 #include <sstream>
 #include <string>
 
-#include <gtest/gtest.h>
-#include <unistd.h>
-
 #include "gmm_mcl/fit/fit_error.h"
+#include "gmm_mcl/fit/map_inspect.h"
 #include "gmm_mcl/fit/point_cloud_io.h"
 
 namespace gmm_mcl {

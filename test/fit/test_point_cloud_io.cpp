@@ -1,4 +1,5 @@
-#include "gmm_mcl/fit/point_cloud_io.h"
+#include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstdio>
@@ -8,11 +9,9 @@
 #include <string>
 #include <vector>
 
-#include <gtest/gtest.h>
-#include <unistd.h>
-
 #include "gmm_mcl/fit/cloud_filter.h"
 #include "gmm_mcl/fit/fit_error.h"
+#include "gmm_mcl/fit/point_cloud_io.h"
 
 namespace gmm_mcl {
 namespace {
@@ -74,8 +73,10 @@ TEST(PointCloudIo, PcdBinaryCompressedLzf) {
   body.append(reinterpret_cast<const char*>(&usize), 4);
   body += lzf;
   const std::string path = tempPath("c.pcd");
-  writeBytes(path, "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\n"
-                   "HEIGHT 1\nPOINTS 2\nDATA binary_compressed\n" + body);
+  writeBytes(path,
+             "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\n"
+             "HEIGHT 1\nPOINTS 2\nDATA binary_compressed\n" +
+                 body);
   const PointCloud p = readPcd(path);
   ASSERT_EQ(p.size(), 2u);
   EXPECT_EQ(p[0], Eigen::Vector3f(1, 1, 1));
@@ -113,8 +114,10 @@ TEST(PointCloudIo, PlyBinaryBigEndianVertices) {
     for (int k = 3; k >= 0; --k) body += static_cast<char>((bits >> (8 * k)) & 0xFF);
   }
   const std::string path = tempPath("be.ply");
-  writeBytes(path, "ply\nformat binary_big_endian 1.0\nelement vertex 1\nproperty float x\n"
-                   "property float y\nproperty float z\nend_header\n" + body);
+  writeBytes(path,
+             "ply\nformat binary_big_endian 1.0\nelement vertex 1\nproperty float x\n"
+             "property float y\nproperty float z\nend_header\n" +
+                 body);
   const CloudFile f = readCloudFile(path);
   ASSERT_EQ(f.points.size(), 1u);
   EXPECT_EQ(f.points[0], Eigen::Vector3f(1.5f, -2.f, 3.25f));
@@ -158,8 +161,11 @@ TEST(PointCloudIo, ReplicaMeshWhenAvailable) {
 }
 
 TEST(CloudFilter, VoxelCentroidsAndCrops) {
-  const PointCloud pts = {{0.01f, 0.01f, 0.01f}, {0.03f, 0.03f, 0.03f}, {0.5f, 0.5f, 0.5f},
-                          {NAN, 0.f, 0.f}, {5.f, 5.f, 5.f}};
+  const PointCloud pts = {{0.01f, 0.01f, 0.01f},
+                          {0.03f, 0.03f, 0.03f},
+                          {0.5f, 0.5f, 0.5f},
+                          {NAN, 0.f, 0.f},
+                          {5.f, 5.f, 5.f}};
   CloudFilterParams p;
   p.use_box = true;
   p.box_min_m.setConstant(-1.f);
@@ -184,8 +190,9 @@ TEST(CloudFilter, VoxelCentroidsAndCrops) {
 
 TEST(MeshSampling, AreaUniform) {
   TriangleMesh mesh;
-  mesh.vertices_m = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {10, 0, 0}, {13, 0, 0}, {10, 1, 0},
-                     {20, 0, 0}, {20, 0, 0}, {20, 0, 0}};  // areas 0.5, 1.5 and degenerate 0
+  mesh.vertices_m = {
+      {0, 0, 0},  {1, 0, 0},  {0, 1, 0},  {10, 0, 0}, {13, 0, 0},
+      {10, 1, 0}, {20, 0, 0}, {20, 0, 0}, {20, 0, 0}};  // areas 0.5, 1.5 and degenerate 0
   mesh.triangles = {{0, 1, 2}, {3, 4, 5}, {6, 7, 8}};
   const PointCloud s = sampleMeshSurface(mesh, 40000, 11);
   size_t small = 0, degenerate = 0;

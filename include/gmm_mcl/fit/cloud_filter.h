@@ -2,10 +2,9 @@
 // sample triangle meshes.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <string>
-
-#include <Eigen/Core>
 
 #include "gmm_mcl/fit/point_cloud.h"
 
@@ -29,8 +28,8 @@ struct CloudFilterParams {
 
 struct CloudFilterStats {
   size_t input = 0;
-  size_t non_finite = 0;   // dropped NaN/Inf points
-  size_t cropped = 0;      // dropped by box or range crop
+  size_t non_finite = 0;  // dropped NaN/Inf points
+  size_t cropped = 0;     // dropped by box or range crop
   size_t output = 0;
 };
 

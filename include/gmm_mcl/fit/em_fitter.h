@@ -18,12 +18,11 @@
 // in chunk order, so a seed gives bit-identical maps for any OpenMP thread count.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <functional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "gmm_mcl/fit/point_cloud.h"
 #include "gmm_mcl/map/gmm_map.h"
@@ -37,7 +36,7 @@ enum class EmInit {
 };
 
 constexpr int kDefaultMapComponents = 1000;
-constexpr double kDefaultRegCovarM2 = 1e-6;  // scikit-learn's reg_covar default
+constexpr double kDefaultRegCovarM2 = 1e-6;   // scikit-learn's reg_covar default
 constexpr double kDefaultEmTolerance = 1e-3;  // scikit-learn's tol default (nats per point)
 
 struct EmParams {
@@ -46,23 +45,23 @@ struct EmParams {
   double tolerance = kDefaultEmTolerance;    // on the change of mean log-likelihood per point
   double reg_covar_m2 = kDefaultRegCovarM2;  // added to covariance diagonals (m^2)
   EmInit init = EmInit::kKMeans;
-  int kmeans_iterations = 10;                // Lloyd iterations after k-means++ (kKMeans)
-  size_t kmeans_max_points = 500000;         // k-means on a seeded subsample above this size
+  int kmeans_iterations = 10;                    // Lloyd iterations after k-means++ (kKMeans)
+  size_t kmeans_max_points = 500000;             // k-means on a seeded subsample above this size
   std::vector<Eigen::Vector3d> initial_means_m;  // kGivenMeans: exactly `components` means
   uint64_t seed = 1;
-  double prune_sigma = 6.0;                  // 0 = exact E-step over all components
-  double cell_size_m = 0.0;                  // pruning grid cell edge; 0 = automatic
-  int chunks = 64;                           // fixed reduction chunks (determinism)
+  double prune_sigma = 6.0;  // 0 = exact E-step over all components
+  double cell_size_m = 0.0;  // pruning grid cell edge; 0 = automatic
+  int chunks = 64;           // fixed reduction chunks (determinism)
 
   // Empty when valid, otherwise every fault found.
   std::string validate() const;
 };
 
 struct EmIteration {
-  int iteration = 0;            // 1-based; 0 = the initialisation
+  int iteration = 0;                 // 1-based; 0 = the initialisation
   double mean_log_likelihood = 0.0;  // per point, nats (density per m^3), before this M-step
-  double elapsed_s = 0.0;       // since the fit started
-  double mean_candidates = 0.0;  // components evaluated per point (pruning effect)
+  double elapsed_s = 0.0;            // since the fit started
+  double mean_candidates = 0.0;      // components evaluated per point (pruning effect)
 };
 
 struct EmResult {

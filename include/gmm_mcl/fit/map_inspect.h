@@ -1,10 +1,9 @@
 // Map inspection: summary statistics and k-sigma ellipsoid export (PLY mesh or CSV) for viewing.
 #pragma once
 
+#include <Eigen/Core>
 #include <ostream>
 #include <string>
-
-#include <Eigen/Core>
 
 #include "gmm_mcl/map/gmm_map.h"
 
@@ -16,15 +15,15 @@ struct Stat {
 
 struct MapSummary {
   size_t components = 0;
-  Eigen::Vector3d mean_min_m = Eigen::Vector3d::Zero();      // bounds of the means
+  Eigen::Vector3d mean_min_m = Eigen::Vector3d::Zero();  // bounds of the means
   Eigen::Vector3d mean_max_m = Eigen::Vector3d::Zero();
-  Eigen::Vector3d extent_min_m = Eigen::Vector3d::Zero();    // bounds of the 3-sigma boxes
+  Eigen::Vector3d extent_min_m = Eigen::Vector3d::Zero();  // bounds of the 3-sigma boxes
   Eigen::Vector3d extent_max_m = Eigen::Vector3d::Zero();
   Stat weight;
-  Stat volume_m3;        // 3-sigma ellipsoid volumes, 4/3 pi 27 sqrt(det Sigma)
-  Stat sigma_min_m;      // smallest standard deviation (principal axis) per component
-  Stat sigma_max_m;      // largest
-  Stat condition;        // largest / smallest covariance eigenvalue
+  Stat volume_m3;    // 3-sigma ellipsoid volumes, 4/3 pi 27 sqrt(det Sigma)
+  Stat sigma_min_m;  // smallest standard deviation (principal axis) per component
+  Stat sigma_max_m;  // largest
+  Stat condition;    // largest / smallest covariance eigenvalue
 };
 
 MapSummary summarizeMap(const GmmMap& map);

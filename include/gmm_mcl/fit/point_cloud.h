@@ -1,11 +1,10 @@
 // Point clouds and triangle meshes as the map builder reads them (map frame, metres).
 #pragma once
 
+#include <Eigen/Core>
 #include <array>
 #include <cstdint>
 #include <vector>
-
-#include <Eigen/Core>
 
 namespace gmm_mcl {
 

@@ -10,12 +10,12 @@ namespace gmm_mcl {
 
 struct SevenScenesCloudParams {
   int first_frame = 0;
-  int last_frame = 990;      // inclusive
+  int last_frame = 990;  // inclusive
   int frame_step = 10;
   float min_depth_m = 0.1f;  // keep depth in (min_depth_m, max_depth_m]
   float max_depth_m = 4.0f;
-  float voxel_m = 0.02f;     // voxel centroids; must be > 0
-  int pixel_stride = 1;      // every pixel by default
+  float voxel_m = 0.02f;  // voxel centroids; must be > 0
+  int pixel_stride = 1;   // every pixel by default
 
   // Empty when valid, otherwise every fault found.
   std::string validate() const;

@@ -1,0 +1,36 @@
+#!/usr/bin/env bash
+# Builds the Replica office0 map: 250,000 points sampled area-uniformly on office0_mesh.ply
+# (101 m^2 of surface: about one point per 4 cm^2, the density of 2 cm voxels), M=1000
+# full-covariance GMM.
+#
+# usage: scripts/build_map_replica.sh [DATASETS_DIR] [OUTPUT_MAP] [extra gmm_fit options...]
+#   DATASETS_DIR  default $GMM_MCL_DATASETS, else ../shared/datasets (from the package root)
+#   OUTPUT_MAP    default $GMM_MCL_MAP_DIR/replica_office0_m1000.gmm (GMM_MCL_MAP_DIR defaults
+#                 to build/maps)
+#   GMM_FIT       the gmm_fit binary (default: build-fit/gmm_fit, build/gmm_fit, or on PATH)
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+DATASETS="${1:-${GMM_MCL_DATASETS:-$ROOT/../shared/datasets}}"
+OUT="${2:-${GMM_MCL_MAP_DIR:-$ROOT/build/maps}/replica_office0_m1000.gmm}"
+shift $(( $# < 2 ? $# : 2 ))
+
+find_tool() {
+  local name="$1" var="$2"
+  if [[ -n "${!var:-}" ]]; then echo "${!var}"; return; fi
+  for c in "$ROOT/build-fit/$name" "$ROOT/build/$name" "$(command -v "$name" || true)"; do
+    if [[ -n "$c" && -x "$c" ]]; then echo "$c"; return; fi
+  done
+  echo "error: $name not found; build it (cmake --build <dir> --target $name) or set $var" >&2
+  exit 1
+}
+GMM_FIT="$(find_tool gmm_fit GMM_FIT)"
+GMM_INSPECT="$(find_tool gmm_inspect GMM_INSPECT)"
+
+MESH="$DATASETS/replica_office0/office0_mesh.ply"
+if [[ ! -f "$MESH" ]]; then
+  echo "error: Replica office0 mesh not found at $MESH (pass DATASETS_DIR or set GMM_MCL_DATASETS)" >&2
+  exit 1
+fi
+mkdir -p "$(dirname "$OUT")"
+"$GMM_FIT" "$MESH" --mesh-samples 250000 -m 1000 --seed 1 -o "$OUT" "$@"
+"$GMM_INSPECT" "$OUT"
