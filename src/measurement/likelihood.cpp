@@ -11,46 +11,59 @@
 namespace gmm_mcl {
 namespace {
 
+// The inner loops are small functions over restrict pointers: in that form GCC vectorises
+// them (AVX2: 8 pixels per instruction); inside one loop nest over local arrays it did not.
+
+// row[i] = ln(lambda N) of one component at each point; mx[i] = max(mx[i], row[i]).
+__attribute__((noinline)) void componentLogDensities(const ComponentF& c, const float* __restrict wx,
+                           const float* __restrict wy, const float* __restrict wz, int n,
+                           float* __restrict row, float* __restrict mx) {
+  const float m0 = c.mean_m[0], m1 = c.mean_m[1], m2 = c.mean_m[2];
+  const float p0 = c.precision[0], p1 = 2.f * c.precision[1], p2 = 2.f * c.precision[2];
+  const float p3 = c.precision[3], p4 = 2.f * c.precision[4], p5 = c.precision[5];
+  const float ln = c.log_norm;
+  for (int i = 0; i < n; ++i) {
+    const float dx = wx[i] - m0, dy = wy[i] - m1, dz = wz[i] - m2;
+    const float q = dx * (p0 * dx + p1 * dy + p2 * dz) + dy * (p3 * dy + p4 * dz) + p5 * dz * dz;
+    const float v = ln - 0.5f * q;
+    row[i] = v;
+    mx[i] = maxf(mx[i], v);
+  }
+}
+
+// sum[i] += exp(row[i] - mx[i]).
+__attribute__((noinline)) void accumulateExp(const float* __restrict row, const float* __restrict mx, int n,
+                   float* __restrict sum) {
+  for (int i = 0; i < n; ++i) sum[i] += expNonPositive(row[i] - mx[i]);
+}
+
+// floor_term[i] = exp(floor - mx[i]).
+__attribute__((noinline)) void floorTerms(float floor_ld, const float* __restrict mx, int n, float* __restrict out) {
+  for (int i = 0; i < n; ++i) out[i] = expNonPositive(floor_ld - mx[i]);
+}
+
 // Log-likelihood of up to kPixelChunk map-frame points against `k` relevant components.
 // Accumulates into *sum and counts floor hits.
 void chunkLogLikelihood(const std::vector<ComponentF>& components, const int* relevant, int k,
                         const float* wx, const float* wy, const float* wz, int n, float floor_ld,
                         float* values, double* sum, int* floor_hits) {
-  float mx[kPixelChunk];
-  for (int i = 0; i < n; ++i) mx[i] = floor_ld;
-  for (int j = 0; j < k; ++j) {
-    const ComponentF& c = components[relevant[j]];
-    const float m0 = c.mean_m[0], m1 = c.mean_m[1], m2 = c.mean_m[2];
-    const float p0 = c.precision[0], p1 = 2.f * c.precision[1], p2 = 2.f * c.precision[2];
-    const float p3 = c.precision[3], p4 = 2.f * c.precision[4], p5 = c.precision[5];
-    const float ln = c.log_norm;
-    float* row = values + j * kPixelChunk;
-#pragma omp simd
-    for (int i = 0; i < n; ++i) {
-      const float dx = wx[i] - m0, dy = wy[i] - m1, dz = wz[i] - m2;
-      const float q = dx * (p0 * dx + p1 * dy + p2 * dz) + dy * (p3 * dy + p4 * dz) + p5 * dz * dz;
-      const float v = ln - 0.5f * q;
-      row[i] = v;
-      mx[i] = std::max(mx[i], v);
-    }
-  }
-  float s[kPixelChunk];
-  float below[kPixelChunk];  // mixture density relative to exp(mx), without the floor term
+  alignas(32) float mx[kPixelChunk];
+  alignas(32) float floor_term[kPixelChunk];
+  alignas(32) float mixture[kPixelChunk];  // sum_j exp(v_j - mx): the density relative to exp(mx)
   for (int i = 0; i < n; ++i) {
-    s[i] = expNonPositive(floor_ld - mx[i]);
-    below[i] = 0.f;
+    mx[i] = floor_ld;
+    mixture[i] = 0.f;
   }
   for (int j = 0; j < k; ++j) {
-    const float* row = values + j * kPixelChunk;
-#pragma omp simd
-    for (int i = 0; i < n; ++i) below[i] += expNonPositive(row[i] - mx[i]);
+    componentLogDensities(components[relevant[j]], wx, wy, wz, n, values + j * kPixelChunk, mx);
   }
+  floorTerms(floor_ld, mx, n, floor_term);
+  for (int j = 0; j < k; ++j) accumulateExp(values + j * kPixelChunk, mx, n, mixture);
   double acc = 0.0;
   int hits = 0;
   for (int i = 0; i < n; ++i) {
-    acc += static_cast<double>(mx[i] + std::log(s[i] + below[i]));
-    // Mixture density below exp(floor): below * exp(mx) < exp(floor).
-    hits += below[i] < s[i] ? 1 : 0;
+    acc += static_cast<double>(mx[i] + std::log(floor_term[i] + mixture[i]));
+    hits += mixture[i] < floor_term[i] ? 1 : 0;  // mixture density below exp(floor)
   }
   *sum += acc;
   *floor_hits += hits;

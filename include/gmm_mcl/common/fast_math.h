@@ -15,6 +15,14 @@ namespace gmm_mcl {
 GMM_MCL_HD float bitsToFloat(int32_t bits) {
 #if defined(__CUDA_ARCH__)
   return __int_as_float(bits);
+#elif defined(__has_builtin)
+#if __has_builtin(__builtin_bit_cast)
+  return __builtin_bit_cast(float, bits);  // vectorises where memcpy into a local does not
+#else
+  float f;
+  memcpy(&f, &bits, sizeof(f));
+  return f;
+#endif
 #else
   float f;
   memcpy(&f, &bits, sizeof(f));
@@ -22,9 +30,14 @@ GMM_MCL_HD float bitsToFloat(int32_t bits) {
 #endif
 }
 
+// max without fmaxf's NaN rules, which keep GCC from vectorising (maps to vmaxps).
+GMM_MCL_HD float maxf(float a, float b) { return a < b ? b : a; }
+
 GMM_MCL_HD float expNonPositive(float x) {
-  x = fmaxf(x, -87.0f);
-  const float n = floorf(x * 1.44269504088896341f + 0.5f);
+  x = maxf(x, -87.0f);
+  // n = round(x / ln 2) by the 1.5 * 2^23 trick (floorf blocks vectorisation in GCC).
+  const float kRound = 12582912.0f;
+  const float n = (x * 1.44269504088896341f + kRound) - kRound;
   const float r = (x - n * 0.693359375f) + n * 2.12194440e-4f;
   float y = 1.9875691500e-4f;
   y = y * r + 1.3981999507e-3f;
