@@ -179,6 +179,7 @@ StepResult Localizer::step(const StepInput& in) {
     return finish(StepStatus::kDegenerateWeights,
                   "no particle has a usable likelihood: weights kept");
   }
+  res.beta_fraction = filter_.lastBetaFraction();
   const std::vector<double>& w = filter_.weights();
   size_t best = 0;
   double mean_ll = 0.0;

@@ -56,6 +56,9 @@ std::string ParticleFilterParams::validate() const {
     err << "recovery_threshold must be in (0, 1] (got " << recovery_threshold << "); ";
   }
   positive("temperature", temperature);
+  if (!(neff_floor_fraction >= 0.0 && neff_floor_fraction < 1.0)) {
+    err << "neff_floor_fraction must be in [0, 1) (got " << neff_floor_fraction << "); ";
+  }
   non_negative("paper_min_nll_per_pixel", paper_min_nll_per_pixel);
   if (resample_groups < 1 || resample_groups > num_particles) {
     err << "resample_groups must be in [1, num_particles] (got " << resample_groups << "); ";

@@ -67,9 +67,29 @@ bool ParticleFilter::updateWeights(const std::vector<double>& ll, int pixels) {
   if (!std::isfinite(best)) return false;
   std::vector<double> w(n, 0.0);
   if (params_.weighting == WeightingMode::kTempered) {
-    const double scale = 1.0 / (params_.temperature * pixels);
-    for (int i = 0; i < n; ++i) {
-      if (std::isfinite(ll[i])) w[i] = weights_[i] * std::exp((ll[i] - best) * scale);
+    auto weigh = [&](double beta) {
+      for (int i = 0; i < n; ++i) {
+        w[i] = std::isfinite(ll[i]) ? weights_[i] * std::exp((ll[i] - best) * beta) : 0.0;
+      }
+      double sum = 0.0, sum_sq = 0.0;
+      for (double v : w) {
+        sum += v;
+        sum_sq += v * v;
+      }
+      return sum_sq > 0.0 ? sum * sum / sum_sq : 0.0;  // effective sample size
+    };
+    const double beta_max = 1.0 / (params_.temperature * pixels);
+    const double neff_floor = params_.neff_floor_fraction * n;
+    last_beta_fraction_ = 1.0;
+    if (weigh(beta_max) < neff_floor && weigh(0.0) > neff_floor) {
+      // Largest beta whose update keeps Neff at the floor (Neff falls as beta grows).
+      double lo = 0.0, hi = beta_max;
+      for (int it = 0; it < 40; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        (weigh(mid) >= neff_floor ? lo : hi) = mid;
+      }
+      weigh(lo);
+      last_beta_fraction_ = lo / beta_max;
     }
   } else {
     // NLL_i = -L_i; guard keeps the best NLL at least the margin (see WeightingMode::kPaper).

@@ -15,6 +15,7 @@ TEST(ParticleFilterTest, TemperedWeightsGiveTheAnalyticPosterior) {
   ParticleFilterParams p;
   p.num_particles = 40000;
   p.resample_groups = 4;
+  p.neff_floor_fraction = 0.0;  // the plain tempered likelihood (Neff/N here is about 0.42)
   ParticleFilter pf(p);
   pf.initialiseGaussian(Particle(), Eigen::Vector4d(1.0, 1e-9, 1e-9, 1e-9));
   const int pixels = 100;
@@ -31,6 +32,30 @@ TEST(ParticleFilterTest, TemperedWeightsGiveTheAnalyticPosterior) {
   e = pf.estimate();
   EXPECT_NEAR(e.mean.x_m, 0.8, 0.015);
   EXPECT_NEAR(e.covariance(0, 0), 0.2, 0.015);
+}
+
+// Adaptive tempering: a sharp likelihood is softened just enough to keep Neff at the floor;
+// a flat one is used as is.
+TEST(ParticleFilterTest, NeffFloorLimitsOneFramesCollapse) {
+  ParticleFilterParams p;
+  p.num_particles = 2000;
+  p.neff_floor_fraction = 0.5;
+  ParticleFilter pf(p);
+  pf.initialiseGaussian(Particle(), Eigen::Vector4d(1.0, 1e-9, 1e-9, 1e-9));
+  const int pixels = 100;
+  std::vector<double> sharp(pf.size()), flat(pf.size());
+  for (int i = 0; i < pf.size(); ++i) {
+    const double x = pf.particles()[i].x_m;
+    sharp[i] = pixels * (-0.5 * (x - 1.0) * (x - 1.0) / 0.0025);  // sigma 5 cm: Neff ~ 1%
+    flat[i] = pixels * (-0.5 * (x - 1.0) * (x - 1.0) / 100.0);
+  }
+  ASSERT_TRUE(pf.updateWeights(sharp, pixels));
+  EXPECT_NEAR(pf.effectiveSampleSize(), 1000.0, 1.0);
+  EXPECT_LT(pf.lastBetaFraction(), 0.1);
+  EXPECT_GT(pf.estimate().mean.x_m, 0.1);  // still pulled towards the measurement
+  pf.resample();
+  ASSERT_TRUE(pf.updateWeights(flat, pixels));
+  EXPECT_DOUBLE_EQ(pf.lastBetaFraction(), 1.0);
 }
 
 TEST(ParticleFilterTest, PaperWeightsFollowInverseNllAndGuardNegativeNll) {

@@ -51,6 +51,7 @@ struct StepResult {
   double mean_loglik_per_pixel = 0.0;  // weighted mean over particles
   double floor_hit_fraction = 0.0;     // of used pixels, at the best particle
   double relevant_per_patch = 0.0;     // average members per patch with pixels
+  double beta_fraction = 1.0;          // tempered: exponent used / 1 / (T * pixels)
   long long evaluations = 0;
   StepTimings timings;
 };

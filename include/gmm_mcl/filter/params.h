@@ -19,7 +19,10 @@ enum class WeightingMode {
   // paper_min_nll_per_pixel * pixels (NLL can be negative), every NLL is shifted up by the same
   // amount so that the best one equals that margin; otherwise the paper's formula is unchanged.
   kPaper,
-  // w ~ exp((L - L_max) / (temperature * pixels)): the mean per-pixel log-likelihood, tempered.
+  // w ~ exp(beta * (L - L_max)) with beta = 1 / (temperature * pixels) (the mean per-pixel
+  // log-likelihood, tempered), lowered for this frame where needed so that the effective sample
+  // size after the update stays >= neff_floor_fraction * N: one frame can never collapse the
+  // particle set (adaptive tempering, as in SMC samplers). Steady tracking never hits the floor.
   kTempered,
 };
 bool parseWeightingMode(const std::string& name, WeightingMode* out);
@@ -50,6 +53,7 @@ struct ParticleFilterParams {
   double recovery_threshold = 0.9;
   WeightingMode weighting = WeightingMode::kTempered;
   double temperature = 1.0;               // kTempered
+  double neff_floor_fraction = 0.2;       // kTempered: adaptive tempering floor (0 = off)
   double paper_min_nll_per_pixel = 1.0;   // kPaper guard, nats per pixel
   int resample_groups = 4;                // stratified groups, low-variance sampling inside each
   double resample_neff_fraction = 0.5;    // resample when Neff < fraction * N

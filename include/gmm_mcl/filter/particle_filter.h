@@ -39,6 +39,9 @@ class ParticleFilter {
   // configured mode. Non-finite entries get zero weight. Returns false, leaving the weights
   // unchanged, when no entry is finite or all weights would vanish.
   bool updateWeights(const std::vector<double>& log_likelihood, int pixels);
+  // kTempered: the exponent used in the last update as a fraction of 1 / (T * pixels)
+  // (below 1 when the Neff floor limited it).
+  double lastBetaFraction() const { return last_beta_fraction_; }
   double effectiveSampleSize() const { return gmm_mcl::effectiveSampleSize(weights_); }
   // Resamples when Neff < resample_neff_fraction * N; returns whether it did.
   bool resampleIfNeeded();
@@ -60,6 +63,7 @@ class ParticleFilter {
   std::vector<double> weights_;
   AugmentedMcl augmented_;
   std::vector<int> indices_;
+  double last_beta_fraction_ = 1.0;
   std::vector<Particle> swap_;
 };
 
