@@ -45,7 +45,7 @@ void tileRect(const Eigen::Vector3d& origin, const Eigen::Vector3d& u, double lu
   const Eigen::Vector3d n = u.cross(v);
   Eigen::Matrix3d basis;
   basis << u, v, n;
-  const Eigen::Vector3d sigma(0.45 * cu, 0.45 * cv, normal_sigma);
+  const Eigen::Vector3d sigma(0.3 * cu, 0.3 * cv, normal_sigma);  // about cell / sqrt(12)
   const Eigen::Matrix3d cov = basis * sigma.cwiseAbs2().asDiagonal() * basis.transpose();
   for (int i = 0; i < nu; ++i) {
     for (int j = 0; j < nv; ++j) {
@@ -84,6 +84,11 @@ BoxScene makeDefaultScene() {
       box(3.2, 2.4, 0.0, 4.4, 3.1, 0.75),   // table in the middle
       box(0.0, 3.6, 0.0, 0.5, 5.2, 1.6),    // shelf on the west wall
       box(6.7, 0.8, 0.0, 7.3, 1.4, 1.1),    // pillar-like box near the east wall
+      box(2.0, 5.5, 0.0, 3.4, 6.0, 1.9),    // bookcase on the north wall
+      box(7.6, 1.9, 0.9, 8.0, 3.3, 1.6),    // wall-mounted cupboard on the east wall
+      box(1.0, 1.9, 0.0, 1.5, 2.3, 0.45),   // low stool
+      box(4.6, 0.0, 1.2, 5.8, 0.35, 1.5),   // shelf board on the south wall
+      box(0.0, 1.2, 2.3, 0.3, 3.0, 3.0),    // beam under the ceiling
   };
   return s;
 }

@@ -24,7 +24,7 @@ struct BoxScene {
   std::vector<Box> blocks;  // solid furniture, seen from outside
 };
 
-// 8 m x 6 m x 3 m room with five blocks of different sizes, none symmetric to another.
+// 8 m x 6 m x 3 m room with ten blocks of different sizes, none symmetric to another.
 BoxScene makeDefaultScene();
 
 // Distance along a unit ray to the first surface; +inf when nothing is hit.
@@ -43,7 +43,7 @@ DepthImage renderDepth(const BoxScene& scene, const Intrinsics& K,
                        std::mt19937_64* rng = nullptr);
 
 // Tiles every visible face with flat Gaussians on a grid of about spacing_m (in-plane sigma
-// 0.45 x the cell size, normal sigma normal_sigma_m), weights proportional to cell area.
+// 0.3 x the cell size, about what EM fits to a uniform tile, normal sigma normal_sigma_m), weights proportional to cell area.
 GmmMap tileScene(const BoxScene& scene, double spacing_m, double normal_sigma_m);
 
 // A smooth 6-DoF trajectory of the base through the room (x forward, z up; small roll/pitch),
