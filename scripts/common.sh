@@ -1,0 +1,27 @@
+# Shared by scripts/demo.sh and scripts/test.sh: PATH for ROS-era tools, idempotent apt installs.
+# Debian 12's own python3 must come first (a pyenv python3 breaks catkin and the oracle tests).
+export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
+GMM_MCL_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+export GMM_MCL_ROOT
+
+# ensure_packages PKG...: installs the Debian packages that are not installed yet (apt-get
+# update once), as root or through sudo.
+ensure_packages() {
+  local missing=()
+  local p
+  for p in "$@"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  done
+  [ ${#missing[@]} -eq 0 ] && return 0
+  local sudo=""
+  if [ "$(id -u)" -ne 0 ]; then
+    command -v sudo >/dev/null || { echo "need root or sudo to install: ${missing[*]}" >&2; return 1; }
+    sudo="sudo"
+  fi
+  echo "== installing: ${missing[*]}"
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+}
+
+# Build dependencies of the ROS-free core, tools and tests.
+CORE_PACKAGES=(build-essential cmake libeigen3-dev libpng-dev libgtest-dev googletest)
