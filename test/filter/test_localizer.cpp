@@ -12,6 +12,7 @@ namespace gmm_mcl {
 namespace {
 
 constexpr double kConvergedErrorM = 0.05;  // issue: converges below 5 cm
+constexpr int kConvergenceFrames = 200;     // 6.7 s of data at 30 Hz
 
 LocalizerParams syntheticParams(const Eigen::Isometry3d& start) {
   LocalizerParams p;
@@ -74,7 +75,7 @@ RunResult runSynthetic(const LocalizerParams& params, int frames, uint64_t noise
 TEST(LocalizerTest, ConvergesFromAUniformFourMetreCube) {
   const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(1);
   const LocalizerParams params = syntheticParams(truth[0]);
-  const RunResult r = runSynthetic(params, 120, 11);
+  const RunResult r = runSynthetic(params, kConvergenceFrames, 11);
   std::printf("[ measured ] final error %.3f m, yaw %.2f deg, worst of last 30 frames %.3f m\n",
               r.final_error_m, r.final_yaw_error_rad * 180 / M_PI, r.max_error_last_30_m);
   EXPECT_LT(r.max_error_last_30_m, kConvergedErrorM);
