@@ -54,11 +54,7 @@ DepthFrame renderFrame(const Eigen::Isometry3d& T_map_base, const Intrinsics& K,
 
 std::string datasetsRoot() {
   const char* env = std::getenv("GMM_MCL_DATASETS");
-  std::string root = env ? env : "";
-  if (root.empty()) {
-    const char* def = std::getenv("GMM_MCL_DATASETS_DEFAULT");
-    root = def ? def : "../shared/datasets";
-  }
+  const std::string root = env && *env ? env : GMM_MCL_DEFAULT_DATASETS;
   struct stat st;
   if (stat(root.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) return "";
   return root;
