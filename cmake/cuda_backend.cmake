@@ -1,0 +1,56 @@
+# CUDA likelihood backend (GMM_MCL_WITH_CUDA=ON). Included by CMakeLists.txt after gmm_mcl_core.
+#
+# Architectures: CMAKE_CUDA_ARCHITECTURES (default "75;80;90"; Jetson TX2: 62; CI: one, e.g. 75).
+# C++14 for host and device code, nothing newer than CUDA 10.2 accepts.
+if(NOT DEFINED CMAKE_CUDA_ARCHITECTURES OR CMAKE_CUDA_ARCHITECTURES STREQUAL "")
+  set(CMAKE_CUDA_ARCHITECTURES "75;80;90" CACHE STRING "CUDA architectures (TX2: 62)")
+endif()
+if(CMAKE_VERSION VERSION_LESS 3.18)
+  # Older CMake (JetPack 4 ships 3.10) ignores CMAKE_CUDA_ARCHITECTURES: pass -gencode flags.
+  foreach(arch ${CMAKE_CUDA_ARCHITECTURES})
+    string(APPEND CMAKE_CUDA_FLAGS " -gencode=arch=compute_${arch},code=sm_${arch}")
+  endforeach()
+endif()
+enable_language(CUDA)
+set(CMAKE_CUDA_STANDARD 14)
+set(CMAKE_CUDA_STANDARD_REQUIRED ON)
+set(CMAKE_CUDA_EXTENSIONS OFF)
+
+if(CMAKE_VERSION VERSION_LESS 3.17)
+  find_library(GMM_MCL_CUDART cudart HINTS ${CMAKE_CUDA_IMPLICIT_LINK_DIRECTORIES} REQUIRED)
+  set(GMM_MCL_CUDART_TARGET ${GMM_MCL_CUDART})
+  set(GMM_MCL_CUDA_INCLUDE ${CMAKE_CUDA_TOOLKIT_INCLUDE_DIRECTORIES})
+else()
+  find_package(CUDAToolkit REQUIRED)
+  set(GMM_MCL_CUDART_TARGET CUDA::cudart)
+  set(GMM_MCL_CUDA_INCLUDE "")
+endif()
+
+# Kernels (nvcc) and the backend's host code (the C++ compiler, CUDA runtime API only), as
+# objects inside gmm_mcl_core: backend_factory.cpp calls makeCudaBackend().
+add_library(gmm_mcl_cuda OBJECT
+  cuda/membership_kernel.cu
+  cuda/likelihood_kernel.cu
+  cuda/cuda_backend.cpp
+)
+target_include_directories(gmm_mcl_cuda PRIVATE
+  ${CMAKE_CURRENT_SOURCE_DIR} ${CMAKE_CURRENT_SOURCE_DIR}/include ${GMM_MCL_CUDA_INCLUDE})
+target_link_libraries(gmm_mcl_cuda PRIVATE ${GMM_MCL_EIGEN_TARGET} ${GMM_MCL_CUDART_TARGET})
+target_compile_options(gmm_mcl_cuda PRIVATE
+  $<$<COMPILE_LANGUAGE:CXX>:-Wall -Wextra>
+  $<$<COMPILE_LANGUAGE:CUDA>:-Xcompiler=-Wall --expt-relaxed-constexpr -lineinfo>)
+set_target_properties(gmm_mcl_cuda PROPERTIES POSITION_INDEPENDENT_CODE ON)
+target_sources(gmm_mcl_core PRIVATE $<TARGET_OBJECTS:gmm_mcl_cuda>)
+target_link_libraries(gmm_mcl_core PUBLIC ${GMM_MCL_CUDART_TARGET})
+target_compile_definitions(gmm_mcl_core PUBLIC GMM_MCL_HAVE_CUDA=1)
+message(STATUS "gmm_mcl: CUDA backend for architectures ${CMAKE_CUDA_ARCHITECTURES}")
+
+# CPU-vs-CUDA parity tests: skip (GTEST_SKIP, printed reason) when no device is present.
+if(GMM_MCL_BUILD_TESTS)
+  enable_testing()
+  add_executable(test_cuda_backend test/backend/test_cuda_backend.cpp)
+  target_include_directories(test_cuda_backend PRIVATE ${CMAKE_CURRENT_SOURCE_DIR})
+  target_link_libraries(test_cuda_backend PRIVATE gmm_mcl_test_utils gmm_mcl_bench_data GTest::gtest_main)
+  add_test(NAME test_cuda_backend COMMAND test_cuda_backend)
+  set_tests_properties(test_cuda_backend PROPERTIES SKIP_RETURN_CODE 77)
+endif()

@@ -1,0 +1,115 @@
+// Projection of every component for every particle and the patch membership bitmasks.
+// One block per particle; the bitmask of the whole patch grid is built in shared memory with
+// atomicOr and written out coalesced. Same math as the CPU (gmm_mcl/measurement/projection.h).
+#include <math.h>
+
+#include "cuda/kernels.cuh"
+#include "gmm_mcl/measurement/projection.h"
+
+namespace gmm_mcl {
+namespace cuda {
+namespace {
+
+constexpr int kMembershipThreads = 256;
+
+// Order-preserving map of a float onto a signed int (for atomicMax on floats of any sign).
+__device__ __forceinline__ int floatToOrderedInt(float f) {
+  const int b = __float_as_int(f);
+  return b >= 0 ? b : b ^ 0x7fffffff;
+}
+__device__ __forceinline__ float orderedIntToFloat(int k) {
+  return __int_as_float(k >= 0 ? k : k ^ 0x7fffffff);
+}
+
+__global__ void __launch_bounds__(kMembershipThreads)
+    membershipKernel(int num_particles, int num_components, int words, MembershipConfig cfg,
+                     const ComponentF* __restrict__ components,       // [M], map frame, metres
+                     const RigidTransformF* __restrict__ T_cam_map,   // [N]
+                     uint32_t* __restrict__ mask_out,                 // [N][patches][words]
+                     float* __restrict__ shift_out,                   // [N][patches], nats
+                     uint32_t* __restrict__ summary_out) {  // [N][patches][ceil(words / 32)]
+  extern __shared__ uint32_t smem[];
+  const int particle = blockIdx.x;
+  if (particle >= num_particles) return;
+  const int patches = cfg.patch_cols * cfg.patch_rows;
+  uint32_t* mask = smem;                                          // [patches][words]
+  int* shift_key = reinterpret_cast<int*>(smem + patches * words);  // [patches]
+  for (int i = threadIdx.x; i < patches * words; i += blockDim.x) mask[i] = 0u;
+  const int floor_key = floatToOrderedInt(cfg.floor_log_density);
+  for (int i = threadIdx.x; i < patches; i += blockDim.x) shift_key[i] = floor_key;
+  __syncthreads();
+
+  const RigidTransformF T = T_cam_map[particle];
+  const float ps = static_cast<float>(cfg.patch_size_px);
+  const float c0 = 0.5f * (ps - 1.f);  // centre of patch 0, as PatchGrid::centreU
+  for (int i = threadIdx.x; i < num_components; i += blockDim.x) {
+    const ComponentF c = components[i];
+    ProjectedComponent p;
+    if (!projectComponent(c, T, cfg.K, cfg.min_depth_m, cfg.sigma_bound, cfg.inflate_px, &p)) {
+      continue;
+    }
+    // Candidate patches from the inflated ellipse's bounding box (as computeMembership).
+    const int col0 = max(0, static_cast<int>(ceilf((p.u_px - p.half_w_px - c0) / ps)));
+    const int col1 = min(cfg.patch_cols - 1,
+                         static_cast<int>(floorf((p.u_px + p.half_w_px - c0) / ps)));
+    const int row0 = max(0, static_cast<int>(ceilf((p.v_px - p.half_h_px - c0) / ps)));
+    const int row1 = min(cfg.patch_rows - 1,
+                         static_cast<int>(floorf((p.v_px + p.half_h_px - c0) / ps)));
+    const uint32_t bit = 1u << (i & 31);
+    const int word = i >> 5;
+    const int key = floatToOrderedInt(c.log_norm);
+    for (int r = row0; r <= row1; ++r) {
+      const float v = static_cast<float>(r * cfg.patch_size_px) + c0;
+      for (int col = col0; col <= col1; ++col) {
+        const float u = static_cast<float>(col * cfg.patch_size_px) + c0;
+        if (ellipseContains(p, u, v)) {
+          const int patch = r * cfg.patch_cols + col;
+          atomicOr(&mask[patch * words + word], bit);
+          atomicMax(&shift_key[patch], key);
+        }
+      }
+    }
+  }
+  __syncthreads();
+  uint32_t* out = mask_out + static_cast<size_t>(particle) * patches * words;
+  for (int i = threadIdx.x; i < patches * words; i += blockDim.x) out[i] = mask[i];
+  float* shift = shift_out + static_cast<size_t>(particle) * patches;
+  for (int i = threadIdx.x; i < patches; i += blockDim.x) shift[i] = orderedIntToFloat(shift_key[i]);
+  // Summary: bit w % 32 of summary word w / 32 set when mask word w of the patch is non-zero.
+  // One warp per (patch, summary word): a ballot over the 32 mask words it covers.
+  const int swords = (words + 31) >> 5;
+  uint32_t* summary = summary_out + static_cast<size_t>(particle) * patches * swords;
+  const int lane = threadIdx.x & 31;
+  for (int i = threadIdx.x >> 5; i < patches * swords; i += blockDim.x >> 5) {
+    const int patch = i / swords, w = (i - patch * swords) * 32 + lane;
+    const uint32_t s = __ballot_sync(0xffffffffu, w < words && mask[patch * words + w] != 0u);
+    if (lane == 0) summary[i] = s;
+  }
+}
+
+}  // namespace
+
+size_t membershipSharedBytes(int patches, int words) {
+  return sizeof(uint32_t) * static_cast<size_t>(patches) * words + sizeof(int) * patches;
+}
+
+cudaError_t setMembershipSharedLimit(size_t bytes) {
+  return cudaFuncSetAttribute(membershipKernel, cudaFuncAttributeMaxDynamicSharedMemorySize,
+                              static_cast<int>(bytes));
+}
+
+cudaError_t launchMembership(int num_particles, int num_components, int words,
+                             const MembershipConfig& cfg, const ComponentF* components,
+                             const RigidTransformF* T_cam_map, uint32_t* mask_out,
+                             float* shift_out, uint32_t* summary_out, cudaStream_t stream) {
+  const int patches = cfg.patch_cols * cfg.patch_rows;
+  if (num_particles <= 0 || patches <= 0) return cudaSuccess;
+  const size_t smem = membershipSharedBytes(patches, words);
+  membershipKernel<<<num_particles, kMembershipThreads, smem, stream>>>(
+      num_particles, num_components, words, cfg, components, T_cam_map, mask_out, shift_out,
+      summary_out);
+  return cudaGetLastError();
+}
+
+}  // namespace cuda
+}  // namespace gmm_mcl

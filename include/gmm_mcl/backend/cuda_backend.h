@@ -1,0 +1,61 @@
+// CUDA likelihood backend: the CPU backend's computation on the GPU (DESIGN.md "Backends").
+// Two kernels per batch of particles: projection + patch membership (one block per particle,
+// a bitmask per patch built in shared memory) and the per-pixel log-sum over the relevant
+// components with the per-particle reduction (one warp per patch). The depth frame is uploaded
+// once per update through pinned memory on the backend's stream. No CUDA header is needed to
+// include this file: the device state lives behind a pointer.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "gmm_mcl/backend/likelihood_backend_base.h"
+
+namespace gmm_mcl {
+
+// What the benchmark needs to know about the device.
+struct CudaDeviceInfo {
+  std::string name;
+  int device = 0;
+  int compute_capability = 0;      // major * 10 + minor
+  int multiprocessors = 0;
+  int fp32_lanes_per_sm = 0;       // FP32 cores per multiprocessor (by compute capability)
+  double clock_ghz = 0.0;          // peak SM clock
+  double fp32_peak_gflops = 0.0;   // 2 (FMA) x lanes x SMs x clock
+  size_t shared_per_block_bytes = 0;
+};
+
+// Floating-point operations the likelihood kernel spends per Gaussian evaluation (an FMA
+// counts 2): 3 subtractions, the quadratic form (6 FMA, 3 multiplications), the accumulation
+// (1 addition) = 19; the exponential runs on the special-function unit and is not counted.
+constexpr double kCudaFlopsPerEvaluation = 19.0;
+
+class CudaBackend : public LikelihoodBackend {
+ public:
+  // Throws BackendError when the device cannot be used.
+  explicit CudaBackend(int device = 0);
+  ~CudaBackend() override;
+  CudaBackend(const CudaBackend&) = delete;
+  CudaBackend& operator=(const CudaBackend&) = delete;
+
+  std::string name() const override { return "cuda"; }
+  void setMap(const GmmMap& map) override;
+  void evaluate(const DepthFrame& frame, const std::vector<RigidTransformF>& T_map_cam,
+                const MeasurementParams& params, BackendOutput* out) override;
+  void membership(const DepthFrame& frame, const RigidTransformF& T_map_cam,
+                  const MeasurementParams& params, PatchMembership* out) override;
+
+  const CudaDeviceInfo& deviceInfo() const;
+  // Time of the upload (frame + poses) and download of the last evaluate() (ms, events).
+  double lastTransferMs() const;
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+// Number of usable CUDA devices (0 when none or no driver); *why says why when 0.
+int cudaDeviceCount(std::string* why);
+
+}  // namespace gmm_mcl

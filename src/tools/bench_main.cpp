@@ -1,0 +1,366 @@
+// gmm_mcl_bench: the DESIGN.md benchmark workloads (paper, cpu, full, scale) on both backends.
+// Per (backend, workload): warm-up frames, then timed updates (frame preparation + backend),
+// median updates per second, per-stage milliseconds, Gaussian evaluations per update and per
+// second, and for CUDA the likelihood kernel's fraction of the GPU's FP32 peak. One table out.
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <memory>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <omp.h>
+
+#include "bench/frame_set.h"
+#include "gmm_mcl/backend/cpu_backend.h"
+#include "gmm_mcl/camera/depth_frame.h"
+#include "gmm_mcl/filter/pose.h"
+#include "gmm_mcl/map/gmm_map_io.h"
+#if defined(GMM_MCL_HAVE_CUDA)
+#include "gmm_mcl/backend/cuda_backend.h"
+#endif
+
+namespace gmm_mcl {
+namespace {
+
+struct Workload {
+  const char* name;
+  int particles;
+  int stride_px;
+};
+const Workload kWorkloads[] = {
+    {"paper", 1068, 4}, {"cpu", 1068, 8}, {"full", 1068, 1}, {"scale", 100000, 8}};
+
+struct Options {
+  std::string backends = "all";
+  std::string workloads = "all";
+  std::string map_path;
+  std::string frames_dir;
+  std::string frames_raw;
+  std::string export_frames;
+  int frames = 100;
+  int warmup = 3;
+  double budget_s = 20.0;  // timed seconds per (backend, workload), at least min_timed frames
+  int min_timed = 3;
+  int threads = 0;
+  int particles = 0;  // override
+  unsigned seed = 1;
+  double spread_m = 0.5;
+  double spread_rad = 0.3;
+  bool synthetic = false;
+};
+
+bool exists(const std::string& p) {
+  struct stat st;
+  return !p.empty() && stat(p.c_str(), &st) == 0;
+}
+
+void usage() {
+  std::printf(
+      "gmm_mcl_bench [options]\n"
+      "  --backend cpu|cuda|all      (all: cpu, and cuda when built and a device is present)\n"
+      "  --workload paper|cpu|full|scale|all   (comma-separated list accepted)\n"
+      "  --map FILE                  GMM map (default $GMM_MCL_MAP, build/maps/7scenes_redkitchen_m1000.gmm)\n"
+      "  --frames-dir DIR            7-Scenes sequence folder (needs libpng)\n"
+      "  --frames-raw FILE           raw frame file (bench --export-frames writes one)\n"
+      "  --synthetic                 synthetic box scene and its map instead of 7-Scenes\n"
+      "  --frames N (100) --warmup N (3) --budget-s S (20) --min-timed N (3)\n"
+      "  --threads N (CPU)  --particles N (override)  --seed S  --spread-m M (0.5) --spread-rad R (0.3)\n"
+      "  --export-frames FILE        write the loaded frames as a raw file and exit\n");
+}
+
+bool listed(const std::string& list, const std::string& name) {
+  if (list == "all") return true;
+  size_t pos = 0;
+  while (pos <= list.size()) {
+    const size_t comma = list.find(',', pos);
+    const std::string item = list.substr(pos, comma == std::string::npos ? std::string::npos : comma - pos);
+    if (item == name) return true;
+    if (comma == std::string::npos) break;
+    pos = comma + 1;
+  }
+  return false;
+}
+
+// Particles uniform within +-spread_m per axis and +-spread_rad of yaw (about the map's z axis,
+// through the camera centre) around the true camera pose.
+std::vector<RigidTransformF> makeParticles(const Eigen::Isometry3d& T_true, int n,
+                                           double spread_m, double spread_rad, unsigned seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> um(-spread_m, spread_m), ur(-spread_rad, spread_rad);
+  std::vector<RigidTransformF> out(n);
+  out[0] = toRigidF(T_true);
+  for (int i = 1; i < n; ++i) {
+    Eigen::Isometry3d T = T_true;
+    T.linear() = Eigen::AngleAxisd(ur(rng), Eigen::Vector3d::UnitZ()).toRotationMatrix() *
+                 T_true.linear();
+    T.translation() += Eigen::Vector3d(um(rng), um(rng), um(rng));
+    out[i] = toRigidF(T);
+  }
+  return out;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+struct Row {
+  std::string backend, workload;
+  int particles = 0, stride = 0, timed = 0;
+  double pixels = 0, comps_per_patch = 0, evals_per_update = 0, updates_per_s = 0;
+  double prep_ms = 0, membership_ms = 0, likelihood_ms = 0, transfer_ms = 0, total_ms = 0;
+  double gevals_per_s = 0, kernel_gevals_per_s = 0, peak_fraction = -1, floor_hit_fraction = 0;
+};
+
+Row runWorkload(LikelihoodBackend* backend, double fp32_peak_gflops, const Workload& w,
+                const bench::FrameSet& frames, const Options& opt) {
+  Row row;
+  row.backend = backend->name();
+  row.workload = w.name;
+  row.particles = opt.particles > 0 ? opt.particles : w.particles;
+  row.stride = w.stride_px;
+  FrameParams fp;
+  fp.pixel_stride = w.stride_px;
+  fp.patch_size_px = 32;
+  const MeasurementParams mp;
+  std::vector<double> total_ms, prep_ms, memb_ms, lik_ms, xfer_ms, pixels, cpp, evals, hits;
+  BackendOutput out;
+  const int nf = static_cast<int>(frames.images.size());
+  double timed_s = 0.0;
+  for (int it = 0;; ++it) {
+    const int f = it % nf;
+    const bool warm = it < opt.warmup;
+    if (!warm) {
+      const int timed = it - opt.warmup;
+      if (timed >= opt.frames) break;
+      if (timed >= opt.min_timed && timed_s >= opt.budget_s) break;
+    }
+    const std::vector<RigidTransformF> particles =
+        makeParticles(frames.T_map_cam[f], row.particles, opt.spread_m, opt.spread_rad,
+                      opt.seed * 7919u + static_cast<unsigned>(f));
+    const auto t0 = std::chrono::steady_clock::now();
+    const DepthFrame frame = prepareFrame(frames.images[f], frames.K, fp);
+    const auto t1 = std::chrono::steady_clock::now();
+    backend->evaluate(frame, particles, mp, &out);
+    const auto t2 = std::chrono::steady_clock::now();
+    if (warm) continue;
+    const double prep = std::chrono::duration<double, std::milli>(t1 - t0).count();
+    const double total = std::chrono::duration<double, std::milli>(t2 - t0).count();
+    timed_s += total * 1e-3;
+    total_ms.push_back(total);
+    prep_ms.push_back(prep);
+    memb_ms.push_back(out.projection_membership_ms);
+    lik_ms.push_back(out.likelihood_ms);
+#if defined(GMM_MCL_HAVE_CUDA)
+    if (auto* cb = dynamic_cast<CudaBackend*>(backend)) xfer_ms.push_back(cb->lastTransferMs());
+#endif
+    pixels.push_back(static_cast<double>(frame.size()));
+    cpp.push_back(out.patches_with_pixels > 0
+                      ? double(out.relevant_pairs) / (double(row.particles) * out.patches_with_pixels)
+                      : 0.0);
+    evals.push_back(static_cast<double>(out.evaluations));
+    long long h = 0;
+    for (int x : out.floor_hits) h += x;
+    hits.push_back(frame.size() ? double(h) / (double(frame.size()) * row.particles) : 0.0);
+  }
+  row.timed = static_cast<int>(total_ms.size());
+  auto mean = [](const std::vector<double>& v) {
+    double s = 0;
+    for (double x : v) s += x;
+    return v.empty() ? 0.0 : s / v.size();
+  };
+  row.total_ms = median(total_ms);
+  row.updates_per_s = row.total_ms > 0 ? 1e3 / row.total_ms : 0;
+  row.prep_ms = median(prep_ms);
+  row.membership_ms = median(memb_ms);
+  row.likelihood_ms = median(lik_ms);
+  row.transfer_ms = xfer_ms.empty() ? -1 : median(xfer_ms);
+  row.pixels = mean(pixels);
+  row.comps_per_patch = mean(cpp);
+  row.evals_per_update = mean(evals);
+  row.floor_hit_fraction = mean(hits);
+  row.gevals_per_s = row.evals_per_update * row.updates_per_s * 1e-9;
+  // Likelihood stage alone: evaluations of each frame over its likelihood time (median).
+  std::vector<double> rate;
+  for (size_t i = 0; i < evals.size(); ++i) {
+    if (lik_ms[i] > 0) rate.push_back(evals[i] / (lik_ms[i] * 1e-3) * 1e-9);
+  }
+  row.kernel_gevals_per_s = median(rate);
+#if defined(GMM_MCL_HAVE_CUDA)
+  if (fp32_peak_gflops > 0 && dynamic_cast<CudaBackend*>(backend)) {
+    row.peak_fraction = row.kernel_gevals_per_s * kCudaFlopsPerEvaluation / fp32_peak_gflops;
+  }
+#else
+  (void)fp32_peak_gflops;
+#endif
+  return row;
+}
+
+int run(int argc, char** argv) {
+  Options opt;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto next = [&](const char* what) -> std::string {
+      if (i + 1 >= argc) throw std::invalid_argument(std::string("missing value for ") + what);
+      return argv[++i];
+    };
+    if (a == "--backend") opt.backends = next("--backend");
+    else if (a == "--workload") opt.workloads = next("--workload");
+    else if (a == "--map") opt.map_path = next("--map");
+    else if (a == "--frames-dir") opt.frames_dir = next("--frames-dir");
+    else if (a == "--frames-raw") opt.frames_raw = next("--frames-raw");
+    else if (a == "--export-frames") opt.export_frames = next("--export-frames");
+    else if (a == "--frames") opt.frames = std::stoi(next("--frames"));
+    else if (a == "--warmup") opt.warmup = std::stoi(next("--warmup"));
+    else if (a == "--budget-s") opt.budget_s = std::stod(next("--budget-s"));
+    else if (a == "--min-timed") opt.min_timed = std::stoi(next("--min-timed"));
+    else if (a == "--threads") opt.threads = std::stoi(next("--threads"));
+    else if (a == "--particles") opt.particles = std::stoi(next("--particles"));
+    else if (a == "--seed") opt.seed = static_cast<unsigned>(std::stoul(next("--seed")));
+    else if (a == "--spread-m") opt.spread_m = std::stod(next("--spread-m"));
+    else if (a == "--spread-rad") opt.spread_rad = std::stod(next("--spread-rad"));
+    else if (a == "--synthetic") opt.synthetic = true;
+    else if (a == "-h" || a == "--help") { usage(); return 0; }
+    else throw std::invalid_argument("unknown option " + a);
+  }
+  if (opt.frames < 1 || opt.warmup < 0) throw std::invalid_argument("--frames >= 1, --warmup >= 0");
+
+  // Data: the 7-Scenes M=1000 map and frames, else the synthetic scene (said so in the output).
+  GmmMap map;
+  bench::FrameSet frames;
+  std::string map_source;
+  const char* env_ds = std::getenv("GMM_MCL_DATASETS");
+  const std::string default_dir =
+      std::string(env_ds && *env_ds ? env_ds : "../shared/datasets") + "/7scenes_redkitchen/data";
+  const char* env_map = std::getenv("GMM_MCL_MAP");
+  if (opt.map_path.empty()) {
+    if (env_map && *env_map) opt.map_path = env_map;
+    else if (exists("build/maps/7scenes_redkitchen_m1000.gmm"))
+      opt.map_path = "build/maps/7scenes_redkitchen_m1000.gmm";
+  }
+  if (!opt.synthetic) {
+    if (!opt.frames_raw.empty()) {
+      frames = bench::loadFrameSet(opt.frames_raw);
+      if (static_cast<int>(frames.images.size()) > opt.frames) {
+        frames.images.resize(opt.frames);
+        frames.T_map_cam.resize(opt.frames);
+      }
+    } else {
+      const std::string dir = opt.frames_dir.empty() ? default_dir : opt.frames_dir;
+#if defined(GMM_MCL_HAVE_PNG)
+      if (exists(dir + "/frame-000000.depth.png")) frames = bench::loadSevenScenes(dir, 0, opt.frames);
+#endif
+      if (frames.images.empty() && !opt.frames_dir.empty()) {
+        throw std::runtime_error("cannot read 7-Scenes frames from " + dir);
+      }
+    }
+    if (!frames.images.empty() && exists(opt.map_path)) {
+      map = loadMap(opt.map_path);
+      map_source = opt.map_path;
+    } else {
+      std::printf("# 7-Scenes map or frames absent (map '%s'): using the synthetic scene\n",
+                  opt.map_path.c_str());
+      frames = bench::FrameSet();
+    }
+  }
+  if (frames.images.empty()) {
+    bench::makeSyntheticScene(std::min(opt.frames, 100), &map, &frames);
+    map_source = "synthetic box scene (tiled)";
+  }
+  if (!opt.export_frames.empty()) {
+    bench::saveFrameSet(frames, opt.export_frames);
+    std::printf("wrote %zu frames to %s\n", frames.images.size(), opt.export_frames.c_str());
+    return 0;
+  }
+  std::printf("# frames: %s (%zu), map: %s (M = %zu)\n", frames.source.c_str(),
+              frames.images.size(), map_source.c_str(), map.size());
+  std::printf("# particles: uniform +-%.2f m per axis and +-%.2f rad of yaw around the true camera "
+              "pose (particle 0 = the true pose), seed %u\n",
+              opt.spread_m, opt.spread_rad, opt.seed);
+  std::printf("# timing: %d warm-up updates, then up to %d timed (>= %d, stop after %.0f s); "
+              "update = frame preparation + backend; medians\n",
+              opt.warmup, opt.frames, opt.min_timed, opt.budget_s);
+
+  struct Candidate {
+    std::unique_ptr<LikelihoodBackend> backend;
+    double peak = 0.0;
+  };
+  std::vector<Candidate> backends;
+  if (listed(opt.backends, "cpu")) {
+    Candidate c;
+    c.backend.reset(new CpuBackend(opt.threads));
+    std::printf("# cpu: %d OpenMP threads\n", opt.threads > 0 ? opt.threads : omp_get_max_threads());
+    backends.push_back(std::move(c));
+  }
+  if (listed(opt.backends, "cuda")) {
+#if defined(GMM_MCL_HAVE_CUDA)
+    std::string why;
+    if (cudaDeviceCount(&why) > 0) {
+      std::unique_ptr<CudaBackend> cb(new CudaBackend(0));
+      const CudaDeviceInfo& d = cb->deviceInfo();
+      std::printf("# cuda: %s, sm_%d, %d SMs x %d FP32 lanes at %.2f GHz = %.1f TFLOP/s FP32 peak; "
+                  "%g FLOP counted per evaluation\n",
+                  d.name.c_str(), d.compute_capability, d.multiprocessors, d.fp32_lanes_per_sm,
+                  d.clock_ghz, d.fp32_peak_gflops * 1e-3, kCudaFlopsPerEvaluation);
+      Candidate c;
+      c.peak = d.fp32_peak_gflops;
+      c.backend = std::move(cb);
+      backends.push_back(std::move(c));
+    } else {
+      std::printf("# cuda: skipped (%s)\n", why.c_str());
+    }
+#else
+    std::printf("# cuda: not built (GMM_MCL_WITH_CUDA=OFF)\n");
+#endif
+  }
+  std::vector<Row> rows;
+  for (Candidate& c : backends) {
+    c.backend->setMap(map);
+    for (const Workload& w : kWorkloads) {
+      if (!listed(opt.workloads, w.name)) continue;
+      rows.push_back(runWorkload(c.backend.get(), c.peak, w, frames, opt));
+      const Row& r = rows.back();
+      std::fprintf(stderr, "# done %s/%s: %.2f updates/s\n", r.backend.c_str(), r.workload.c_str(),
+                   r.updates_per_s);
+    }
+  }
+  std::printf("\n| backend | workload | N | stride | pixels | comps/patch | evals/update | updates/s "
+              "| prep ms | proj+memb ms | likelihood ms | transfer ms | update ms | Geval/s "
+              "| lik. kernel Geval/s | FP32 peak | floor hits | timed |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  for (const Row& r : rows) {
+    char xfer[32], peak[32];
+    if (r.transfer_ms >= 0) std::snprintf(xfer, sizeof(xfer), "%.3f", r.transfer_ms);
+    else std::snprintf(xfer, sizeof(xfer), "-");
+    if (r.peak_fraction >= 0) std::snprintf(peak, sizeof(peak), "%.1f%%", 100 * r.peak_fraction);
+    else std::snprintf(peak, sizeof(peak), "-");
+    std::printf("| %s | %s | %d | %d | %.0f | %.1f | %.3g | %.2f | %.3f | %.3f | %.3f | %s | %.3f "
+                "| %.2f | %.2f | %s | %.3f | %d |\n",
+                r.backend.c_str(), r.workload.c_str(), r.particles, r.stride, r.pixels,
+                r.comps_per_patch, r.evals_per_update, r.updates_per_s, r.prep_ms,
+                r.membership_ms, r.likelihood_ms, xfer, r.total_ms, r.gevals_per_s,
+                r.kernel_gevals_per_s, peak, r.floor_hit_fraction, r.timed);
+  }
+  return 0;
+}
+
+}  // namespace
+}  // namespace gmm_mcl
+
+int main(int argc, char** argv) {
+  try {
+    return gmm_mcl::run(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "gmm_mcl_bench: %s\n", e.what());
+    return 1;
+  }
+}

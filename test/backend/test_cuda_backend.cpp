@@ -1,0 +1,252 @@
+// CPU (reference) vs CUDA backend: the same particles and frame give the same per-particle
+// log-likelihood within a stated tolerance and the same membership sets (DESIGN.md "Backends").
+// Skips with a printed reason when no CUDA device is present.
+#include <gtest/gtest.h>
+
+#include <sys/stat.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <random>
+#include <set>
+#include <string>
+
+#include "bench/frame_set.h"
+#include "gmm_mcl/backend/cpu_backend.h"
+#include "gmm_mcl/backend/cuda_backend.h"
+#include "gmm_mcl/filter/pose.h"
+#include "gmm_mcl/map/gmm_map_io.h"
+#include "test_utils/synthetic_fixtures.h"
+
+namespace gmm_mcl {
+namespace {
+
+// Per-particle log-likelihood: |L_cuda - L_cpu| <= kRelTol * max(|L_cpu|, 1 nat x pixels).
+// Both evaluate in float32 per pixel and accumulate in double; the CUDA kernel shifts by the
+// patch's largest log-normaliser instead of the per-pixel maximum and uses the hardware exp2
+// (relative error ~2^-22), so per-pixel values agree to ~1e-6 nats.
+constexpr double kRelTol = 1e-5;
+// Floor hits may differ on pixels whose mixture density is within rounding of exp(floor).
+constexpr double kFloorHitTol = 1e-3;  // of the used pixels
+// Membership: a (patch, component) pair may differ only where the patch centre lies on the
+// inflated ellipse to within float rounding: |(c - mu)^T Q (c - mu) - 1| below this.
+constexpr double kBorderlineTol = 1e-3;
+// ... and such pairs are rare.
+constexpr double kMaxMembershipMismatchFraction = 1e-3;
+
+bool haveDevice(std::string* why) { return cudaDeviceCount(why) > 0; }
+
+#define GMM_MCL_REQUIRE_DEVICE()                                   \
+  do {                                                             \
+    std::string why;                                               \
+    if (!haveDevice(&why)) GTEST_SKIP() << why; \
+  } while (0)
+
+std::vector<RigidTransformF> perturbedPoses(const Eigen::Isometry3d& T_true, int n, unsigned seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> um(-0.5, 0.5), ur(-0.3, 0.3);
+  std::vector<RigidTransformF> out(n);
+  out[0] = toRigidF(T_true);
+  for (int i = 1; i < n; ++i) {
+    Eigen::Isometry3d T = T_true;
+    T.linear() = Eigen::AngleAxisd(ur(rng), Eigen::Vector3d::UnitZ()).toRotationMatrix() *
+                 T_true.linear();
+    T.translation() += Eigen::Vector3d(um(rng), um(rng), um(rng));
+    out[i] = toRigidF(T);
+  }
+  return out;
+}
+
+// Compares membership of every pose; returns mismatching pairs (all must be borderline).
+void expectSameMembership(const GmmMap& map, const DepthFrame& frame,
+                          const std::vector<RigidTransformF>& poses, CpuBackend* cpu,
+                          CudaBackend* gpu, const char* label) {
+  const MeasurementParams mp;
+  long long pairs = 0, mismatches = 0;
+  double worst_margin = 0.0;
+  for (const RigidTransformF& T : poses) {
+    PatchMembership a, b;
+    cpu->membership(frame, T, mp, &a);
+    gpu->membership(frame, T, mp, &b);
+    ASSERT_EQ(a.begin.size(), b.begin.size());
+    const RigidTransformF T_cam_map = invertRigid(T);
+    for (int p = 0; p + 1 < static_cast<int>(a.begin.size()); ++p) {
+      const std::set<int> sa(a.comps.begin() + a.begin[p], a.comps.begin() + a.begin[p + 1]);
+      const std::set<int> sb(b.comps.begin() + b.begin[p], b.comps.begin() + b.begin[p + 1]);
+      pairs += static_cast<long long>(sa.size());
+      for (int pass = 0; pass < 2; ++pass) {
+        const std::set<int>& x = pass ? sb : sa;
+        const std::set<int>& y = pass ? sa : sb;
+        for (int i : x) {
+          if (y.count(i)) continue;
+          ++mismatches;
+          ProjectedComponent pc;
+          ASSERT_TRUE(projectComponent(map.packed()[i], T_cam_map, frame.intrinsics,
+                                       mp.min_component_depth_m, mp.sigma_bound,
+                                       patchInflation(frame.grid.patch_size_px), &pc));
+          const double du = frame.grid.centreU(p % frame.grid.cols) - pc.u_px;
+          const double dv = frame.grid.centreV(p / frame.grid.cols) - pc.v_px;
+          const double q = pc.q_uu * du * du + 2 * pc.q_uv * du * dv + pc.q_vv * dv * dv;
+          worst_margin = std::max(worst_margin, std::abs(q - 1.0));
+          EXPECT_LT(std::abs(q - 1.0), kBorderlineTol)
+              << label << ": patch " << p << " component " << i << " differs, q = " << q;
+        }
+      }
+    }
+  }
+  std::printf("[ measured ] %s membership: %lld pairs over %zu poses, %lld differ (all borderline, "
+              "worst |q-1| = %.2e)\n",
+              label, pairs, poses.size(), mismatches, worst_margin);
+  EXPECT_GT(pairs, 0);
+  EXPECT_LE(static_cast<double>(mismatches), kMaxMembershipMismatchFraction * pairs + 1);
+}
+
+void expectSameLikelihood(const GmmMap& map, const DepthFrame& frame,
+                          const std::vector<RigidTransformF>& poses, CpuBackend* cpu,
+                          CudaBackend* gpu, const char* label) {
+  const MeasurementParams mp;
+  BackendOutput a, b;
+  cpu->evaluate(frame, poses, mp, &a);
+  gpu->evaluate(frame, poses, mp, &b);
+  ASSERT_EQ(a.log_likelihood.size(), poses.size());
+  ASSERT_EQ(b.log_likelihood.size(), poses.size());
+  const double px = static_cast<double>(frame.size());
+  double worst = 0.0;
+  int worst_hits = 0;
+  for (size_t i = 0; i < poses.size(); ++i) {
+    ASSERT_TRUE(std::isfinite(b.log_likelihood[i])) << label << " particle " << i;
+    const double scale = std::max(std::abs(a.log_likelihood[i]), px);
+    const double rel = std::abs(a.log_likelihood[i] - b.log_likelihood[i]) / scale;
+    worst = std::max(worst, rel);
+    EXPECT_LT(rel, kRelTol) << label << " particle " << i << ": cpu " << a.log_likelihood[i]
+                            << " cuda " << b.log_likelihood[i];
+    const int dh = std::abs(a.floor_hits[i] - b.floor_hits[i]);
+    worst_hits = std::max(worst_hits, dh);
+    EXPECT_LE(dh, kFloorHitTol * px + 1) << label << " particle " << i;
+  }
+  const double eval_rel = std::abs(double(a.evaluations - b.evaluations)) / double(a.evaluations);
+  std::printf("[ measured ] %s likelihood: %zu particles, %.0f px, worst relative difference "
+              "%.2e (tolerance %.0e), worst floor-hit difference %d px, evaluations cpu %lld "
+              "cuda %lld, L(true pose) cpu %.3f cuda %.3f\n",
+              label, poses.size(), px, worst, kRelTol, worst_hits, a.evaluations, b.evaluations,
+              a.log_likelihood[0], b.log_likelihood[0]);
+  EXPECT_LT(eval_rel, 1e-3);
+  EXPECT_EQ(a.patches_with_pixels, b.patches_with_pixels);
+  (void)map;
+}
+
+TEST(CudaBackendTest, SyntheticSceneMatchesCpu) {
+  GMM_MCL_REQUIRE_DEVICE();
+  const auto& w = test::world();
+  CpuBackend cpu;
+  CudaBackend gpu;
+  cpu.setMap(w.map);
+  gpu.setMap(w.map);
+  for (int stride : {4, 1, 8}) {
+    FrameParams fp;
+    fp.pixel_stride = stride;
+    fp.max_range_m = 8.f;
+    const Eigen::Isometry3d T_map_base = test::referenceBasePose();
+    const DepthFrame frame = test::renderFrame(T_map_base, test::vgaCamera(), fp);
+    const auto poses = perturbedPoses(T_map_base * w.T_base_cam, 256, 10u + stride);
+    const std::string label = "synthetic stride " + std::to_string(stride);
+    expectSameLikelihood(w.map, frame, poses, &cpu, &gpu, label.c_str());
+    if (stride == 4) {
+      const std::vector<RigidTransformF> some(poses.begin(), poses.begin() + 32);
+      expectSameMembership(w.map, frame, some, &cpu, &gpu, label.c_str());
+    }
+  }
+}
+
+TEST(CudaBackendTest, EmptyAndDegenerateInputs) {
+  GMM_MCL_REQUIRE_DEVICE();
+  const auto& w = test::world();
+  CudaBackend gpu;
+  BackendOutput out;
+  FrameParams fp;
+  const DepthFrame frame = test::renderFrame(test::referenceBasePose(), test::vgaCamera(), fp);
+  EXPECT_THROW(gpu.evaluate(frame, {}, MeasurementParams(), &out), BackendError);  // no map
+  gpu.setMap(w.map);
+  gpu.evaluate(frame, {}, MeasurementParams(), &out);
+  EXPECT_TRUE(out.log_likelihood.empty());
+  // A frame with no used pixels: every particle scores 0 nats.
+  DepthFrame empty = frame;
+  empty.x_m.clear();
+  empty.y_m.clear();
+  empty.z_m.clear();
+  std::fill(empty.patch_begin.begin(), empty.patch_begin.end(), 0);
+  const auto poses = perturbedPoses(test::referenceBasePose() * w.T_base_cam, 5, 3);
+  gpu.evaluate(empty, poses, MeasurementParams(), &out);
+  ASSERT_EQ(out.log_likelihood.size(), 5u);
+  for (double l : out.log_likelihood) EXPECT_EQ(l, 0.0);
+  // More particles than one mask batch holds still gives every particle its value.
+  CpuBackend cpu;
+  cpu.setMap(w.map);
+  FrameParams coarse;
+  coarse.pixel_stride = 16;
+  const DepthFrame small = test::renderFrame(test::referenceBasePose(), test::vgaCamera(), coarse);
+  const auto many = perturbedPoses(test::referenceBasePose() * w.T_base_cam, 7000, 4);
+  BackendOutput a, b;
+  cpu.evaluate(small, many, MeasurementParams(), &a);
+  gpu.evaluate(small, many, MeasurementParams(), &b);
+  for (size_t i = 0; i < many.size(); i += 97) {
+    EXPECT_NEAR(a.log_likelihood[i], b.log_likelihood[i],
+                kRelTol * std::max(std::abs(a.log_likelihood[i]), double(small.size())));
+  }
+}
+
+// 7-Scenes redkitchen, M = 1000 map: frames from $GMM_MCL_7SCENES_FRAMES (a raw frame file
+// written by `gmm_mcl_bench --export-frames`) or the data set's PNGs; map from $GMM_MCL_MAP or
+// build/maps/7scenes_redkitchen_m1000.gmm.
+TEST(CudaBackendTest, SevenScenesFramesMatchCpu) {
+  GMM_MCL_REQUIRE_DEVICE();
+  struct stat st;
+  const char* env_map = std::getenv("GMM_MCL_MAP");
+  std::string map_path = env_map && *env_map ? env_map : "";
+  for (const char* cand : {"build/maps/7scenes_redkitchen_m1000.gmm",
+                           "../build/maps/7scenes_redkitchen_m1000.gmm",
+                           "../../build/maps/7scenes_redkitchen_m1000.gmm"}) {
+    if (map_path.empty() && stat(cand, &st) == 0) map_path = cand;
+  }
+  if (map_path.empty() || stat(map_path.c_str(), &st) != 0) {
+    GTEST_SKIP() << "7-Scenes M=1000 map not found (set GMM_MCL_MAP)";
+  }
+  bench::FrameSet frames;
+  const char* env_frames = std::getenv("GMM_MCL_7SCENES_FRAMES");
+  if (env_frames && *env_frames) {
+    frames = bench::loadFrameSet(env_frames);
+  } else {
+#if defined(GMM_MCL_HAVE_PNG)
+    const std::string dir = test::datasetsRoot() + "/7scenes_redkitchen/data";
+    if (test::datasetsRoot().empty() || stat((dir + "/frame-000000.depth.png").c_str(), &st) != 0) {
+      GTEST_SKIP() << "7-Scenes frames not found (set GMM_MCL_7SCENES_FRAMES or GMM_MCL_DATASETS)";
+    }
+    frames = bench::loadSevenScenes(dir, 0, 1);
+    frames.images.push_back(bench::loadSevenScenes(dir, 50, 1).images[0]);
+    frames.T_map_cam.push_back(bench::loadSevenScenes(dir, 50, 1).T_map_cam[0]);
+#else
+    GTEST_SKIP() << "7-Scenes frames need libpng or GMM_MCL_7SCENES_FRAMES";
+#endif
+  }
+  const GmmMap map = loadMap(map_path);
+  CpuBackend cpu;
+  CudaBackend gpu;
+  cpu.setMap(map);
+  gpu.setMap(map);
+  const size_t used = std::min<size_t>(frames.images.size(), 3);
+  for (size_t f = 0; f < used; ++f) {
+    const size_t idx = f * (frames.images.size() / used);
+    FrameParams fp;
+    fp.pixel_stride = 4;
+    const DepthFrame frame = prepareFrame(frames.images[idx], frames.K, fp);
+    const auto poses = perturbedPoses(frames.T_map_cam[idx], 256, 100u + unsigned(idx));
+    const std::string label = "7-Scenes frame " + std::to_string(idx);
+    expectSameLikelihood(map, frame, poses, &cpu, &gpu, label.c_str());
+    const std::vector<RigidTransformF> some(poses.begin(), poses.begin() + 32);
+    expectSameMembership(map, frame, some, &cpu, &gpu, label.c_str());
+  }
+}
+
+}  // namespace
+}  // namespace gmm_mcl
