@@ -31,6 +31,7 @@ endif()
 add_library(gmm_mcl_cuda OBJECT
   cuda/membership_kernel.cu
   cuda/likelihood_kernel.cu
+  cuda/frame_kernel.cu
   cuda/cuda_backend.cpp
 )
 target_include_directories(gmm_mcl_cuda PRIVATE

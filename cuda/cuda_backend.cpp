@@ -21,11 +21,19 @@ namespace {
 // Instructions" throughput table).
 int fp32LanesPerSm(int cc) {
   switch (cc) {
-    case 60: return 64;
-    case 61: case 62: return 128;
-    case 70: case 72: case 75: return 64;
-    case 80: return 64;
-    default: return 128;  // 8.6, 8.7, 8.9, 9.0, 10.x, 12.x
+    case 60:
+      return 64;
+    case 61:
+    case 62:
+      return 128;
+    case 70:
+    case 72:
+    case 75:
+      return 64;
+    case 80:
+      return 64;
+    default:
+      return 128;  // 8.6, 8.7, 8.9, 9.0, 10.x, 12.x
   }
 }
 
@@ -46,6 +54,10 @@ int cudaDeviceCount(std::string* why) {
   return n;
 }
 
+namespace {
+size_t alignUp(size_t n) { return (n + 255) & ~size_t(255); }
+}  // namespace
+
 struct CudaBackend::Impl {
   CudaDeviceInfo info;
   cuda::Stream stream;
@@ -61,18 +73,32 @@ struct CudaBackend::Impl {
   cuda::DeviceBuffer<uint32_t> summary;
   cuda::DeviceBuffer<double> item_ll;
   cuda::DeviceBuffer<int> item_hits, item_evals, item_relevant;
-  cuda::DeviceBuffer<double> ll;
-  cuda::DeviceBuffer<int> hits;
-  cuda::DeviceBuffer<long long> evals;
-  cuda::DeviceBuffer<long long> pairs;
-  cuda::PinnedBuffer<double> h_ll;
-  cuda::PinnedBuffer<int> h_hits;
-  cuda::PinnedBuffer<long long> h_evals;
-  cuda::PinnedBuffer<long long> h_pairs;
+  // Per-particle results (and the frame's patch starts when the GPU prepared it) in one block,
+  // downloaded with one copy.
+  cuda::DeviceBuffer<unsigned char> results;
+  cuda::PinnedBuffer<unsigned char> h_results;
   std::vector<cuda::Event> events;  // per batch: start, after membership, after likelihood
   cuda::Event upload_start, upload_end, download_start, download_end;
+  cuda::DeviceBuffer<int> counts;  // GPU frame preparation scratch
+  cuda::Event prep_end;
   size_t shared_limit_set = 48 * 1024;
   double last_transfer_ms = 0.0;
+  double last_frame_prep_ms = 0.0;
+  int last_frame_pixels = 0;
+
+  struct DeviceFrameView;
+  template <typename Layout>
+  void stagePoses(const std::vector<RigidTransformF>& T_map_cam, const Layout& L) {
+    unsigned char* h = staging.data();
+    const size_t n = T_map_cam.size();
+    std::memcpy(h + L.T_map_cam, T_map_cam.data(), n * sizeof(RigidTransformF));
+    RigidTransformF* inv = reinterpret_cast<RigidTransformF*>(h + L.T_cam_map);
+    for (size_t i = 0; i < n; ++i) inv[i] = invertRigid(T_map_cam[i]);  // as the CPU backend
+  }
+  template <typename Layout>
+  DeviceFrameView view(const Layout& L, const Intrinsics& K, const PatchGrid& grid);
+  void run(const DeviceFrameView& f, int n, const MeasurementParams& params, int max_patch_pixels,
+           bool gpu_frame, BackendOutput* out);
 
   void ensureEvents(size_t n) {
     while (events.size() < n) events.emplace_back();
@@ -103,8 +129,7 @@ CudaBackend::CudaBackend(int device) {
   info.multiprocessors = prop.multiProcessorCount;
   info.fp32_lanes_per_sm = fp32LanesPerSm(info.compute_capability);
   info.clock_ghz = clock_khz * 1e-6;
-  info.fp32_peak_gflops =
-      2.0 * info.fp32_lanes_per_sm * info.multiprocessors * info.clock_ghz;
+  info.fp32_peak_gflops = 2.0 * info.fp32_lanes_per_sm * info.multiprocessors * info.clock_ghz;
   info.shared_per_block_bytes = std::max<size_t>(smem_optin, prop.sharedMemPerBlock);
 }
 
@@ -114,6 +139,8 @@ CudaBackend::~CudaBackend() {
 
 const CudaDeviceInfo& CudaBackend::deviceInfo() const { return impl_->info; }
 double CudaBackend::lastTransferMs() const { return impl_->last_transfer_ms; }
+double CudaBackend::lastFramePrepMs() const { return impl_->last_frame_prep_ms; }
+int CudaBackend::lastFramePixels() const { return impl_->last_frame_pixels; }
 
 void CudaBackend::setMap(const GmmMap& map) {
   const std::vector<ComponentF>& packed = map.packed();
@@ -133,24 +160,184 @@ void CudaBackend::setMap(const GmmMap& map) {
   d.num_components = m;
 }
 
+// Device pointers of one update's inputs.
+struct CudaBackend::Impl::DeviceFrameView {
+  Intrinsics K;
+  PatchGrid grid;
+  const float *x, *y, *z;
+  const int* patch_begin;
+  const RigidTransformF* T_map_cam;
+  const RigidTransformF* T_cam_map;
+};
+
+template <typename Layout>
+CudaBackend::Impl::DeviceFrameView CudaBackend::Impl::view(const Layout& L, const Intrinsics& K,
+                                                           const PatchGrid& grid) {
+  unsigned char* dev = inputs.data();
+  DeviceFrameView v;
+  v.K = K;
+  v.grid = grid;
+  v.x = reinterpret_cast<const float*>(dev + L.x);
+  v.y = reinterpret_cast<const float*>(dev + L.y);
+  v.z = reinterpret_cast<const float*>(dev + L.z);
+  v.patch_begin = reinterpret_cast<const int*>(dev + L.patch_begin);
+  v.T_map_cam = reinterpret_cast<const RigidTransformF*>(dev + L.T_map_cam);
+  v.T_cam_map = reinterpret_cast<const RigidTransformF*>(dev + L.T_cam_map);
+  return v;
+}
+
 namespace {
 
-size_t alignUp(size_t n) { return (n + 255) & ~size_t(255); }
-
-// Layout of the per-update input block (offsets in bytes).
+// Layout of the per-update input block (offsets in bytes): raw image (GPU frame preparation
+// only), points, patch starts, poses.
 struct InputLayout {
-  size_t x, y, z, patch_begin, T_map_cam, T_cam_map, total;
-  InputLayout(size_t pixels, size_t patches, size_t particles) {
+  size_t image, x, y, z, patch_begin, T_map_cam, T_cam_map, total;
+  InputLayout(size_t pixels, size_t image_bytes, size_t patches, size_t particles) {
     x = 0;
     y = alignUp(x + pixels * sizeof(float));
     z = alignUp(y + pixels * sizeof(float));
     patch_begin = alignUp(z + pixels * sizeof(float));
-    T_map_cam = alignUp(patch_begin + (patches + 1) * sizeof(int));
+    image = alignUp(patch_begin + (patches + 1) * sizeof(int));
+    T_map_cam = alignUp(image + image_bytes);
     T_cam_map = alignUp(T_map_cam + particles * sizeof(RigidTransformF));
     total = alignUp(T_cam_map + particles * sizeof(RigidTransformF));
   }
 };
 
+// Layout of the results block: ll [n] double, evaluations [n], pairs [n] long long, floor hits
+// [n] int, patch starts [patches + 1] int (GPU frame preparation).
+struct OutputLayout {
+  size_t ll, evals, pairs, hits, patch_begin, total;
+  OutputLayout(size_t n, size_t patches) {
+    ll = 0;
+    evals = alignUp(ll + n * sizeof(double));
+    pairs = alignUp(evals + n * sizeof(long long));
+    hits = alignUp(pairs + n * sizeof(long long));
+    patch_begin = alignUp(hits + n * sizeof(int));
+    total = alignUp(patch_begin + (patches + 1) * sizeof(int));
+  }
+};
+
+}  // namespace
+
+// Everything after the inputs are on the device: membership and likelihood per batch, the
+// per-particle reduction, the download; fills `out` (and syncs the stream).
+void CudaBackend::Impl::run(const DeviceFrameView& f, int n, const MeasurementParams& params,
+                            int max_patch_pixels, bool gpu_frame, BackendOutput* out) {
+  const int patches = f.grid.count();
+  const int words = (num_components + 31) / 32;
+  cudaStream_t s = stream.get();
+  const size_t smem = cuda::membershipSharedBytes(patches, words);
+  if (smem > info.shared_per_block_bytes) {
+    throw BackendError("cuda backend: the membership bitmask needs " + std::to_string(smem) +
+                       " bytes of shared memory (" + std::to_string(patches) + " patches x " +
+                       std::to_string(num_components) + " components); the device allows " +
+                       std::to_string(info.shared_per_block_bytes));
+  }
+  if (smem > shared_limit_set) {
+    GMM_MCL_CUDA_CHECK(cuda::setMembershipSharedLimit(smem));
+    shared_limit_set = smem;
+  }
+  // Particles in batches whose masks fit the budget.
+  const size_t mask_bytes_per_particle = sizeof(uint32_t) * size_t(patches) * std::max(words, 1);
+  const size_t max_by_threads = size_t(0x7fffffff) / (size_t(patches) * 32);  // int indices
+  const int batch = static_cast<int>(
+      std::max<size_t>(1, std::min<size_t>(std::min<size_t>(n, max_by_threads),
+                                           kMaskBudgetBytes / mask_bytes_per_particle)));
+  const int swords = (words + 31) / 32;
+  mask.reserve(size_t(batch) * patches * std::max(words, 1));
+  summary.reserve(size_t(batch) * patches * std::max(swords, 1));
+  shift.reserve(size_t(batch) * patches);
+  item_ll.reserve(size_t(batch) * patches);
+  item_hits.reserve(size_t(batch) * patches);
+  item_evals.reserve(size_t(batch) * patches);
+  item_relevant.reserve(size_t(batch) * patches);
+  const cuda::ItemPartials partials{item_ll.data(), item_hits.data(), item_evals.data(),
+                                    item_relevant.data()};
+  const OutputLayout O(n, patches);  // reserved by the caller
+  double* ll = reinterpret_cast<double*>(results.data() + O.ll);
+  long long* evals = reinterpret_cast<long long*>(results.data() + O.evals);
+  long long* pairs = reinterpret_cast<long long*>(results.data() + O.pairs);
+  int* hits = reinterpret_cast<int*>(results.data() + O.hits);
+
+  cuda::MembershipConfig cfg;
+  cfg.K = f.K;
+  cfg.patch_size_px = f.grid.patch_size_px;
+  cfg.patch_cols = f.grid.cols;
+  cfg.patch_rows = f.grid.rows;
+  cfg.min_depth_m = params.min_component_depth_m;
+  cfg.sigma_bound = params.sigma_bound;
+  cfg.inflate_px = patchInflation(f.grid.patch_size_px);
+  cfg.floor_log_density = params.floor_log_density;
+  cuda::LikelihoodShape shape = cuda::chooseLikelihoodShape(max_patch_pixels);
+  if (const char* env = std::getenv("GMM_MCL_CUDA_SHAPE")) {  // tuning: LANESxPX, e.g. 16x2
+    int lanes = 0, px = 0;
+    if (std::sscanf(env, "%dx%d", &lanes, &px) == 2) {
+      shape.lanes = lanes;
+      shape.pixels_per_lane = px;
+    }
+  }
+  if (cuda::likelihoodSharedBytes(shape, words) > 48 * 1024) {
+    throw BackendError("cuda backend: " + std::to_string(num_components) +
+                       " components exceed the likelihood kernel's shared memory");
+  }
+  const int batches = (n + batch - 1) / batch;
+  ensureEvents(3 * size_t(batches));
+  for (int bi = 0; bi < batches; ++bi) {
+    const int first = bi * batch;
+    const int count = std::min(batch, n - first);
+    events[3 * bi].record(s);
+    GMM_MCL_CUDA_CHECK(cuda::launchMembership(count, num_components, words, cfg, components.data(),
+                                              f.T_cam_map + first, mask.data(), shift.data(),
+                                              summary.data(), s));
+    events[3 * bi + 1].record(s);
+    GMM_MCL_CUDA_CHECK(
+        cuda::launchLikelihood(count, patches, words, shape, params.floor_log_density, f.x, f.y,
+                               f.z, f.patch_begin, eval_components.data(), f.T_map_cam + first,
+                               mask.data(), summary.data(), shift.data(), partials, s));
+    GMM_MCL_CUDA_CHECK(cuda::launchReduce(count, patches, partials, ll + first, hits + first,
+                                          evals + first, pairs + first, s));
+    events[3 * bi + 2].record(s);
+  }
+  download_start.record(s);
+  const size_t bytes = gpu_frame ? O.total : O.patch_begin;
+  GMM_MCL_CUDA_CHECK(
+      cudaMemcpyAsync(h_results.data(), results.data(), bytes, cudaMemcpyDeviceToHost, s));
+  download_end.record(s);
+  GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(s));
+
+  for (int bi = 0; bi < batches; ++bi) {
+    out->projection_membership_ms += events[3 * bi + 1].msSince(events[3 * bi]);
+    out->likelihood_ms += events[3 * bi + 2].msSince(events[3 * bi + 1]);
+  }
+  last_transfer_ms += download_end.msSince(download_start);
+  const unsigned char* h = h_results.data();
+  const double* h_ll = reinterpret_cast<const double*>(h + O.ll);
+  const long long* h_evals = reinterpret_cast<const long long*>(h + O.evals);
+  const long long* h_pairs = reinterpret_cast<const long long*>(h + O.pairs);
+  const int* h_hits = reinterpret_cast<const int*>(h + O.hits);
+  for (int i = 0; i < n; ++i) {
+    out->log_likelihood[i] = h_ll[i];
+    out->floor_hits[i] = h_hits[i];
+    out->evaluations += h_evals[i];
+    out->relevant_pairs += h_pairs[i];
+  }
+  if (gpu_frame) {
+    const int* pb = reinterpret_cast<const int*>(h + O.patch_begin);
+    long long with_pixels = 0;
+    for (int p = 0; p < patches; ++p) with_pixels += pb[p + 1] > pb[p] ? 1 : 0;
+    out->patches_with_pixels = with_pixels;
+    last_frame_pixels = pb[patches];
+  }
+}
+
+namespace {
+void resetOutput(int n, BackendOutput* out) {
+  out->log_likelihood.assign(n, 0.0);
+  out->floor_hits.assign(n, 0);
+  out->evaluations = out->relevant_pairs = out->patches_with_pixels = 0;
+  out->projection_membership_ms = out->likelihood_ms = 0.0;
+}
 }  // namespace
 
 void CudaBackend::evaluate(const DepthFrame& frame, const std::vector<RigidTransformF>& T_map_cam,
@@ -159,37 +346,20 @@ void CudaBackend::evaluate(const DepthFrame& frame, const std::vector<RigidTrans
   if (d.num_components == 0) throw BackendError("cuda backend: no map set");
   const int n = static_cast<int>(T_map_cam.size());
   const int patches = frame.grid.count();
-  const int words = (d.num_components + 31) / 32;
   const size_t pixels = frame.size();
-  out->log_likelihood.assign(n, 0.0);
-  out->floor_hits.assign(n, 0);
-  out->evaluations = out->relevant_pairs = 0;
-  out->projection_membership_ms = out->likelihood_ms = 0.0;
-  long long patches_with_pixels = 0;
+  resetOutput(n, out);
   int max_patch_pixels = 0;
   for (int p = 0; p < patches; ++p) {
     const int c = frame.patch_begin[p + 1] - frame.patch_begin[p];
-    patches_with_pixels += c > 0 ? 1 : 0;
+    out->patches_with_pixels += c > 0 ? 1 : 0;
     max_patch_pixels = std::max(max_patch_pixels, c);
   }
-  out->patches_with_pixels = patches_with_pixels;
-  d.last_transfer_ms = 0.0;
+  d.last_transfer_ms = d.last_frame_prep_ms = 0.0;
+  d.last_frame_pixels = static_cast<int>(pixels);
   if (n == 0 || patches == 0) return;
 
-  const size_t smem = cuda::membershipSharedBytes(patches, words);
-  if (smem > d.info.shared_per_block_bytes) {
-    throw BackendError("cuda backend: the membership bitmask needs " + std::to_string(smem) +
-                       " bytes of shared memory (" + std::to_string(patches) + " patches x " +
-                       std::to_string(d.num_components) + " components); the device allows " +
-                       std::to_string(d.info.shared_per_block_bytes));
-  }
-  if (smem > d.shared_limit_set) {
-    GMM_MCL_CUDA_CHECK(cuda::setMembershipSharedLimit(smem));
-    d.shared_limit_set = smem;
-  }
-
   // Upload the frame and the poses once, through pinned memory, on the stream.
-  const InputLayout L(pixels, patches, n);
+  const InputLayout L(pixels, 0, patches, n);
   GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(d.stream.get()));  // staging is free again
   d.staging.reserve(L.total);
   d.inputs.reserve(L.total);
@@ -200,111 +370,89 @@ void CudaBackend::evaluate(const DepthFrame& frame, const std::vector<RigidTrans
     std::memcpy(h + L.z, frame.z_m.data(), pixels * sizeof(float));
   }
   std::memcpy(h + L.patch_begin, frame.patch_begin.data(), (patches + 1) * sizeof(int));
-  std::memcpy(h + L.T_map_cam, T_map_cam.data(), n * sizeof(RigidTransformF));
-  RigidTransformF* inv = reinterpret_cast<RigidTransformF*>(h + L.T_cam_map);
-  for (int i = 0; i < n; ++i) inv[i] = invertRigid(T_map_cam[i]);  // as the CPU backend
+  d.stagePoses(T_map_cam, L);
   cudaStream_t s = d.stream.get();
   d.upload_start.record(s);
   GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(d.inputs.data(), h, L.total, cudaMemcpyHostToDevice, s));
   d.upload_end.record(s);
-  unsigned char* dev = d.inputs.data();
-  const float* x = reinterpret_cast<const float*>(dev + L.x);
-  const float* y = reinterpret_cast<const float*>(dev + L.y);
-  const float* z = reinterpret_cast<const float*>(dev + L.z);
-  const int* patch_begin = reinterpret_cast<const int*>(dev + L.patch_begin);
-  const RigidTransformF* d_T_map_cam = reinterpret_cast<const RigidTransformF*>(dev + L.T_map_cam);
-  const RigidTransformF* d_T_cam_map = reinterpret_cast<const RigidTransformF*>(dev + L.T_cam_map);
+  const OutputLayout O(n, patches);
+  d.results.reserve(O.total);
+  d.h_results.reserve(O.total);
+  const Impl::DeviceFrameView view = d.view(L, frame.intrinsics, frame.grid);
+  d.run(view, n, params, max_patch_pixels, false, out);
+  d.last_transfer_ms += d.upload_end.msSince(d.upload_start);
+}
 
-  // Particles in batches whose masks fit the budget.
-  const size_t mask_bytes_per_particle = sizeof(uint32_t) * size_t(patches) * std::max(words, 1);
-  const size_t max_by_threads = size_t(0x7fffffff) / (size_t(patches) * 32);  // int indices
-  const int batch = static_cast<int>(std::max<size_t>(
-      1, std::min<size_t>(std::min<size_t>(n, max_by_threads),
-                          kMaskBudgetBytes / mask_bytes_per_particle)));
-  const int swords = (words + 31) / 32;
-  d.mask.reserve(size_t(batch) * patches * std::max(words, 1));
-  d.summary.reserve(size_t(batch) * patches * std::max(swords, 1));
-  d.shift.reserve(size_t(batch) * patches);
-  d.item_ll.reserve(size_t(batch) * patches);
-  d.item_hits.reserve(size_t(batch) * patches);
-  d.item_evals.reserve(size_t(batch) * patches);
-  d.item_relevant.reserve(size_t(batch) * patches);
-  const cuda::ItemPartials partials{d.item_ll.data(), d.item_hits.data(), d.item_evals.data(),
-                                    d.item_relevant.data()};
-  d.ll.reserve(n);
-  d.hits.reserve(n);
-  d.evals.reserve(n);
-  d.pairs.reserve(n);
-  d.h_ll.reserve(n);
-  d.h_hits.reserve(n);
-  d.h_evals.reserve(n);
-  d.h_pairs.reserve(n);
-
-  cuda::MembershipConfig cfg;
-  cfg.K = frame.intrinsics;
-  cfg.patch_size_px = frame.grid.patch_size_px;
-  cfg.patch_cols = frame.grid.cols;
-  cfg.patch_rows = frame.grid.rows;
-  cfg.min_depth_m = params.min_component_depth_m;
-  cfg.sigma_bound = params.sigma_bound;
-  cfg.inflate_px = patchInflation(frame.grid.patch_size_px);
-  cfg.floor_log_density = params.floor_log_density;
-  cuda::LikelihoodShape shape = cuda::chooseLikelihoodShape(max_patch_pixels);
-  if (const char* env = std::getenv("GMM_MCL_CUDA_SHAPE")) {  // tuning: LANESxPX, e.g. 16x2
-    int lanes = 0, px = 0;
-    if (std::sscanf(env, "%dx%d", &lanes, &px) == 2) {
-      shape.lanes = lanes;
-      shape.pixels_per_lane = px;
-    }
+void CudaBackend::evaluateImage(const DepthImage& image, const Intrinsics& K,
+                                const FrameParams& frame_params,
+                                const std::vector<RigidTransformF>& T_map_cam,
+                                const MeasurementParams& params, BackendOutput* out) {
+  Impl& d = *impl_;
+  if (d.num_components == 0) throw BackendError("cuda backend: no map set");
+  // The checks of prepareFrame, with its messages.
+  const std::string param_err = frame_params.validate();
+  if (!param_err.empty()) throw std::invalid_argument("frame parameters: " + param_err);
+  const std::string layout_err = image.checkLayout();
+  if (!layout_err.empty()) throw std::invalid_argument("depth image: " + layout_err);
+  if (image.width_px != K.width_px || image.height_px != K.height_px) {
+    throw std::invalid_argument("depth image is " + std::to_string(image.width_px) + "x" +
+                                std::to_string(image.height_px) + " but the camera info says " +
+                                std::to_string(K.width_px) + "x" + std::to_string(K.height_px));
   }
-
-  if (cuda::likelihoodSharedBytes(shape, words) > 48 * 1024) {
-    throw BackendError("cuda backend: " + std::to_string(d.num_components) +
-                       " components exceed the likelihood kernel's shared memory");
+  const int n = static_cast<int>(T_map_cam.size());
+  const PatchGrid grid =
+      PatchGrid::forImage(image.width_px, image.height_px, frame_params.patch_size_px);
+  const int patches = grid.count();
+  resetOutput(n, out);
+  d.last_transfer_ms = d.last_frame_prep_ms = 0.0;
+  d.last_frame_pixels = 0;
+  if (n == 0 || patches == 0) return;
+  const int st = frame_params.pixel_stride;
+  const size_t max_pixels =
+      size_t((image.width_px + st - 1) / st) * ((image.height_px + st - 1) / st);
+  // Only the rows on the stride grid (v = 0, st, 2 st, ...) are uploaded.
+  const int rows = (image.height_px + st - 1) / st;
+  const size_t image_bytes = image.row_bytes * rows;
+  const InputLayout L(max_pixels, image_bytes, patches, n);
+  GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(d.stream.get()));
+  d.staging.reserve(L.total);
+  d.inputs.reserve(L.total);
+  d.counts.reserve(patches);
+  unsigned char* h = d.staging.data();
+  for (int r = 0; r < rows; ++r) {
+    std::memcpy(h + L.image + r * image.row_bytes,
+                image.data.data() + size_t(r) * st * image.row_bytes, image.row_bytes);
   }
-  const int batches = (n + batch - 1) / batch;
-  d.ensureEvents(3 * size_t(batches));
-  for (int bi = 0; bi < batches; ++bi) {
-    const int first = bi * batch;
-    const int count = std::min(batch, n - first);
-    d.events[3 * bi].record(s);
-    GMM_MCL_CUDA_CHECK(cuda::launchMembership(count, d.num_components, words, cfg,
-                                              d.components.data(), d_T_cam_map + first,
-                                              d.mask.data(), d.shift.data(), d.summary.data(), s));
-    d.events[3 * bi + 1].record(s);
-    GMM_MCL_CUDA_CHECK(cuda::launchLikelihood(
-        count, patches, words, shape, params.floor_log_density, x, y, z, patch_begin,
-        d.eval_components.data(), d_T_map_cam + first, d.mask.data(), d.summary.data(),
-        d.shift.data(), partials, s));
-    GMM_MCL_CUDA_CHECK(cuda::launchReduce(count, patches, partials, d.ll.data() + first,
-                                          d.hits.data() + first, d.evals.data() + first,
-                                          d.pairs.data() + first, s));
-    d.events[3 * bi + 2].record(s);
-  }
-  d.download_start.record(s);
-  GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(d.h_ll.data(), d.ll.data(), n * sizeof(double),
-                                     cudaMemcpyDeviceToHost, s));
-  GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(d.h_hits.data(), d.hits.data(), n * sizeof(int),
-                                     cudaMemcpyDeviceToHost, s));
-  GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(d.h_evals.data(), d.evals.data(), n * sizeof(long long),
-                                     cudaMemcpyDeviceToHost, s));
-  GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(d.h_pairs.data(), d.pairs.data(), n * sizeof(long long),
-                                     cudaMemcpyDeviceToHost, s));
-  d.download_end.record(s);
-  GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(s));
-
-  for (int bi = 0; bi < batches; ++bi) {
-    out->projection_membership_ms += d.events[3 * bi + 1].msSince(d.events[3 * bi]);
-    out->likelihood_ms += d.events[3 * bi + 2].msSince(d.events[3 * bi + 1]);
-  }
-  d.last_transfer_ms =
-      d.upload_end.msSince(d.upload_start) + d.download_end.msSince(d.download_start);
-  for (int i = 0; i < n; ++i) {
-    out->log_likelihood[i] = d.h_ll[i];
-    out->floor_hits[i] = d.h_hits[i];
-    out->evaluations += d.h_evals[i];
-    out->relevant_pairs += d.h_pairs[i];
-  }
+  d.stagePoses(T_map_cam, L);
+  cudaStream_t s = d.stream.get();
+  // Upload only the image and the poses (not the points: they are made here).
+  d.upload_start.record(s);
+  GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(d.inputs.data() + L.image, h + L.image, L.total - L.image,
+                                     cudaMemcpyHostToDevice, s));
+  d.upload_end.record(s);
+  const OutputLayout O(n, patches);
+  d.results.reserve(O.total);
+  d.h_results.reserve(O.total);
+  Impl::DeviceFrameView view = d.view(L, K, grid);
+  view.patch_begin = reinterpret_cast<const int*>(d.results.data() + O.patch_begin);
+  cuda::FrameConfig fc;
+  fc.K = K;
+  fc.patch_size_px = grid.patch_size_px;
+  fc.cols = grid.cols;
+  fc.rows = grid.rows;
+  fc.stride_px = st;
+  fc.min_range_m = frame_params.min_range_m;
+  fc.max_range_m = frame_params.max_range_m;
+  fc.millimetres = image.encoding == DepthEncoding::kMono16Millimetres ? 1 : 0;
+  fc.row_bytes = image.row_bytes;
+  GMM_MCL_CUDA_CHECK(cuda::launchFramePrep(
+      fc, d.inputs.data() + L.image, d.counts.data(), const_cast<int*>(view.patch_begin),
+      const_cast<float*>(view.x), const_cast<float*>(view.y), const_cast<float*>(view.z), s));
+  d.prep_end.record(s);
+  const int side = (frame_params.patch_size_px + st - 1) / st;
+  d.run(view, n, params, side * side, true, out);
+  d.last_transfer_ms += d.upload_end.msSince(d.upload_start);
+  d.last_frame_prep_ms = d.prep_end.msSince(d.upload_end);
 }
 
 void CudaBackend::membership(const DepthFrame& frame, const RigidTransformF& T_map_cam,
@@ -331,8 +479,8 @@ void CudaBackend::membership(const DepthFrame& frame, const RigidTransformF& T_m
   cuda::DeviceBuffer<float> shift(patches);
   cuda::DeviceBuffer<uint32_t> summary(size_t(patches) * ((words + 31) / 32));
   const RigidTransformF T_cam_map = invertRigid(T_map_cam);
-  GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(pose.data(), &T_cam_map, sizeof(T_cam_map),
-                                     cudaMemcpyHostToDevice, s));
+  GMM_MCL_CUDA_CHECK(
+      cudaMemcpyAsync(pose.data(), &T_cam_map, sizeof(T_cam_map), cudaMemcpyHostToDevice, s));
   cuda::MembershipConfig cfg;
   cfg.K = frame.intrinsics;
   cfg.patch_size_px = frame.grid.patch_size_px;
@@ -343,8 +491,8 @@ void CudaBackend::membership(const DepthFrame& frame, const RigidTransformF& T_m
   cfg.inflate_px = patchInflation(frame.grid.patch_size_px);
   cfg.floor_log_density = params.floor_log_density;
   GMM_MCL_CUDA_CHECK(cuda::launchMembership(1, d.num_components, words, cfg, d.components.data(),
-                                            pose.data(), mask.data(), shift.data(),
-                                            summary.data(), s));
+                                            pose.data(), mask.data(), shift.data(), summary.data(),
+                                            s));
   std::vector<uint32_t> h(size_t(patches) * words);
   GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(h.data(), mask.data(), h.size() * sizeof(uint32_t),
                                      cudaMemcpyDeviceToHost, s));

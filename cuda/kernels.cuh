@@ -46,8 +46,8 @@ cudaError_t setMembershipSharedLimit(size_t bytes);
 // summary_out: [num_particles][patches][ceil(words / 32)], bit w set when mask word w is not 0.
 cudaError_t launchMembership(int num_particles, int num_components, int words,
                              const MembershipConfig& cfg, const ComponentF* components,
-                             const RigidTransformF* T_cam_map, uint32_t* mask_out,
-                             float* shift_out, uint32_t* summary_out, cudaStream_t stream);
+                             const RigidTransformF* T_cam_map, uint32_t* mask_out, float* shift_out,
+                             uint32_t* summary_out, cudaStream_t stream);
 
 // How the likelihood kernel maps work onto lanes: a group of `lanes` lanes (8, 16 or 32) per
 // (particle, patch) item, each lane keeping `pixels_per_lane` pixels (1, 2 or 4) in registers.
@@ -82,6 +82,23 @@ cudaError_t launchLikelihood(int num_particles, int num_patches, int words,
 cudaError_t launchReduce(int num_particles, int num_patches, const ItemPartials& partials,
                          double* log_likelihood, int* floor_hits, long long* evaluations,
                          long long* relevant_pairs, cudaStream_t stream);
+
+// Frame preparation on the GPU (prepareFrame's pixels, order and arithmetic).
+struct FrameConfig {
+  Intrinsics K;
+  int patch_size_px;
+  int cols, rows;  // patch grid
+  int stride_px;
+  float min_range_m, max_range_m;
+  int millimetres;  // 1: 16UC1 millimetres, 0: 32FC1 metres
+  size_t row_bytes;
+};
+// image: [ceil(height / stride)][row_bytes] raw bytes, the rows v = 0, stride, 2 stride, ...;
+// counts: [patches] scratch; patch_begin: [patches + 1]; x_m, y_m, z_m: room for every stride-grid
+// pixel.
+cudaError_t launchFramePrep(const FrameConfig& cfg, const uint8_t* image, int* counts,
+                            int* patch_begin, float* x_m, float* y_m, float* z_m,
+                            cudaStream_t stream);
 
 }  // namespace cuda
 }  // namespace gmm_mcl

@@ -28,20 +28,20 @@ __device__ __forceinline__ float exp2Approx(float x) {
 template <int LANES, int PX>
 __global__ void __launch_bounds__(kThreads)
     likelihoodKernel(int num_items, int num_patches, int words, float floor_log_density,
-                     const float* __restrict__ x_m,          // [pixels] camera frame, by patch
-                     const float* __restrict__ y_m,          // [pixels]
-                     const float* __restrict__ z_m,          // [pixels]
-                     const int* __restrict__ patch_begin,    // [patches + 1]
-                     const EvalComponent* __restrict__ comps,        // [M]
+                     const float* __restrict__ x_m,            // [pixels] camera frame, by patch
+                     const float* __restrict__ y_m,            // [pixels]
+                     const float* __restrict__ z_m,            // [pixels]
+                     const int* __restrict__ patch_begin,      // [patches + 1]
+                     const EvalComponent* __restrict__ comps,  // [M]
                      const RigidTransformF* __restrict__ T_map_cam,  // [N]
-                     const uint32_t* __restrict__ mask,      // [N][patches][words]
-                     const uint32_t* __restrict__ summary,   // [N][patches][ceil(words / 32)]
-                     const float* __restrict__ shift,        // [N][patches], nats
-                     double* __restrict__ item_ll,           // [N * patches], nats
-                     int* __restrict__ item_hits,            // [N * patches]
-                     int* __restrict__ item_evals,           // [N * patches]
-                     int* __restrict__ item_relevant) {      // [N * patches]
-  extern __shared__ uint32_t s_words[];  // [kThreads / LANES groups][words]
+                     const uint32_t* __restrict__ mask,              // [N][patches][words]
+                     const uint32_t* __restrict__ summary,  // [N][patches][ceil(words / 32)]
+                     const float* __restrict__ shift,       // [N][patches], nats
+                     double* __restrict__ item_ll,          // [N * patches], nats
+                     int* __restrict__ item_hits,           // [N * patches]
+                     int* __restrict__ item_evals,          // [N * patches]
+                     int* __restrict__ item_relevant) {     // [N * patches]
+  extern __shared__ uint32_t s_words[];                     // [kThreads / LANES groups][words]
   const int gid = blockIdx.x * kThreads + threadIdx.x;
   const int item = gid / LANES;
   const int sub = gid % LANES;
@@ -49,8 +49,9 @@ __global__ void __launch_bounds__(kThreads)
   double ll = 0.0;
   int hits = 0, evals = 0, relevant = 0;
   int b = 0, e = 0;
+  const int particle = live ? item / num_patches : 0;
   if (live) {
-    const int patch = item % num_patches;
+    const int patch = item - particle * num_patches;
     b = __ldg(patch_begin + patch);
     e = __ldg(patch_begin + patch + 1);
   }
@@ -62,7 +63,6 @@ __global__ void __launch_bounds__(kThreads)
   }
   __syncwarp();
   if (b < e) {
-    const int particle = item / num_patches;
     const RigidTransformF T = T_map_cam[particle];
     const float S = __ldg(shift + item);
     const float S2 = S * kLog2e;
@@ -139,13 +139,13 @@ __global__ void __launch_bounds__(kThreads)
 // One warp per particle sums its patches' partials.
 __global__ void __launch_bounds__(kThreads)
     reduceKernel(int num_particles, int num_patches,
-                 const double* __restrict__ item_ll,    // [N * patches]
-                 const int* __restrict__ item_hits,     // [N * patches]
-                 const int* __restrict__ item_evals,    // [N * patches]
-                 const int* __restrict__ item_relevant,  // [N * patches]
-                 double* __restrict__ log_likelihood,   // [N] nats
-                 int* __restrict__ floor_hits,          // [N]
-                 long long* __restrict__ evaluations,   // [N]
+                 const double* __restrict__ item_ll,        // [N * patches]
+                 const int* __restrict__ item_hits,         // [N * patches]
+                 const int* __restrict__ item_evals,        // [N * patches]
+                 const int* __restrict__ item_relevant,     // [N * patches]
+                 double* __restrict__ log_likelihood,       // [N] nats
+                 int* __restrict__ floor_hits,              // [N]
+                 long long* __restrict__ evaluations,       // [N]
                  long long* __restrict__ relevant_pairs) {  // [N]
   const int particle = (blockIdx.x * kThreads + threadIdx.x) / 32;
   const int lane = threadIdx.x & 31;
@@ -199,18 +199,19 @@ size_t likelihoodSharedBytes(const LikelihoodShape& shape, int words) {
   return sizeof(uint32_t) * static_cast<size_t>(kThreads / shape.lanes) * words;
 }
 
+// Measured on an H100 (7-Scenes M=1000, bench workloads): four pixels per lane amortise each
+// component's loads best; several small patches share a warp rather than leave lanes idle.
 LikelihoodShape chooseLikelihoodShape(int max_patch_pixels) {
   LikelihoodShape s;
-  if (max_patch_pixels <= 8) {
-    s.lanes = 8, s.pixels_per_lane = 1;
-  } else if (max_patch_pixels <= 16) {
-    s.lanes = 8, s.pixels_per_lane = 2;
+  s.pixels_per_lane = 4;
+  if (max_patch_pixels <= 16) {
+    s.lanes = 4;  // stride 8: 16 px per patch, 8 patches per warp
   } else if (max_patch_pixels <= 32) {
-    s.lanes = 16, s.pixels_per_lane = 2;
+    s.lanes = 8;
   } else if (max_patch_pixels <= 64) {
-    s.lanes = 32, s.pixels_per_lane = 2;
+    s.lanes = 16;  // stride 4: 64 px per patch, 2 patches per warp
   } else {
-    s.lanes = 32, s.pixels_per_lane = 4;
+    s.lanes = 32;  // stride 1: 1024 px per patch in chunks of 128
   }
   return s;
 }
@@ -227,21 +228,45 @@ cudaError_t launchLikelihood(int num_particles, int num_patches, int words,
   const long long threads = items * shape.lanes;
   const dim3 grid(static_cast<unsigned>((threads + kThreads - 1) / kThreads)), block(kThreads);
   const size_t smem = likelihoodSharedBytes(shape, words);
-#define GMM_MCL_LAUNCH(L, PX)                                                                   \
-  likelihoodKernel<L, PX><<<grid, block, smem, stream>>>(                                          \
-      static_cast<int>(items), num_patches, words, floor_log_density, x_m, y_m, z_m,             \
-      patch_begin, components, T_map_cam, mask, summary, shift, partials.log_likelihood,        \
-      partials.floor_hits, partials.evaluations, partials.relevant)
+#define GMM_MCL_LAUNCH(L, PX)                                                                     \
+  likelihoodKernel<L, PX><<<grid, block, smem, stream>>>(                                         \
+      static_cast<int>(items), num_patches, words, floor_log_density, x_m, y_m, z_m, patch_begin, \
+      components, T_map_cam, mask, summary, shift, partials.log_likelihood, partials.floor_hits,  \
+      partials.evaluations, partials.relevant)
   const int key = shape.lanes * 10 + shape.pixels_per_lane;
   switch (key) {
-    case 81: GMM_MCL_LAUNCH(8, 1); break;
-    case 82: GMM_MCL_LAUNCH(8, 2); break;
-    case 161: GMM_MCL_LAUNCH(16, 1); break;
-    case 162: GMM_MCL_LAUNCH(16, 2); break;
-    case 321: GMM_MCL_LAUNCH(32, 1); break;
-    case 322: GMM_MCL_LAUNCH(32, 2); break;
-    case 324: GMM_MCL_LAUNCH(32, 4); break;
-    default: return cudaErrorInvalidValue;
+    case 44:
+      GMM_MCL_LAUNCH(4, 4);
+      break;
+    case 84:
+      GMM_MCL_LAUNCH(8, 4);
+      break;
+    case 164:
+      GMM_MCL_LAUNCH(16, 4);
+      break;
+    case 81:
+      GMM_MCL_LAUNCH(8, 1);
+      break;
+    case 82:
+      GMM_MCL_LAUNCH(8, 2);
+      break;
+    case 161:
+      GMM_MCL_LAUNCH(16, 1);
+      break;
+    case 162:
+      GMM_MCL_LAUNCH(16, 2);
+      break;
+    case 321:
+      GMM_MCL_LAUNCH(32, 1);
+      break;
+    case 322:
+      GMM_MCL_LAUNCH(32, 2);
+      break;
+    case 324:
+      GMM_MCL_LAUNCH(32, 4);
+      break;
+    default:
+      return cudaErrorInvalidValue;
   }
 #undef GMM_MCL_LAUNCH
   return cudaGetLastError();

@@ -23,16 +23,16 @@ __device__ __forceinline__ float orderedIntToFloat(int k) {
 
 __global__ void __launch_bounds__(kMembershipThreads)
     membershipKernel(int num_particles, int num_components, int words, MembershipConfig cfg,
-                     const ComponentF* __restrict__ components,       // [M], map frame, metres
-                     const RigidTransformF* __restrict__ T_cam_map,   // [N]
-                     uint32_t* __restrict__ mask_out,                 // [N][patches][words]
-                     float* __restrict__ shift_out,                   // [N][patches], nats
+                     const ComponentF* __restrict__ components,      // [M], map frame, metres
+                     const RigidTransformF* __restrict__ T_cam_map,  // [N]
+                     uint32_t* __restrict__ mask_out,                // [N][patches][words]
+                     float* __restrict__ shift_out,                  // [N][patches], nats
                      uint32_t* __restrict__ summary_out) {  // [N][patches][ceil(words / 32)]
   extern __shared__ uint32_t smem[];
   const int particle = blockIdx.x;
   if (particle >= num_particles) return;
   const int patches = cfg.patch_cols * cfg.patch_rows;
-  uint32_t* mask = smem;                                          // [patches][words]
+  uint32_t* mask = smem;                                            // [patches][words]
   int* shift_key = reinterpret_cast<int*>(smem + patches * words);  // [patches]
   for (int i = threadIdx.x; i < patches * words; i += blockDim.x) mask[i] = 0u;
   const int floor_key = floatToOrderedInt(cfg.floor_log_density);
@@ -50,11 +50,11 @@ __global__ void __launch_bounds__(kMembershipThreads)
     }
     // Candidate patches from the inflated ellipse's bounding box (as computeMembership).
     const int col0 = max(0, static_cast<int>(ceilf((p.u_px - p.half_w_px - c0) / ps)));
-    const int col1 = min(cfg.patch_cols - 1,
-                         static_cast<int>(floorf((p.u_px + p.half_w_px - c0) / ps)));
+    const int col1 =
+        min(cfg.patch_cols - 1, static_cast<int>(floorf((p.u_px + p.half_w_px - c0) / ps)));
     const int row0 = max(0, static_cast<int>(ceilf((p.v_px - p.half_h_px - c0) / ps)));
-    const int row1 = min(cfg.patch_rows - 1,
-                         static_cast<int>(floorf((p.v_px + p.half_h_px - c0) / ps)));
+    const int row1 =
+        min(cfg.patch_rows - 1, static_cast<int>(floorf((p.v_px + p.half_h_px - c0) / ps)));
     const uint32_t bit = 1u << (i & 31);
     const int word = i >> 5;
     const int key = floatToOrderedInt(c.log_norm);
@@ -74,7 +74,8 @@ __global__ void __launch_bounds__(kMembershipThreads)
   uint32_t* out = mask_out + static_cast<size_t>(particle) * patches * words;
   for (int i = threadIdx.x; i < patches * words; i += blockDim.x) out[i] = mask[i];
   float* shift = shift_out + static_cast<size_t>(particle) * patches;
-  for (int i = threadIdx.x; i < patches; i += blockDim.x) shift[i] = orderedIntToFloat(shift_key[i]);
+  for (int i = threadIdx.x; i < patches; i += blockDim.x)
+    shift[i] = orderedIntToFloat(shift_key[i]);
   // Summary: bit w % 32 of summary word w / 32 set when mask word w of the patch is non-zero.
   // One warp per (patch, summary word): a ballot over the 32 mask words it covers.
   const int swords = (words + 31) >> 5;
@@ -100,8 +101,8 @@ cudaError_t setMembershipSharedLimit(size_t bytes) {
 
 cudaError_t launchMembership(int num_particles, int num_components, int words,
                              const MembershipConfig& cfg, const ComponentF* components,
-                             const RigidTransformF* T_cam_map, uint32_t* mask_out,
-                             float* shift_out, uint32_t* summary_out, cudaStream_t stream) {
+                             const RigidTransformF* T_cam_map, uint32_t* mask_out, float* shift_out,
+                             uint32_t* summary_out, cudaStream_t stream) {
   const int patches = cfg.patch_cols * cfg.patch_rows;
   if (num_particles <= 0 || patches <= 0) return cudaSuccess;
   const size_t smem = membershipSharedBytes(patches, words);

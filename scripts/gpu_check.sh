@@ -46,7 +46,7 @@ if step test; then
   [[ ${PIPESTATUS[0]} -eq 0 ]] || { echo "parity tests FAILED"; status=1; }
 fi
 
-SAN_FILTER="${SAN_FILTER:-CudaBackendTest.SyntheticSceneMatchesCpu:CudaBackendTest.EmptyAndDegenerateInputs}"
+SAN_FILTER="${SAN_FILTER:-CudaBackendTest.SyntheticSceneMatchesCpu:CudaBackendTest.GpuFramePreparationMatchesHost:CudaBackendTest.EmptyAndDegenerateInputs}"
 for tool in memcheck racecheck; do
   step $tool || continue
   echo "== compute-sanitizer --tool $tool"

@@ -59,7 +59,8 @@ FrameSet loadSevenScenes(const std::string& dir, int first, int count) {
     Eigen::Matrix4d M;
     for (int r = 0; r < 4; ++r) {
       for (int c = 0; c < 4; ++c) {
-        if (!(pf >> M(r, c))) throw std::runtime_error(framePath(dir, i, "pose.txt") + ": bad pose");
+        if (!(pf >> M(r, c)))
+          throw std::runtime_error(framePath(dir, i, "pose.txt") + ": bad pose");
       }
     }
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
@@ -97,8 +98,7 @@ void saveFrameSet(const FrameSet& set, const std::string& path) {
       throw std::runtime_error(path + ": frames must be 16UC1 of the camera's size");
     }
     for (int v = 0; v < img.height_px; ++v) {
-      f.write(reinterpret_cast<const char*>(img.data.data() + v * img.row_bytes),
-              2 * img.width_px);
+      f.write(reinterpret_cast<const char*>(img.data.data() + v * img.row_bytes), 2 * img.width_px);
     }
   }
   if (!f) throw std::runtime_error(path + ": write failed");
@@ -157,8 +157,8 @@ void makeSyntheticScene(int count, GmmMap* map, FrameSet* frames) {
   std::mt19937_64 rng(1);
   for (int i = 0; i < count; ++i) {
     const Eigen::Isometry3d T = traj[i] * T_base_cam;
-    frames->images.push_back(sim::renderDepth(scene, frames->K, T,
-                                              DepthEncoding::kMono16Millimetres, 5.0, noise, &rng));
+    frames->images.push_back(
+        sim::renderDepth(scene, frames->K, T, DepthEncoding::kMono16Millimetres, 5.0, noise, &rng));
     frames->T_map_cam.push_back(T);
   }
 }

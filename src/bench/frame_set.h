@@ -3,10 +3,9 @@
 // synthetic box scene.
 #pragma once
 
+#include <Eigen/Geometry>
 #include <string>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "gmm_mcl/camera/depth_image.h"
 #include "gmm_mcl/map/gmm_map.h"
@@ -15,10 +14,10 @@ namespace gmm_mcl {
 namespace bench {
 
 struct FrameSet {
-  std::string source;                         // what the frames are (printed by the tools)
+  std::string source;  // what the frames are (printed by the tools)
   Intrinsics K;
-  std::vector<DepthImage> images;             // 16UC1 millimetres
-  std::vector<Eigen::Isometry3d> T_map_cam;   // ground truth, camera optical frame -> map
+  std::vector<DepthImage> images;            // 16UC1 millimetres
+  std::vector<Eigen::Isometry3d> T_map_cam;  // ground truth, camera optical frame -> map
 };
 
 // 7-Scenes camera (fx = fy = 585, cx = 320, cy = 240, 640x480).

@@ -2,6 +2,7 @@
 // Per (backend, workload): warm-up frames, then timed updates (frame preparation + backend),
 // median updates per second, per-stage milliseconds, Gaussian evaluations per update and per
 // second, and for CUDA the likelihood kernel's fraction of the GPU's FP32 peak. One table out.
+#include <omp.h>
 #include <sys/stat.h>
 
 #include <algorithm>
@@ -14,8 +15,6 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-#include <omp.h>
 
 #include "bench/frame_set.h"
 #include "gmm_mcl/backend/cpu_backend.h"
@@ -54,6 +53,7 @@ struct Options {
   double spread_m = 0.5;
   double spread_rad = 0.3;
   bool synthetic = false;
+  bool cuda_host_prep = false;  // CUDA: prepare frames on the host (prepareFrame) and upload points
 };
 
 bool exists(const std::string& p) {
@@ -66,12 +66,16 @@ void usage() {
       "gmm_mcl_bench [options]\n"
       "  --backend cpu|cuda|all      (all: cpu, and cuda when built and a device is present)\n"
       "  --workload paper|cpu|full|scale|all   (comma-separated list accepted)\n"
-      "  --map FILE                  GMM map (default $GMM_MCL_MAP, build/maps/7scenes_redkitchen_m1000.gmm)\n"
+      "  --map FILE                  GMM map (default $GMM_MCL_MAP, "
+      "build/maps/7scenes_redkitchen_m1000.gmm)\n"
       "  --frames-dir DIR            7-Scenes sequence folder (needs libpng)\n"
       "  --frames-raw FILE           raw frame file (bench --export-frames writes one)\n"
       "  --synthetic                 synthetic box scene and its map instead of 7-Scenes\n"
       "  --frames N (100) --warmup N (3) --budget-s S (20) --min-timed N (3)\n"
-      "  --threads N (CPU)  --particles N (override)  --seed S  --spread-m M (0.5) --spread-rad R (0.3)\n"
+      "  --threads N (CPU)  --particles N (override)  --seed S  --spread-m M (0.5) --spread-rad R "
+      "(0.3)\n"
+      "  --cuda-host-prep            CUDA: prepare frames on the host and upload the points\n"
+      "                              (default: the raw image is uploaded and prepared on the GPU)\n"
       "  --export-frames FILE        write the loaded frames as a raw file and exit\n");
 }
 
@@ -80,7 +84,8 @@ bool listed(const std::string& list, const std::string& name) {
   size_t pos = 0;
   while (pos <= list.size()) {
     const size_t comma = list.find(',', pos);
-    const std::string item = list.substr(pos, comma == std::string::npos ? std::string::npos : comma - pos);
+    const std::string item =
+        list.substr(pos, comma == std::string::npos ? std::string::npos : comma - pos);
     if (item == name) return true;
     if (comma == std::string::npos) break;
     pos = comma + 1;
@@ -90,16 +95,16 @@ bool listed(const std::string& list, const std::string& name) {
 
 // Particles uniform within +-spread_m per axis and +-spread_rad of yaw (about the map's z axis,
 // through the camera centre) around the true camera pose.
-std::vector<RigidTransformF> makeParticles(const Eigen::Isometry3d& T_true, int n,
-                                           double spread_m, double spread_rad, unsigned seed) {
+std::vector<RigidTransformF> makeParticles(const Eigen::Isometry3d& T_true, int n, double spread_m,
+                                           double spread_rad, unsigned seed) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> um(-spread_m, spread_m), ur(-spread_rad, spread_rad);
   std::vector<RigidTransformF> out(n);
   out[0] = toRigidF(T_true);
   for (int i = 1; i < n; ++i) {
     Eigen::Isometry3d T = T_true;
-    T.linear() = Eigen::AngleAxisd(ur(rng), Eigen::Vector3d::UnitZ()).toRotationMatrix() *
-                 T_true.linear();
+    T.linear() =
+        Eigen::AngleAxisd(ur(rng), Eigen::Vector3d::UnitZ()).toRotationMatrix() * T_true.linear();
     T.translation() += Eigen::Vector3d(um(rng), um(rng), um(rng));
     out[i] = toRigidF(T);
   }
@@ -125,6 +130,10 @@ Row runWorkload(LikelihoodBackend* backend, double fp32_peak_gflops, const Workl
                 const bench::FrameSet& frames, const Options& opt) {
   Row row;
   row.backend = backend->name();
+#if defined(GMM_MCL_HAVE_CUDA)
+  if (dynamic_cast<CudaBackend*>(backend))
+    row.backend = opt.cuda_host_prep ? "cuda (host prep)" : "cuda (GPU prep)";
+#endif
   row.workload = w.name;
   row.particles = opt.particles > 0 ? opt.particles : w.particles;
   row.stride = w.stride_px;
@@ -147,14 +156,30 @@ Row runWorkload(LikelihoodBackend* backend, double fp32_peak_gflops, const Workl
     const std::vector<RigidTransformF> particles =
         makeParticles(frames.T_map_cam[f], row.particles, opt.spread_m, opt.spread_rad,
                       opt.seed * 7919u + static_cast<unsigned>(f));
-    const auto t0 = std::chrono::steady_clock::now();
-    const DepthFrame frame = prepareFrame(frames.images[f], frames.K, fp);
-    const auto t1 = std::chrono::steady_clock::now();
-    backend->evaluate(frame, particles, mp, &out);
-    const auto t2 = std::chrono::steady_clock::now();
+    double prep = 0.0, total = 0.0, used_pixels = 0.0;
+#if defined(GMM_MCL_HAVE_CUDA)
+    auto* cuda_backend = dynamic_cast<CudaBackend*>(backend);
+    if (cuda_backend && !opt.cuda_host_prep) {
+      // Frame preparation on the GPU: the update uploads the raw image.
+      const auto t0 = std::chrono::steady_clock::now();
+      cuda_backend->evaluateImage(frames.images[f], frames.K, fp, particles, mp, &out);
+      const auto t2 = std::chrono::steady_clock::now();
+      prep = cuda_backend->lastFramePrepMs();
+      total = std::chrono::duration<double, std::milli>(t2 - t0).count();
+      used_pixels = cuda_backend->lastFramePixels();
+    } else
+#endif
+    {
+      const auto t0 = std::chrono::steady_clock::now();
+      const DepthFrame frame = prepareFrame(frames.images[f], frames.K, fp);
+      const auto t1 = std::chrono::steady_clock::now();
+      backend->evaluate(frame, particles, mp, &out);
+      const auto t2 = std::chrono::steady_clock::now();
+      prep = std::chrono::duration<double, std::milli>(t1 - t0).count();
+      total = std::chrono::duration<double, std::milli>(t2 - t0).count();
+      used_pixels = static_cast<double>(frame.size());
+    }
     if (warm) continue;
-    const double prep = std::chrono::duration<double, std::milli>(t1 - t0).count();
-    const double total = std::chrono::duration<double, std::milli>(t2 - t0).count();
     timed_s += total * 1e-3;
     total_ms.push_back(total);
     prep_ms.push_back(prep);
@@ -163,14 +188,15 @@ Row runWorkload(LikelihoodBackend* backend, double fp32_peak_gflops, const Workl
 #if defined(GMM_MCL_HAVE_CUDA)
     if (auto* cb = dynamic_cast<CudaBackend*>(backend)) xfer_ms.push_back(cb->lastTransferMs());
 #endif
-    pixels.push_back(static_cast<double>(frame.size()));
+    pixels.push_back(used_pixels);
     cpp.push_back(out.patches_with_pixels > 0
-                      ? double(out.relevant_pairs) / (double(row.particles) * out.patches_with_pixels)
+                      ? double(out.relevant_pairs) /
+                            (double(row.particles) * out.patches_with_pixels)
                       : 0.0);
     evals.push_back(static_cast<double>(out.evaluations));
     long long h = 0;
     for (int x : out.floor_hits) h += x;
-    hits.push_back(frame.size() ? double(h) / (double(frame.size()) * row.particles) : 0.0);
+    hits.push_back(used_pixels > 0 ? double(h) / (used_pixels * row.particles) : 0.0);
   }
   row.timed = static_cast<int>(total_ms.size());
   auto mean = [](const std::vector<double>& v) {
@@ -213,24 +239,45 @@ int run(int argc, char** argv) {
       if (i + 1 >= argc) throw std::invalid_argument(std::string("missing value for ") + what);
       return argv[++i];
     };
-    if (a == "--backend") opt.backends = next("--backend");
-    else if (a == "--workload") opt.workloads = next("--workload");
-    else if (a == "--map") opt.map_path = next("--map");
-    else if (a == "--frames-dir") opt.frames_dir = next("--frames-dir");
-    else if (a == "--frames-raw") opt.frames_raw = next("--frames-raw");
-    else if (a == "--export-frames") opt.export_frames = next("--export-frames");
-    else if (a == "--frames") opt.frames = std::stoi(next("--frames"));
-    else if (a == "--warmup") opt.warmup = std::stoi(next("--warmup"));
-    else if (a == "--budget-s") opt.budget_s = std::stod(next("--budget-s"));
-    else if (a == "--min-timed") opt.min_timed = std::stoi(next("--min-timed"));
-    else if (a == "--threads") opt.threads = std::stoi(next("--threads"));
-    else if (a == "--particles") opt.particles = std::stoi(next("--particles"));
-    else if (a == "--seed") opt.seed = static_cast<unsigned>(std::stoul(next("--seed")));
-    else if (a == "--spread-m") opt.spread_m = std::stod(next("--spread-m"));
-    else if (a == "--spread-rad") opt.spread_rad = std::stod(next("--spread-rad"));
-    else if (a == "--synthetic") opt.synthetic = true;
-    else if (a == "-h" || a == "--help") { usage(); return 0; }
-    else throw std::invalid_argument("unknown option " + a);
+    if (a == "--backend")
+      opt.backends = next("--backend");
+    else if (a == "--workload")
+      opt.workloads = next("--workload");
+    else if (a == "--map")
+      opt.map_path = next("--map");
+    else if (a == "--frames-dir")
+      opt.frames_dir = next("--frames-dir");
+    else if (a == "--frames-raw")
+      opt.frames_raw = next("--frames-raw");
+    else if (a == "--export-frames")
+      opt.export_frames = next("--export-frames");
+    else if (a == "--frames")
+      opt.frames = std::stoi(next("--frames"));
+    else if (a == "--warmup")
+      opt.warmup = std::stoi(next("--warmup"));
+    else if (a == "--budget-s")
+      opt.budget_s = std::stod(next("--budget-s"));
+    else if (a == "--min-timed")
+      opt.min_timed = std::stoi(next("--min-timed"));
+    else if (a == "--threads")
+      opt.threads = std::stoi(next("--threads"));
+    else if (a == "--particles")
+      opt.particles = std::stoi(next("--particles"));
+    else if (a == "--seed")
+      opt.seed = static_cast<unsigned>(std::stoul(next("--seed")));
+    else if (a == "--spread-m")
+      opt.spread_m = std::stod(next("--spread-m"));
+    else if (a == "--spread-rad")
+      opt.spread_rad = std::stod(next("--spread-rad"));
+    else if (a == "--synthetic")
+      opt.synthetic = true;
+    else if (a == "--cuda-host-prep")
+      opt.cuda_host_prep = true;
+    else if (a == "-h" || a == "--help") {
+      usage();
+      return 0;
+    } else
+      throw std::invalid_argument("unknown option " + a);
   }
   if (opt.frames < 1 || opt.warmup < 0) throw std::invalid_argument("--frames >= 1, --warmup >= 0");
 
@@ -243,7 +290,8 @@ int run(int argc, char** argv) {
       std::string(env_ds && *env_ds ? env_ds : "../shared/datasets") + "/7scenes_redkitchen/data";
   const char* env_map = std::getenv("GMM_MCL_MAP");
   if (opt.map_path.empty()) {
-    if (env_map && *env_map) opt.map_path = env_map;
+    if (env_map && *env_map)
+      opt.map_path = env_map;
     else if (exists("build/maps/7scenes_redkitchen_m1000.gmm"))
       opt.map_path = "build/maps/7scenes_redkitchen_m1000.gmm";
   }
@@ -257,7 +305,8 @@ int run(int argc, char** argv) {
     } else {
       const std::string dir = opt.frames_dir.empty() ? default_dir : opt.frames_dir;
 #if defined(GMM_MCL_HAVE_PNG)
-      if (exists(dir + "/frame-000000.depth.png")) frames = bench::loadSevenScenes(dir, 0, opt.frames);
+      if (exists(dir + "/frame-000000.depth.png"))
+        frames = bench::loadSevenScenes(dir, 0, opt.frames);
 #endif
       if (frames.images.empty() && !opt.frames_dir.empty()) {
         throw std::runtime_error("cannot read 7-Scenes frames from " + dir);
@@ -283,12 +332,15 @@ int run(int argc, char** argv) {
   }
   std::printf("# frames: %s (%zu), map: %s (M = %zu)\n", frames.source.c_str(),
               frames.images.size(), map_source.c_str(), map.size());
-  std::printf("# particles: uniform +-%.2f m per axis and +-%.2f rad of yaw around the true camera "
-              "pose (particle 0 = the true pose), seed %u\n",
-              opt.spread_m, opt.spread_rad, opt.seed);
-  std::printf("# timing: %d warm-up updates, then up to %d timed (>= %d, stop after %.0f s); "
-              "update = frame preparation + backend; medians\n",
-              opt.warmup, opt.frames, opt.min_timed, opt.budget_s);
+  std::printf(
+      "# particles: uniform +-%.2f m per axis and +-%.2f rad of yaw around the true camera "
+      "pose (particle 0 = the true pose), seed %u\n",
+      opt.spread_m, opt.spread_rad, opt.seed);
+  std::printf(
+      "# timing: %d warm-up updates, then up to %d timed (>= %d, stop after %.0f s); "
+      "update = frame preparation + backend (wall clock); medians. CUDA stage times are "
+      "events; transfer = upload + download\n",
+      opt.warmup, opt.frames, opt.min_timed, opt.budget_s);
 
   struct Candidate {
     std::unique_ptr<LikelihoodBackend> backend;
@@ -298,7 +350,8 @@ int run(int argc, char** argv) {
   if (listed(opt.backends, "cpu")) {
     Candidate c;
     c.backend.reset(new CpuBackend(opt.threads));
-    std::printf("# cpu: %d OpenMP threads\n", opt.threads > 0 ? opt.threads : omp_get_max_threads());
+    std::printf("# cpu: %d OpenMP threads\n",
+                opt.threads > 0 ? opt.threads : omp_get_max_threads());
     backends.push_back(std::move(c));
   }
   if (listed(opt.backends, "cuda")) {
@@ -307,10 +360,11 @@ int run(int argc, char** argv) {
     if (cudaDeviceCount(&why) > 0) {
       std::unique_ptr<CudaBackend> cb(new CudaBackend(0));
       const CudaDeviceInfo& d = cb->deviceInfo();
-      std::printf("# cuda: %s, sm_%d, %d SMs x %d FP32 lanes at %.2f GHz = %.1f TFLOP/s FP32 peak; "
-                  "%g FLOP counted per evaluation\n",
-                  d.name.c_str(), d.compute_capability, d.multiprocessors, d.fp32_lanes_per_sm,
-                  d.clock_ghz, d.fp32_peak_gflops * 1e-3, kCudaFlopsPerEvaluation);
+      std::printf(
+          "# cuda: %s, sm_%d, %d SMs x %d FP32 lanes at %.2f GHz = %.1f TFLOP/s FP32 peak; "
+          "%g FLOP counted per evaluation\n",
+          d.name.c_str(), d.compute_capability, d.multiprocessors, d.fp32_lanes_per_sm, d.clock_ghz,
+          d.fp32_peak_gflops * 1e-3, kCudaFlopsPerEvaluation);
       Candidate c;
       c.peak = d.fp32_peak_gflops;
       c.backend = std::move(cb);
@@ -333,22 +387,27 @@ int run(int argc, char** argv) {
                    r.updates_per_s);
     }
   }
-  std::printf("\n| backend | workload | N | stride | pixels | comps/patch | evals/update | updates/s "
-              "| prep ms | proj+memb ms | likelihood ms | transfer ms | update ms | Geval/s "
-              "| lik. kernel Geval/s | FP32 peak | floor hits | timed |\n");
+  std::printf(
+      "\n| backend | workload | N | stride | pixels | comps/patch | evals/update | updates/s "
+      "| prep ms | proj+memb ms | likelihood ms | transfer ms | update ms | Geval/s "
+      "| lik. kernel Geval/s | FP32 peak | floor hits | timed |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (const Row& r : rows) {
     char xfer[32], peak[32];
-    if (r.transfer_ms >= 0) std::snprintf(xfer, sizeof(xfer), "%.3f", r.transfer_ms);
-    else std::snprintf(xfer, sizeof(xfer), "-");
-    if (r.peak_fraction >= 0) std::snprintf(peak, sizeof(peak), "%.1f%%", 100 * r.peak_fraction);
-    else std::snprintf(peak, sizeof(peak), "-");
-    std::printf("| %s | %s | %d | %d | %.0f | %.1f | %.3g | %.2f | %.3f | %.3f | %.3f | %s | %.3f "
-                "| %.2f | %.2f | %s | %.3f | %d |\n",
-                r.backend.c_str(), r.workload.c_str(), r.particles, r.stride, r.pixels,
-                r.comps_per_patch, r.evals_per_update, r.updates_per_s, r.prep_ms,
-                r.membership_ms, r.likelihood_ms, xfer, r.total_ms, r.gevals_per_s,
-                r.kernel_gevals_per_s, peak, r.floor_hit_fraction, r.timed);
+    if (r.transfer_ms >= 0)
+      std::snprintf(xfer, sizeof(xfer), "%.3f", r.transfer_ms);
+    else
+      std::snprintf(xfer, sizeof(xfer), "-");
+    if (r.peak_fraction >= 0)
+      std::snprintf(peak, sizeof(peak), "%.1f%%", 100 * r.peak_fraction);
+    else
+      std::snprintf(peak, sizeof(peak), "-");
+    std::printf(
+        "| %s | %s | %d | %d | %.0f | %.1f | %.3g | %.2f | %.3f | %.3f | %.3f | %s | %.3f "
+        "| %.2f | %.2f | %s | %.3f | %d |\n",
+        r.backend.c_str(), r.workload.c_str(), r.particles, r.stride, r.pixels, r.comps_per_patch,
+        r.evals_per_update, r.updates_per_s, r.prep_ms, r.membership_ms, r.likelihood_ms, xfer,
+        r.total_ms, r.gevals_per_s, r.kernel_gevals_per_s, peak, r.floor_hit_fraction, r.timed);
   }
   return 0;
 }

@@ -2,7 +2,6 @@
 // log-likelihood within a stated tolerance and the same membership sets (DESIGN.md "Backends").
 // Skips with a printed reason when no CUDA device is present.
 #include <gtest/gtest.h>
-
 #include <sys/stat.h>
 
 #include <cmath>
@@ -37,9 +36,9 @@ constexpr double kMaxMembershipMismatchFraction = 1e-3;
 
 bool haveDevice(std::string* why) { return cudaDeviceCount(why) > 0; }
 
-#define GMM_MCL_REQUIRE_DEVICE()                                   \
-  do {                                                             \
-    std::string why;                                               \
+#define GMM_MCL_REQUIRE_DEVICE()                \
+  do {                                          \
+    std::string why;                            \
     if (!haveDevice(&why)) GTEST_SKIP() << why; \
   } while (0)
 
@@ -50,8 +49,8 @@ std::vector<RigidTransformF> perturbedPoses(const Eigen::Isometry3d& T_true, int
   out[0] = toRigidF(T_true);
   for (int i = 1; i < n; ++i) {
     Eigen::Isometry3d T = T_true;
-    T.linear() = Eigen::AngleAxisd(ur(rng), Eigen::Vector3d::UnitZ()).toRotationMatrix() *
-                 T_true.linear();
+    T.linear() =
+        Eigen::AngleAxisd(ur(rng), Eigen::Vector3d::UnitZ()).toRotationMatrix() * T_true.linear();
     T.translation() += Eigen::Vector3d(um(rng), um(rng), um(rng));
     out[i] = toRigidF(T);
   }
@@ -95,9 +94,10 @@ void expectSameMembership(const GmmMap& map, const DepthFrame& frame,
       }
     }
   }
-  std::printf("[ measured ] %s membership: %lld pairs over %zu poses, %lld differ (all borderline, "
-              "worst |q-1| = %.2e)\n",
-              label, pairs, poses.size(), mismatches, worst_margin);
+  std::printf(
+      "[ measured ] %s membership: %lld pairs over %zu poses, %lld differ (all borderline, "
+      "worst |q-1| = %.2e)\n",
+      label, pairs, poses.size(), mismatches, worst_margin);
   EXPECT_GT(pairs, 0);
   EXPECT_LE(static_cast<double>(mismatches), kMaxMembershipMismatchFraction * pairs + 1);
 }
@@ -126,11 +126,12 @@ void expectSameLikelihood(const GmmMap& map, const DepthFrame& frame,
     EXPECT_LE(dh, kFloorHitTol * px + 1) << label << " particle " << i;
   }
   const double eval_rel = std::abs(double(a.evaluations - b.evaluations)) / double(a.evaluations);
-  std::printf("[ measured ] %s likelihood: %zu particles, %.0f px, worst relative difference "
-              "%.2e (tolerance %.0e), worst floor-hit difference %d px, evaluations cpu %lld "
-              "cuda %lld, L(true pose) cpu %.3f cuda %.3f\n",
-              label, poses.size(), px, worst, kRelTol, worst_hits, a.evaluations, b.evaluations,
-              a.log_likelihood[0], b.log_likelihood[0]);
+  std::printf(
+      "[ measured ] %s likelihood: %zu particles, %.0f px, worst relative difference "
+      "%.2e (tolerance %.0e), worst floor-hit difference %d px, evaluations cpu %lld "
+      "cuda %lld, L(true pose) cpu %.3f cuda %.3f\n",
+      label, poses.size(), px, worst, kRelTol, worst_hits, a.evaluations, b.evaluations,
+      a.log_likelihood[0], b.log_likelihood[0]);
   EXPECT_LT(eval_rel, 1e-3);
   EXPECT_EQ(a.patches_with_pixels, b.patches_with_pixels);
   (void)map;
@@ -157,6 +158,58 @@ TEST(CudaBackendTest, SyntheticSceneMatchesCpu) {
       expectSameMembership(w.map, frame, some, &cpu, &gpu, label.c_str());
     }
   }
+}
+
+// Frame preparation on the GPU gives prepareFrame's points: the same likelihoods, to the bit
+// when the order and arithmetic agree, for both encodings and several strides.
+TEST(CudaBackendTest, GpuFramePreparationMatchesHost) {
+  GMM_MCL_REQUIRE_DEVICE();
+  const auto& w = test::world();
+  CudaBackend gpu;
+  gpu.setMap(w.map);
+  const Intrinsics K = test::vgaCamera();
+  const Eigen::Isometry3d T_map_cam = test::referenceBasePose() * w.T_base_cam;
+  const auto poses = perturbedPoses(T_map_cam, 64, 5);
+  for (DepthEncoding enc : {DepthEncoding::kMono16Millimetres, DepthEncoding::kFloat32Metres}) {
+    sim::DepthNoise noise;
+    noise.dropout = 0.05;
+    std::mt19937_64 rng(7);
+    const DepthImage img = sim::renderDepth(w.scene, K, T_map_cam, enc, 6.0, noise, &rng);
+    for (int stride : {1, 3, 4, 8}) {
+      FrameParams fp;
+      fp.pixel_stride = stride;
+      fp.max_range_m = 5.f;
+      const DepthFrame frame = prepareFrame(img, K, fp);
+      BackendOutput host, dev;
+      gpu.evaluate(frame, poses, MeasurementParams(), &host);
+      gpu.evaluateImage(img, K, fp, poses, MeasurementParams(), &dev);
+      EXPECT_EQ(gpu.lastFramePixels(), static_cast<int>(frame.size()));
+      EXPECT_EQ(host.patches_with_pixels, dev.patches_with_pixels);
+      EXPECT_EQ(host.evaluations, dev.evaluations);
+      double worst = 0.0;
+      for (size_t i = 0; i < poses.size(); ++i) {
+        worst = std::max(worst, std::abs(host.log_likelihood[i] - dev.log_likelihood[i]) /
+                                    std::max(1.0, std::abs(host.log_likelihood[i])));
+        EXPECT_EQ(host.floor_hits[i], dev.floor_hits[i]);
+      }
+      EXPECT_LT(worst, 1e-12) << "stride " << stride;
+      std::printf(
+          "[ measured ] GPU frame prep, %s stride %d: %zu px, worst relative difference "
+          "%.1e\n",
+          depthEncodingName(enc), stride, frame.size(), worst);
+    }
+  }
+  // What prepareFrame rejects, evaluateImage rejects.
+  FrameParams bad;
+  bad.pixel_stride = 0;
+  BackendOutput out;
+  const DepthImage img =
+      sim::renderDepth(w.scene, K, T_map_cam, DepthEncoding::kMono16Millimetres, 6.0);
+  EXPECT_THROW(gpu.evaluateImage(img, K, bad, poses, MeasurementParams(), &out),
+               std::invalid_argument);
+  EXPECT_THROW(
+      gpu.evaluateImage(img, test::smallCamera(), FrameParams(), poses, MeasurementParams(), &out),
+      std::invalid_argument);
 }
 
 TEST(CudaBackendTest, EmptyAndDegenerateInputs) {
@@ -204,9 +257,9 @@ TEST(CudaBackendTest, SevenScenesFramesMatchCpu) {
   struct stat st;
   const char* env_map = std::getenv("GMM_MCL_MAP");
   std::string map_path = env_map && *env_map ? env_map : "";
-  for (const char* cand : {"build/maps/7scenes_redkitchen_m1000.gmm",
-                           "../build/maps/7scenes_redkitchen_m1000.gmm",
-                           "../../build/maps/7scenes_redkitchen_m1000.gmm"}) {
+  for (const char* cand :
+       {"build/maps/7scenes_redkitchen_m1000.gmm", "../build/maps/7scenes_redkitchen_m1000.gmm",
+        "../../build/maps/7scenes_redkitchen_m1000.gmm"}) {
     if (map_path.empty() && stat(cand, &st) == 0) map_path = cand;
   }
   if (map_path.empty() || stat(map_path.c_str(), &st) != 0) {

@@ -17,11 +17,11 @@ namespace gmm_mcl {
 struct CudaDeviceInfo {
   std::string name;
   int device = 0;
-  int compute_capability = 0;      // major * 10 + minor
+  int compute_capability = 0;  // major * 10 + minor
   int multiprocessors = 0;
-  int fp32_lanes_per_sm = 0;       // FP32 cores per multiprocessor (by compute capability)
-  double clock_ghz = 0.0;          // peak SM clock
-  double fp32_peak_gflops = 0.0;   // 2 (FMA) x lanes x SMs x clock
+  int fp32_lanes_per_sm = 0;      // FP32 cores per multiprocessor (by compute capability)
+  double clock_ghz = 0.0;         // peak SM clock
+  double fp32_peak_gflops = 0.0;  // 2 (FMA) x lanes x SMs x clock
   size_t shared_per_block_bytes = 0;
 };
 
@@ -45,9 +45,19 @@ class CudaBackend : public LikelihoodBackend {
   void membership(const DepthFrame& frame, const RigidTransformF& T_map_cam,
                   const MeasurementParams& params, PatchMembership* out) override;
 
+  // evaluate() with the frame prepared on the GPU from the raw image: uploads the image (not
+  // the points) and builds prepareFrame's points, in its order and with its arithmetic.
+  // Throws std::invalid_argument for what prepareFrame rejects.
+  void evaluateImage(const DepthImage& image, const Intrinsics& K, const FrameParams& frame_params,
+                     const std::vector<RigidTransformF>& T_map_cam, const MeasurementParams& params,
+                     BackendOutput* out);
+
   const CudaDeviceInfo& deviceInfo() const;
-  // Time of the upload (frame + poses) and download of the last evaluate() (ms, events).
+  // Of the last evaluate()/evaluateImage(): upload + download time (ms, events), GPU frame
+  // preparation time (ms, 0 for evaluate()), used pixels.
   double lastTransferMs() const;
+  double lastFramePrepMs() const;
+  int lastFramePixels() const;
 
   struct Impl;
 
