@@ -1,0 +1,87 @@
+# ROS 1 layer (issue 5): messages, catkin_package(), the localization nodelet and its standalone
+# node, the synthetic-bag writer and the rostests. Included by the top-level CMakeLists.txt when
+# GMM_MCL_BUILD_ROS is ON, before gmm_mcl_core is defined (target names resolve at generation).
+# Nothing here is compiled into the core: the core stays ROS-free.
+set(GMM_MCL_ROS_COMPONENTS
+  roscpp nodelet pluginlib std_msgs sensor_msgs geometry_msgs nav_msgs std_srvs
+  visualization_msgs diagnostic_msgs diagnostic_updater tf2 tf2_ros tf2_eigen image_transport
+  dynamic_reconfigure rosbag message_generation)
+find_package(catkin REQUIRED COMPONENTS ${GMM_MCL_ROS_COMPONENTS})
+
+add_message_files(DIRECTORY msg FILES FilterStatus.msg)
+add_service_files(DIRECTORY srv FILES ResetToPose.srv)
+generate_messages(DEPENDENCIES std_msgs geometry_msgs)
+generate_dynamic_reconfigure_options(cfg/Localizer.cfg)
+
+catkin_package(
+  INCLUDE_DIRS include
+  LIBRARIES gmm_mcl_core gmm_mcl_ros
+  CATKIN_DEPENDS roscpp nodelet std_msgs sensor_msgs geometry_msgs nav_msgs std_srvs
+                 visualization_msgs diagnostic_msgs tf2_ros image_transport dynamic_reconfigure
+                 message_runtime)
+
+# Message conversions and the nodelet (one library: the pluginlib export names it).
+add_library(gmm_mcl_ros SHARED
+  src/ros/conversions.cpp
+  src/ros/compressed_depth.cpp
+  src/ros/ros_params.cpp
+  src/ros/debug_image.cpp
+  src/ros/localization_nodelet.cpp)
+target_include_directories(gmm_mcl_ros PUBLIC
+  $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/include>)
+target_include_directories(gmm_mcl_ros SYSTEM PUBLIC ${catkin_INCLUDE_DIRS}
+  ${CATKIN_DEVEL_PREFIX}/${CATKIN_GLOBAL_INCLUDE_DESTINATION})
+target_link_libraries(gmm_mcl_ros PUBLIC gmm_mcl_core ${catkin_LIBRARIES})
+target_compile_options(gmm_mcl_ros PRIVATE -Wall -Wextra)
+add_dependencies(gmm_mcl_ros ${PROJECT_NAME}_generate_messages_cpp ${PROJECT_NAME}_gencfg)
+
+# Standalone node: the same nodelet, loaded in-process.
+add_executable(gmm_mcl_node src/ros/localization_node.cpp)
+target_link_libraries(gmm_mcl_node PRIVATE gmm_mcl_ros)
+# Writes the built-in synthetic scene as a bag (depth, CameraInfo, IMU, odometry, tf, truth).
+add_executable(make_sim_bag src/ros/make_sim_bag.cpp)
+target_link_libraries(make_sim_bag PRIVATE gmm_mcl_ros)
+# Reads a recorded pose bag against ground truth: ATE and a plot (CSV + gnuplot/SVG).
+add_executable(evaluate_pose_bag src/ros/evaluate_pose_bag.cpp)
+target_link_libraries(evaluate_pose_bag PRIVATE gmm_mcl_ros)
+set_target_properties(gmm_mcl_node make_sim_bag evaluate_pose_bag PROPERTIES
+  RUNTIME_OUTPUT_DIRECTORY ${CATKIN_DEVEL_PREFIX}/${CATKIN_PACKAGE_BIN_DESTINATION})
+
+install(TARGETS gmm_mcl_ros LIBRARY DESTINATION ${CATKIN_PACKAGE_LIB_DESTINATION})
+install(TARGETS gmm_mcl_node make_sim_bag evaluate_pose_bag
+        RUNTIME DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})
+install(FILES nodelet_plugins.xml DESTINATION ${CATKIN_PACKAGE_SHARE_DESTINATION})
+install(DIRECTORY launch config rviz DESTINATION ${CATKIN_PACKAGE_SHARE_DESTINATION})
+
+if(CATKIN_ENABLE_TESTING AND GMM_MCL_BUILD_TESTS)
+  find_package(rostest REQUIRED)
+  # Conversions, parameters: plain gtest, no master.
+  add_executable(test_ros_conversions test/ros/test_conversions.cpp)
+  target_link_libraries(test_ros_conversions PRIVATE gmm_mcl_ros GTest::gtest_main)
+  add_test(NAME test_ros_conversions COMMAND test_ros_conversions)
+
+  # The synthetic bag and map the rostests play (small: 320x240, 240 frames).
+  set(GMM_MCL_TEST_BAG ${CMAKE_CURRENT_BINARY_DIR}/ros_test/sim.bag)
+  set(GMM_MCL_TEST_MAP ${CMAKE_CURRENT_BINARY_DIR}/ros_test/sim.gmm)
+  add_custom_command(OUTPUT ${GMM_MCL_TEST_BAG} ${GMM_MCL_TEST_MAP}
+    COMMAND ${CMAKE_COMMAND} -E make_directory ${CMAKE_CURRENT_BINARY_DIR}/ros_test
+    COMMAND $<TARGET_FILE:make_sim_bag> --frames 240 --width 320 --seed 3
+            --bag ${GMM_MCL_TEST_BAG} --map ${GMM_MCL_TEST_MAP} --quiet
+    DEPENDS make_sim_bag
+    COMMENT "Writing the synthetic test bag")
+  add_custom_target(gmm_mcl_ros_test_data ALL DEPENDS ${GMM_MCL_TEST_BAG} ${GMM_MCL_TEST_MAP})
+
+  # Test nodes (gtest against a live master) and the rostests that launch them.
+  foreach(name rostest_localization rostest_bad_inputs)
+    add_executable(${name} test/ros/${name}.cpp)
+    target_link_libraries(${name} PRIVATE gmm_mcl_ros GTest::gtest)
+    set_target_properties(${name} PROPERTIES
+      RUNTIME_OUTPUT_DIRECTORY ${CATKIN_DEVEL_PREFIX}/${CATKIN_PACKAGE_BIN_DESTINATION})
+    add_dependencies(${name} gmm_mcl_ros_test_data gmm_mcl_node)
+  endforeach()
+  foreach(launch localization_bag.test looped_bag.test bad_inputs.test bad_config.test)
+    add_rostest(test/ros/${launch}
+      ARGS bag:=${GMM_MCL_TEST_BAG} map:=${GMM_MCL_TEST_MAP}
+      DEPENDENCIES rostest_localization rostest_bad_inputs gmm_mcl_ros)
+  endforeach()
+endif()

@@ -1,0 +1,218 @@
+// Writes the built-in synthetic scene (gmm_mcl::sim) as a bag for the nodelet, the rostests and
+// the demo: depth (16UC1 mm or 32FC1 m) + CameraInfo, IMU attitude, drifting odometry (as
+// nav_msgs/Odometry and as tf odom -> base_link), the static base -> camera tf, ground truth,
+// plus the map file and a parameter file with the initial region around the true start.
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <random>
+#include <string>
+
+#include <geometry_msgs/PoseStamped.h>
+#include <geometry_msgs/TransformStamped.h>
+#include <nav_msgs/Odometry.h>
+#include <ros/time.h>
+#include <rosbag/bag.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/Imu.h>
+#include <tf2_msgs/TFMessage.h>
+
+#include "gmm_mcl/filter/pose.h"
+#include "gmm_mcl/map/gmm_map_io.h"
+#include "gmm_mcl/ros/conversions.h"
+#include "gmm_mcl/sim/box_scene.h"
+
+using namespace gmm_mcl;
+
+namespace {
+
+void usage() {
+  std::printf(
+      "usage: make_sim_bag --bag FILE [--map FILE] [--params FILE] [--frames N] [--width PX]\n"
+      "                    [--seed S] [--encoding 16UC1|32FC1] [--start-time S]\n"
+      "                    [--init-half-extent M] [--init-yaw-half-range RAD] [--quiet]\n"
+      "Topics: /camera/depth/image_raw, /camera/depth/camera_info, /imu/data, /odom, /tf,\n"
+      "/tf_static, /ground_truth (base pose in map). Frames map, odom, base_link,\n"
+      "camera_depth_optical_frame; 30 Hz.\n");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int frames = 240, width_px = 320;
+  uint64_t seed = 1;
+  double start_s = 1000.0, init_half_extent_m = 0.5, init_yaw_half_range_rad = 0.3;
+  std::string bag_path, map_path, params_path, encoding = "16UC1";
+  bool quiet = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto next = [&]() -> const char* {
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "missing value after %s\n", a.c_str());
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (a == "--bag") bag_path = next();
+    else if (a == "--map") map_path = next();
+    else if (a == "--params") params_path = next();
+    else if (a == "--frames") frames = std::atoi(next());
+    else if (a == "--width") width_px = std::atoi(next());
+    else if (a == "--seed") seed = std::strtoull(next(), nullptr, 10);
+    else if (a == "--encoding") encoding = next();
+    else if (a == "--start-time") start_s = std::atof(next());
+    else if (a == "--init-half-extent") init_half_extent_m = std::atof(next());
+    else if (a == "--init-yaw-half-range") init_yaw_half_range_rad = std::atof(next());
+    else if (a == "--quiet") quiet = true;
+    else {
+      usage();
+      return a == "--help" || a == "-h" ? 0 : 2;
+    }
+  }
+  if (bag_path.empty() || frames < 2 || width_px < 64 || (encoding != "16UC1" && encoding != "32FC1")) {
+    usage();
+    return 2;
+  }
+  if (params_path.empty()) {
+    params_path = bag_path.substr(0, bag_path.rfind('.')) + "_init.yaml";
+  }
+  if (map_path.empty()) map_path = bag_path.substr(0, bag_path.rfind('.')) + ".gmm";
+
+  const sim::BoxScene scene = sim::makeDefaultScene();
+  const GmmMap map = sim::tileScene(scene, 0.4, 0.015);
+  saveMap(map, map_path);
+  const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(frames);
+  const Eigen::Isometry3d T_base_cam = sim::defaultBaseToCamera();
+  Intrinsics K;
+  const float scale = width_px / 640.f;
+  K.fx_px = K.fy_px = 585.f * scale;
+  K.width_px = width_px;
+  K.height_px = width_px * 3 / 4;
+  K.cx_px = 0.5f * (K.width_px - 1);
+  K.cy_px = 0.5f * (K.height_px - 1);
+
+  const Particle start = poseToParticle(truth[0]);
+  {
+    std::ofstream y(params_path);
+    y << "# Initial region around the true start of " << bag_path << " (make_sim_bag)\n"
+      << "init_centre: [" << start.x_m << ", " << start.y_m << ", " << start.z_m << "]\n"
+      << "init_half_extent: [" << init_half_extent_m << ", " << init_half_extent_m << ", "
+      << init_half_extent_m << "]\n"
+      << "init_yaw_centre: " << start.yaw_rad << "\n"
+      << "init_yaw_half_range: " << init_yaw_half_range_rad << "\n";
+    if (!y) {
+      std::fprintf(stderr, "cannot write %s\n", params_path.c_str());
+      return 1;
+    }
+  }
+
+  rosbag::Bag bag;
+  try {
+    bag.open(bag_path, rosbag::bagmode::Write);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "cannot write %s: %s\n", bag_path.c_str(), e.what());
+    return 1;
+  }
+  const std::string cam_frame = "camera_depth_optical_frame";
+  const ros::Time t0(start_s);
+  {
+    tf2_msgs::TFMessage st;
+    geometry_msgs::TransformStamped t;
+    t.header.stamp = t0;
+    t.header.frame_id = "base_link";
+    t.child_frame_id = cam_frame;
+    t.transform = ros_conv::transformFromIsometry(T_base_cam);
+    st.transforms.push_back(t);
+    // Latched, as a static broadcaster's would be: rosbag play republishes it latched.
+    auto header = boost::make_shared<ros::M_string>();
+    (*header)["latching"] = "1";
+    (*header)["callerid"] = "/make_sim_bag";
+    (*header)["type"] = ros::message_traits::datatype<tf2_msgs::TFMessage>();
+    (*header)["md5sum"] = ros::message_traits::md5sum<tf2_msgs::TFMessage>();
+    (*header)["message_definition"] = ros::message_traits::definition<tf2_msgs::TFMessage>();
+    bag.write("/tf_static", t0, st, header);
+  }
+
+  std::mt19937_64 rng(seed + 1000);
+  std::normal_distribution<double> g(0.0, 1.0);
+  const sim::DepthNoise noise{0.0015, 0.02};
+  Eigen::Isometry3d odom = Eigen::Isometry3d::Identity();
+  const double att_sigma = 0.5 * M_PI / 180.0;
+  const DepthEncoding enc =
+      encoding == "16UC1" ? DepthEncoding::kMono16Millimetres : DepthEncoding::kFloat32Metres;
+  for (int f = 0; f < frames; ++f) {
+    if (f > 0) {
+      Eigen::Isometry3d delta = truth[f - 1].inverse() * truth[f];
+      delta.translation() += 0.005 * Eigen::Vector3d(g(rng), g(rng), g(rng));
+      delta.linear() = delta.linear() *
+                       Eigen::AngleAxisd(0.002 * g(rng), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+      odom = odom * delta;
+    }
+    const ros::Time t = t0 + ros::Duration(f / 30.0);
+    const ros::Time t_before = t - ros::Duration(0.002);
+
+    double roll, pitch, yaw;
+    rpyFromRotation(truth[f].linear(), &roll, &pitch, &yaw);
+    sensor_msgs::Imu imu;
+    imu.header.stamp = t;
+    imu.header.frame_id = "base_link";
+    const Eigen::Quaterniond q(rotationFromRpy(roll + att_sigma * g(rng), pitch + att_sigma * g(rng), yaw));
+    imu.orientation.w = q.w();
+    imu.orientation.x = q.x();
+    imu.orientation.y = q.y();
+    imu.orientation.z = q.z();
+    imu.orientation_covariance[0] = imu.orientation_covariance[4] = att_sigma * att_sigma;
+    imu.orientation_covariance[8] = 1.0;
+    bag.write("/imu/data", t_before, imu);
+
+    nav_msgs::Odometry od;
+    od.header.stamp = t;
+    od.header.frame_id = "odom";
+    od.child_frame_id = "base_link";
+    od.pose.pose = ros_conv::poseFromIsometry(odom);
+    bag.write("/odom", t_before, od);
+    tf2_msgs::TFMessage tf;
+    geometry_msgs::TransformStamped ts;
+    ts.header = od.header;
+    ts.child_frame_id = "base_link";
+    ts.transform = ros_conv::transformFromIsometry(odom);
+    tf.transforms.push_back(ts);
+    bag.write("/tf", t_before, tf);
+
+    const DepthImage depth = sim::renderDepth(scene, K, truth[f] * T_base_cam, enc, 8.0, noise, &rng);
+    sensor_msgs::Image img;
+    img.header.stamp = t;
+    img.header.frame_id = cam_frame;
+    img.width = depth.width_px;
+    img.height = depth.height_px;
+    img.encoding = encoding;
+    img.is_bigendian = 0;
+    img.step = static_cast<uint32_t>(depth.row_bytes);
+    img.data = depth.data;
+    sensor_msgs::CameraInfo info;
+    info.header = img.header;
+    info.width = img.width;
+    info.height = img.height;
+    info.distortion_model = "plumb_bob";
+    info.D.assign(5, 0.0);
+    info.K = {K.fx_px, 0, K.cx_px, 0, K.fy_px, K.cy_px, 0, 0, 1};
+    info.R = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    info.P = {K.fx_px, 0, K.cx_px, 0, 0, K.fy_px, K.cy_px, 0, 0, 0, 1, 0};
+    bag.write("/camera/depth/image_raw", t, img);
+    bag.write("/camera/depth/camera_info", t, info);
+
+    geometry_msgs::PoseStamped gt;
+    gt.header.stamp = t;
+    gt.header.frame_id = "map";
+    gt.pose = ros_conv::poseFromIsometry(truth[f]);
+    bag.write("/ground_truth", t, gt);
+    if (!quiet && f % 30 == 0) std::printf("frame %d / %d\n", f, frames);
+  }
+  bag.close();
+  std::printf("wrote %s (%d frames %dx%d %s, %.1f s), map %s (%zu components), params %s\n",
+              bag_path.c_str(), frames, K.width_px, K.height_px, encoding.c_str(), frames / 30.0,
+              map_path.c_str(), map.size(), params_path.c_str());
+  return 0;
+}
