@@ -281,7 +281,7 @@ void markersFromMap(const GmmMap& map, const std::string& frame_id,
     m.color.r = static_cast<float>(h);
     m.color.g = static_cast<float>(0.4 + 0.4 * (1.0 - std::abs(2.0 * h - 1.0)));
     m.color.b = static_cast<float>(1.0 - h);
-    m.color.a = 0.5f;
+    m.color.a = 0.35f;
     m.frame_locked = false;
     out->markers.push_back(m);
   }

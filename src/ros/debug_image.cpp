@@ -38,11 +38,11 @@ void renderDebugImage(const DepthImage& depth, const Intrinsics& K, const GmmMap
   PatchMembership membership;
   computeMembership(map.packed(), T_cam_map, K, grid, measurement, &projected, &valid,
                     &membership);
-  // Patch tint: green channel raised with the member count (saturates at 40).
+  // Patch tint: green channel raised with the member count (saturates at 80).
   for (int pr = 0; pr < grid.rows; ++pr) {
     for (int pc = 0; pc < grid.cols; ++pc) {
       const int n = membership.countFor(pr * grid.cols + pc);
-      const float a = std::min(1.f, n / 40.f);
+      const float a = 0.6f * std::min(1.f, n / 80.f);
       for (int v = pr * grid.patch_size_px; v < std::min(h, (pr + 1) * grid.patch_size_px); ++v) {
         for (int u = pc * grid.patch_size_px; u < std::min(w, (pc + 1) * grid.patch_size_px); ++u) {
           uint8_t* px = &out->data[static_cast<size_t>(v) * out->step + 3 * u];
