@@ -17,6 +17,7 @@
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/Imu.h>
+#include <sensor_msgs/point_cloud2_iterator.h>
 #include <tf2_msgs/TFMessage.h>
 
 #include "gmm_mcl/filter/pose.h"
@@ -32,9 +33,11 @@ void usage() {
   std::printf(
       "usage: make_sim_bag --bag FILE [--map FILE] [--params FILE] [--frames N] [--width PX]\n"
       "                    [--seed S] [--encoding 16UC1|32FC1] [--start-time S]\n"
-      "                    [--init-half-extent M] [--init-yaw-half-range RAD] [--quiet]\n"
+      "                    [--init-half-extent M] [--init-yaw-half-range RAD] [--compressed] [--cloud] [--quiet]\n"
       "Topics: /camera/depth/image_raw, /camera/depth/camera_info, /imu/data, /odom, /tf,\n"
-      "/tf_static, /ground_truth (base pose in map). Frames map, odom, base_link,\n"
+      "/tf_static, /ground_truth (base pose in map); --compressed adds\n"
+      "/camera/depth/image_raw/compressedDepth, --cloud /camera/depth/points (organized).\n"
+      "Frames map, odom, base_link,\n"
       "camera_depth_optical_frame; 30 Hz.\n");
 }
 
@@ -45,7 +48,7 @@ int main(int argc, char** argv) {
   uint64_t seed = 1;
   double start_s = 1000.0, init_half_extent_m = 0.5, init_yaw_half_range_rad = 0.3;
   std::string bag_path, map_path, params_path, encoding = "16UC1";
-  bool quiet = false;
+  bool quiet = false, compressed = false, cloud = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> const char* {
@@ -66,6 +69,8 @@ int main(int argc, char** argv) {
     else if (a == "--init-half-extent") init_half_extent_m = std::atof(next());
     else if (a == "--init-yaw-half-range") init_yaw_half_range_rad = std::atof(next());
     else if (a == "--quiet") quiet = true;
+    else if (a == "--compressed") compressed = true;
+    else if (a == "--cloud") cloud = true;
     else {
       usage();
       return a == "--help" || a == "-h" ? 0 : 2;
@@ -202,6 +207,39 @@ int main(int argc, char** argv) {
     info.P = {K.fx_px, 0, K.cx_px, 0, 0, K.fy_px, K.cy_px, 0, 0, 0, 1, 0};
     bag.write("/camera/depth/image_raw", t, img);
     bag.write("/camera/depth/camera_info", t, info);
+    if (cloud) {
+      sensor_msgs::PointCloud2 pc;
+      sensor_msgs::PointCloud2Modifier mod(pc);
+      mod.setPointCloud2FieldsByString(1, "xyz");
+      mod.resize(static_cast<size_t>(depth.width_px) * depth.height_px);
+      pc.header = img.header;
+      pc.width = depth.width_px;
+      pc.height = depth.height_px;
+      pc.row_step = pc.width * pc.point_step;
+      pc.is_dense = false;
+      sensor_msgs::PointCloud2Iterator<float> x(pc, "x"), y(pc, "y"), z(pc, "z");
+      for (int v = 0; v < depth.height_px; ++v) {
+        for (int u = 0; u < depth.width_px; ++u, ++x, ++y, ++z) {
+          const float d = depth.depthMetres(u, v);
+          float p[3] = {NAN, NAN, NAN};
+          if (std::isfinite(d) && d > 0.f) backProject(K, static_cast<float>(u), static_cast<float>(v), d, p);
+          *x = p[0];
+          *y = p[1];
+          *z = p[2];
+        }
+      }
+      bag.write("/camera/depth/points", t, pc);
+    }
+    if (compressed) {
+      sensor_msgs::CompressedImage c;
+      std::string why;
+      if (!ros_conv::compressedDepthFromImage(depth, &c, &why)) {
+        std::fprintf(stderr, "compressedDepth: %s\n", why.c_str());
+        return 1;
+      }
+      c.header = img.header;
+      bag.write("/camera/depth/image_raw/compressedDepth", t, c);
+    }
 
     geometry_msgs::PoseStamped gt;
     gt.header.stamp = t;
