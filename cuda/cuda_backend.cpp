@@ -277,6 +277,7 @@ void CudaBackend::Impl::run(const DeviceFrameView& f, int n, const MeasurementPa
       shape.pixels_per_lane = px;
     }
   }
+  if (const char* env = std::getenv("GMM_MCL_CUDA_BITSCAN")) shape.member_list = env[0] != '1';
   if (cuda::likelihoodSharedBytes(shape, words) > 48 * 1024) {
     throw BackendError("cuda backend: " + std::to_string(num_components) +
                        " components exceed the likelihood kernel's shared memory");

@@ -54,6 +54,7 @@ cudaError_t launchMembership(int num_particles, int num_components, int words,
 struct LikelihoodShape {
   int lanes = 32;
   int pixels_per_lane = 2;
+  bool member_list = true;  // expand members into a shared-memory list (else scan the bits)
 };
 // The shape for the largest patch of a frame (pixels).
 LikelihoodShape chooseLikelihoodShape(int max_patch_pixels);
