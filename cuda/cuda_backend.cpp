@@ -131,6 +131,7 @@ CudaBackend::CudaBackend(int device) {
   info.clock_ghz = clock_khz * 1e-6;
   info.fp32_peak_gflops = 2.0 * info.fp32_lanes_per_sm * info.multiprocessors * info.clock_ghz;
   info.shared_per_block_bytes = std::max<size_t>(smem_optin, prop.sharedMemPerBlock);
+  GMM_MCL_CUDA_CHECK(cuda::preferSharedMemoryForMembership());
 }
 
 CudaBackend::~CudaBackend() {

@@ -39,6 +39,8 @@ struct MembershipConfig {
 size_t membershipSharedBytes(int patches, int words);
 // Raises the kernel's dynamic shared-memory limit to `bytes` (needed above 48 KB).
 cudaError_t setMembershipSharedLimit(size_t bytes);
+// Asks for the largest shared-memory carveout for the membership kernel (a hint).
+cudaError_t preferSharedMemoryForMembership();
 
 // Projection + patch membership for `num_particles` camera poses.
 // mask_out: [num_particles][patches][words] bit i%32 of word i/32 set when component i is

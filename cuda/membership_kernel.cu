@@ -11,6 +11,13 @@ namespace cuda {
 namespace {
 
 constexpr int kMembershipThreads = 256;
+// Blocks per multiprocessor the register allocation must allow (five ~40 KB bitmasks fit in an
+// H100's shared memory); sm_75 runs at most 1024 threads per multiprocessor.
+#if defined(__CUDA_ARCH__) && __CUDA_ARCH__ == 750
+constexpr int kMembershipMinBlocks = 4;
+#else
+constexpr int kMembershipMinBlocks = 5;
+#endif
 
 // Order-preserving map of a float onto a signed int (for atomicMax on floats of any sign).
 __device__ __forceinline__ int floatToOrderedInt(float f) {
@@ -21,7 +28,7 @@ __device__ __forceinline__ float orderedIntToFloat(int k) {
   return __int_as_float(k >= 0 ? k : k ^ 0x7fffffff);
 }
 
-__global__ void __launch_bounds__(kMembershipThreads)
+__global__ void __launch_bounds__(kMembershipThreads, kMembershipMinBlocks)
     membershipKernel(int num_particles, int num_components, int words, MembershipConfig cfg,
                      const ComponentF* __restrict__ components,      // [M], map frame, metres
                      const RigidTransformF* __restrict__ T_cam_map,  // [N]
@@ -97,6 +104,13 @@ size_t membershipSharedBytes(int patches, int words) {
 cudaError_t setMembershipSharedLimit(size_t bytes) {
   return cudaFuncSetAttribute(membershipKernel, cudaFuncAttributeMaxDynamicSharedMemorySize,
                               static_cast<int>(bytes));
+}
+
+cudaError_t preferSharedMemoryForMembership() {
+  // Each block holds ~40 KB of bitmask: ask for the largest shared-memory carveout so that five
+  // blocks fit on a multiprocessor where the hardware allows it (a hint; ignored elsewhere).
+  return cudaFuncSetAttribute(membershipKernel, cudaFuncAttributePreferredSharedMemoryCarveout,
+                              static_cast<int>(cudaSharedmemCarveoutMaxShared));
 }
 
 cudaError_t launchMembership(int num_particles, int num_components, int words,
