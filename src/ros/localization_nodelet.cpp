@@ -528,11 +528,24 @@ bool LocalizationNodelet::globalLocalization(std_srvs::Empty::Request&, std_srvs
 
 void LocalizationNodelet::reconfigure(LocalizerConfig& c, uint32_t) {
   std::lock_guard<std::mutex> lock(mutex_);
+  // A rejected change is reverted in the server too (config is written back to it).
+  auto revert = [&]() {
+    c.sigma_translation_m = params_.filter.sigma_translation_m;
+    c.sigma_yaw_rad = params_.filter.sigma_yaw_rad;
+    c.weighting = weightingModeName(params_.filter.weighting);
+    c.temperature = params_.filter.temperature;
+    c.neff_floor_fraction = params_.filter.neff_floor_fraction;
+    c.resample_neff_fraction = params_.filter.resample_neff_fraction;
+    c.alpha_slow = params_.filter.alpha_slow;
+    c.alpha_fast = params_.filter.alpha_fast;
+    c.recovery_threshold = params_.filter.recovery_threshold;
+  };
   LocalizerParams p = params_;
   p.filter.sigma_translation_m = c.sigma_translation_m;
   p.filter.sigma_yaw_rad = c.sigma_yaw_rad;
   if (!parseWeightingMode(c.weighting, &p.filter.weighting)) {
     NODELET_ERROR("gmm_mcl: reconfigure: unknown weighting '%s'; ignored", c.weighting.c_str());
+    revert();
     return;
   }
   p.filter.temperature = c.temperature;
@@ -543,7 +556,8 @@ void LocalizationNodelet::reconfigure(LocalizerConfig& c, uint32_t) {
   p.filter.recovery_threshold = c.recovery_threshold;
   const std::string err = p.validate();
   if (!err.empty()) {
-    NODELET_ERROR("gmm_mcl: reconfigure rejected: %s", err.c_str());
+    NODELET_ERROR("gmm_mcl: reconfigure rejected (kept the previous values): %s", err.c_str());
+    revert();
     return;
   }
   const bool changed = p.filter.sigma_translation_m != params_.filter.sigma_translation_m ||
