@@ -2,6 +2,7 @@
 # Screenshot of rviz (particles, pose, map ellipsoids, debug image) while the nodelet replays the
 # synthetic bag, under Xvfb: for the README. Run scripts/demo_ros.sh first (it builds and writes
 # build-ros/demo/sim.bag). Usage: scripts/ros_rviz_screenshot.sh [OUTPUT.png] [SECONDS]
+# Another bag: BAG=... MAP=... PARAMS=... [OVERRIDES=...] (e.g. from make_7scenes_bag).
 set -euo pipefail
 source "$(dirname "$0")/common.sh"
 source "$(dirname "$0")/ros_common.sh"
@@ -10,7 +11,11 @@ BUILD="${GMM_MCL_ROS_BUILD_DIR:-$GMM_MCL_ROOT/build-ros}"
 OUT_PNG="${1:-$BUILD/demo/rviz.png}"
 WAIT_S="${2:-25}"
 DEMO="$BUILD/demo"
-[ -f "$DEMO/sim.bag" ] || { echo "no $DEMO/sim.bag: run scripts/demo_ros.sh first" >&2; exit 1; }
+BAG="${BAG:-$DEMO/sim.bag}"
+MAP="${MAP:-${BAG%.bag}.gmm}"
+PARAMS="${PARAMS:-${BAG%.bag}_init.yaml}"
+OVERRIDES="${OVERRIDES:-$GMM_MCL_ROOT/config/sim_test.yaml}"
+[ -f "$BAG" ] || { echo "no $BAG: run scripts/demo_ros.sh first" >&2; exit 1; }
 set +u
 source "$BUILD/devel/setup.bash"
 set -u
@@ -28,8 +33,8 @@ cleanup() {
 trap cleanup EXIT
 export DISPLAY="$DISPLAY_NUM"
 ros_start_master "$DEMO/roscore_rviz.log"
-roslaunch --wait gmm_mcl replay.launch bag:="$DEMO/sim.bag" map:="$DEMO/sim.gmm" \
-  overrides:="$GMM_MCL_ROOT/config/sim_test.yaml" params:="$DEMO/sim_init.yaml" rate:=0.3 \
+roslaunch --wait gmm_mcl replay.launch bag:="$BAG" map:="$MAP" \
+  overrides:="$OVERRIDES" params:="$PARAMS" rate:=0.3 \
   loop:=true rviz:=true > "$DEMO/roslaunch_rviz.log" 2>&1 &
 LAUNCH_PID=$!
 sleep "$WAIT_S"
