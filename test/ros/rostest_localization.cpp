@@ -235,6 +235,10 @@ TEST(LocalizationBag, LoopedBagResets) {
               rec.rel(rec.poses_[i_jump - 1].stamp), rec.rel(rec.poses_[i_jump].stamp));
   ASSERT_TRUE(spinUntil([&] { return rec.rel(rec.poses_.back().stamp) >= loop_s - 0.5 &&
                                      rec.poses_.size() > i_jump + 5; }, 120.0));
+  for (size_t i = i_jump; i < rec.poses_.size(); i += 4) {
+    std::printf("  second loop: pose at %.3f s: error %.3f m, sigma x %.3f m\n", rec.rel(rec.poses_[i].stamp),
+                translationError(rec, rec.poses_[i]), std::sqrt(rec.poses_[i].cov[0]));
+  }
   const double err_after = translationError(rec, rec.poses_.back());
   std::printf("[ measured ] error at %.2f s of the second loop: %.3f m\n", rec.rel(rec.poses_.back().stamp), err_after);
   EXPECT_LT(err_after, kTrackErrorM);
