@@ -17,8 +17,9 @@ OVERRIDES="${CONFIG:-$GMM_MCL_ROOT/config/sim_test.yaml}"
 export ROS_MASTER_URI="http://localhost:${ROS_PORT:-11511}"
 export ROS_HOME="${ROS_HOME:-$BUILD/ros_home}"
 
+mkdir -p "$BUILD"
 cmake -S "$GMM_MCL_ROOT" -B "$BUILD" -DGMM_MCL_BUILD_ROS=ON -DCMAKE_BUILD_TYPE=Release \
-  > "$BUILD.cmake.log" 2>&1 || { cat "$BUILD.cmake.log"; exit 1; }
+  > "$BUILD/cmake.log" 2>&1 || { cat "$BUILD/cmake.log"; exit 1; }
 cmake --build "$BUILD" -j2 --target gmm_mcl_ros gmm_mcl_node make_sim_bag evaluate_pose_bag
 set +u
 source "$BUILD/devel/setup.bash"
