@@ -16,6 +16,7 @@ start=$(date +%s)
 cmake --build "$BUILD" -j2
 echo "== build took $(( $(date +%s) - start )) s"
 start=$(date +%s)
+export ROS_HOME="$BUILD/ros_home"  # rostest logs stay in the build folder
 (cd "$BUILD" && ctest --output-on-failure --timeout 1200)
 echo "== tests took $(( $(date +%s) - start )) s"
 
