@@ -17,7 +17,7 @@ cmake --build "$BUILD" -j2
 echo "== build took $(( $(date +%s) - start )) s"
 start=$(date +%s)
 export ROS_HOME="$BUILD/ros_home"  # rostest logs stay in the build folder
-(cd "$BUILD" && ctest --output-on-failure --timeout 1200)
+(cd "$BUILD" && ctest --output-on-failure --timeout 1200) | tee "$BUILD/ctest.log"
 echo "== tests took $(( $(date +%s) - start )) s"
 
 # CUDA backend: compiled with nvcc (one architecture); its tests skip without a GPU.
@@ -32,7 +32,17 @@ if [ -x "$NVCC" ]; then
   start=$(date +%s)
   cmake --build "$CUDA_BUILD" -j2 --target test_cuda_backend gmm_mcl_bench
   echo "== CUDA build took $(( $(date +%s) - start )) s"
-  (cd "$CUDA_BUILD" && ctest --output-on-failure -R test_cuda_backend)
+  (cd "$CUDA_BUILD" && ctest --output-on-failure -R test_cuda_backend) | tee "$CUDA_BUILD/ctest.log"
 else
   echo "== nvcc not found: CUDA backend not compiled"
 fi
+
+# One closing line over both ctest runs (set -e has already stopped on any failure).
+passed=0
+skipped=0
+for log in "$BUILD/ctest.log" "${CUDA_BUILD:-/nonexistent}/ctest.log"; do
+  [ -f "$log" ] || continue
+  passed=$((passed + $(grep -cE 'Test +#[0-9]+: .* Passed' "$log" || true)))
+  skipped=$((skipped + $(grep -cE 'Test +#[0-9]+: .*\*\*\*Skipped' "$log" || true)))
+done
+echo "${passed} passed, 0 failed, ${skipped} skipped"
