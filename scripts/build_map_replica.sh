@@ -17,7 +17,8 @@ shift $(( $# < 2 ? $# : 2 ))
 find_tool() {
   local name="$1" var="$2"
   if [[ -n "${!var:-}" ]]; then echo "${!var}"; return; fi
-  for c in "$ROOT/build-fit/$name" "$ROOT/build/$name" "$(command -v "$name" || true)"; do
+  for c in "$ROOT/build-fit/$name" "$ROOT/build/$name" "$ROOT/build/test/devel/lib/gmm_mcl/$name" \
+           "$ROOT/build/test/$name" "$(command -v "$name" || true)"; do
     if [[ -n "$c" && -x "$c" ]]; then echo "$c"; return; fi
   done
   echo "error: $name not found; build it (cmake --build <dir> --target $name) or set $var" >&2
