@@ -14,16 +14,7 @@ DATASETS="${1:-${GMM_MCL_DATASETS:-$ROOT/../shared/datasets}}"
 OUT="${2:-${GMM_MCL_MAP_DIR:-$ROOT/build/maps}/replica_office0_m1000.gmm}"
 shift $(( $# < 2 ? $# : 2 ))
 
-find_tool() {
-  local name="$1" var="$2"
-  if [[ -n "${!var:-}" ]]; then echo "${!var}"; return; fi
-  for c in "$ROOT/build-fit/$name" "$ROOT/build/$name" "$ROOT/build/test/devel/lib/gmm_mcl/$name" \
-           "$ROOT/build/test/$name" "$(command -v "$name" || true)"; do
-    if [[ -n "$c" && -x "$c" ]]; then echo "$c"; return; fi
-  done
-  echo "error: $name not found; build it (cmake --build <dir> --target $name) or set $var" >&2
-  exit 1
-}
+source "$ROOT/scripts/common.sh"
 GMM_FIT="$(find_tool gmm_fit GMM_FIT)"
 GMM_INSPECT="$(find_tool gmm_inspect GMM_INSPECT)"
 

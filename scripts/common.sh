@@ -25,3 +25,18 @@ ensure_packages() {
 
 # Build dependencies of the ROS-free core, tools and tests.
 CORE_PACKAGES=(build-essential cmake libeigen3-dev libpng-dev libgtest-dev googletest)
+
+# find_tool NAME VAR: the path of a built gmm_mcl tool: $VAR if set, else the build folders that
+# the scripts use (build-fit, build, the catkin devel folder of build/test), else PATH.
+find_tool() {
+  local name="$1" var="$2"
+  if [[ -n "${!var:-}" ]]; then echo "${!var}"; return; fi
+  local c
+  for c in "$GMM_MCL_ROOT/build-fit/$name" "$GMM_MCL_ROOT/build/$name" \
+           "$GMM_MCL_ROOT/build/test/devel/lib/gmm_mcl/$name" "$GMM_MCL_ROOT/build/test/$name" \
+           "$(command -v "$name" || true)"; do
+    if [[ -n "$c" && -x "$c" ]]; then echo "$c"; return; fi
+  done
+  echo "error: $name not found; build it (cmake --build <dir> --target $name) or set $var" >&2
+  exit 1
+}
