@@ -1,6 +1,9 @@
 #include "gmm_mcl/filter/localizer.h"
 
+#include <algorithm>
 #include <chrono>
+#include <limits>
+#include <utility>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -45,6 +48,8 @@ Localizer::Localizer(const LocalizerParams& params, GmmMap map,
   if (!backend_) backend_ = makeBackend(params_.backend, &backend_warning_);
   backend_->setMap(map_);
   filter_.initialiseUniform(region_);
+  map_self_ll_ = gmm_mcl::mapSelfLogDensity(map_, params_.measurement.floor_log_density);
+  lost_ = LostDetector(params_.lost, map_self_ll_);
 }
 
 void Localizer::reset(const InitRegion& region) {
@@ -52,10 +57,14 @@ void Localizer::reset(const InitRegion& region) {
   if (!err.empty()) throw std::invalid_argument("reset region: " + err);
   region_ = region;
   filter_.initialiseUniform(region_);
+  lost_.restart();
+  screen_pending_ = true;
 }
 
 void Localizer::resetToPose(const Particle& pose, const Eigen::Vector4d& sigma) {
   filter_.initialiseGaussian(pose, sigma);
+  lost_.restart();
+  screen_pending_ = false;
 }
 
 InitRegion Localizer::mapBounds() const {
@@ -76,6 +85,40 @@ Eigen::Isometry3d Localizer::meanPose() const {
   return particleToPose(filter_.estimate().mean, roll_rad_, pitch_rad_);
 }
 
+void Localizer::evaluateParticles(const DepthFrame& frame, const std::vector<Particle>& particles,
+                                  BackendOutput* out) {
+  poses_.resize(particles.size());
+  for (size_t i = 0; i < particles.size(); ++i) {
+    poses_[i] = toRigidF(particleToPose(particles[i], roll_rad_, pitch_rad_) * params_.T_base_cam);
+  }
+  backend_->evaluate(frame, poses_, params_.measurement, out);
+}
+
+std::vector<Particle> Localizer::screenCandidates(const DepthFrame& frame, int count) {
+  const int per = params_.lost.candidates_per_particle;
+  std::vector<Particle> best;
+  if (count <= 0) return best;
+  std::vector<std::pair<double, Particle>> scored;
+  scored.reserve(static_cast<size_t>(count) * per);
+  const int batch = filter_.size();  // the backend's usual batch size
+  for (int done = 0; done < count * per; done += batch) {
+    filter_.sampleRegion(region_, std::min(batch, count * per - done), &candidates_);
+    evaluateParticles(frame, candidates_, &candidate_output_);
+    for (size_t i = 0; i < candidates_.size(); ++i) {
+      const double ll = candidate_output_.log_likelihood[i];
+      scored.emplace_back(std::isfinite(ll) ? ll : -std::numeric_limits<double>::infinity(),
+                          candidates_[i]);
+    }
+  }
+  std::nth_element(scored.begin(), scored.begin() + (count - 1), scored.end(),
+                   [](const std::pair<double, Particle>& a, const std::pair<double, Particle>& b) {
+                     return a.first > b.first;
+                   });
+  best.reserve(count);
+  for (int i = 0; i < count; ++i) best.push_back(scored[i].second);
+  return best;
+}
+
 StepResult Localizer::step(const StepInput& in) {
   const Clock::time_point t_start = Clock::now();
   StepResult res;
@@ -85,6 +128,8 @@ StepResult Localizer::step(const StepInput& in) {
     msg << "time jumped back from " << last_stamp_s_ << " s to " << in.stamp_s
         << " s: filter re-initialised";
     filter_.initialiseUniform(region_);
+    lost_.restart();
+    screen_pending_ = true;
     have_odometry_ = false;
     have_stamp_ = false;
     res.status = StepStatus::kTimeJumpBack;
@@ -154,14 +199,15 @@ StepResult Localizer::step(const StepInput& in) {
     return finish(StepStatus::kNoValidPixels, msg.str());
   }
 
-  // Likelihood of every particle.
-  const std::vector<Particle>& particles = filter_.particles();
-  poses_.resize(particles.size());
-  for (size_t i = 0; i < particles.size(); ++i) {
-    poses_[i] = toRigidF(particleToPose(particles[i], roll_rad_, pitch_rad_) * params_.T_base_cam);
-  }
+  // Likelihood of every particle; after a uniform (re)initialisation the set is first replaced
+  // by the best of candidates_per_particle times as many uniform draws.
   try {
-    backend_->evaluate(frame, poses_, params_.measurement, &output_);
+    if (screen_pending_ && params_.lost.candidates_per_particle > 1) {
+      filter_.replaceAll(screenCandidates(frame, filter_.size()));
+      res.screened_candidates = filter_.size() * params_.lost.candidates_per_particle;
+    }
+    screen_pending_ = false;
+    evaluateParticles(frame, filter_.particles(), &output_);
   } catch (const std::exception& e) {
     return finish(StepStatus::kBackendError, std::string("likelihood backend: ") + e.what());
   }
@@ -170,7 +216,7 @@ StepResult Localizer::step(const StepInput& in) {
   res.evaluations = output_.evaluations;
   if (output_.patches_with_pixels > 0) {
     res.relevant_per_patch = static_cast<double>(output_.relevant_pairs) /
-                             (output_.patches_with_pixels * static_cast<double>(particles.size()));
+                             (output_.patches_with_pixels * static_cast<double>(filter_.size()));
   }
 
   // Weights.
@@ -190,6 +236,11 @@ StepResult Localizer::step(const StepInput& in) {
   res.best_loglik_per_pixel = output_.log_likelihood[best] / res.pixels;
   res.mean_loglik_per_pixel = mean_ll / res.pixels;
   res.floor_hit_fraction = static_cast<double>(output_.floor_hits[best]) / res.pixels;
+  if (output_.floor_hits[best] >= res.pixels) {
+    res.message += std::string(res.message.empty() ? "" : "; ") +
+                   "every used pixel is at the likelihood floor for every particle: no particle "
+                   "sees the mapped surfaces";
+  }
   res.timings.weights_ms = msSince(t0);
 
   // Estimate from the updated weights, then resample and recover.
@@ -200,6 +251,32 @@ StepResult Localizer::step(const StepInput& in) {
   t0 = Clock::now();
   res.resampled = filter_.resampleIfNeeded();
   res.reinitialised = filter_.recover(output_.log_likelihood, res.pixels, region_);
+  // Absolute-quality recovery: the worst particles by this frame's likelihood (after any
+  // resampling, each particle carries its source's likelihood) are redrawn.
+  if (lost_.update(res.best_loglik_per_pixel)) {
+    ll_scratch_ = output_.log_likelihood;
+    if (res.resampled) {
+      const std::vector<int>& src = filter_.lastResampleIndices();
+      for (size_t i = 0; i < src.size(); ++i) ll_scratch_[i] = output_.log_likelihood[src[i]];
+    }
+    res.lost = true;
+    const int count = static_cast<int>(std::floor(params_.lost.reinit_fraction * filter_.size()));
+    try {
+      filter_.replaceWorst(ll_scratch_, screenCandidates(frame, count));
+      res.lost_reinitialised = count;
+      res.screened_candidates += count * params_.lost.candidates_per_particle;
+    } catch (const std::exception& e) {
+      return finish(StepStatus::kBackendError, std::string("likelihood backend: ") + e.what());
+    }
+    std::ostringstream msg;
+    msg << "lost: best log-likelihood " << res.best_loglik_per_pixel << " nats/px stayed more than "
+        << params_.lost.margin_nats << " below the reference " << lost_.reference() << " for "
+        << params_.lost.frames << " frames: " << res.lost_reinitialised
+        << " particles redrawn from the recovery region (best of "
+        << params_.lost.candidates_per_particle << " candidates each)";
+    res.message += (res.message.empty() ? "" : "; ") + msg.str();
+  }
+  res.reference_loglik_per_pixel = lost_.reference();
   res.timings.resample_ms = msSince(t0);
   res.timings.total_ms = msSince(t_start);
   return res;

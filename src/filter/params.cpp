@@ -70,9 +70,29 @@ std::string ParticleFilterParams::validate() const {
   return err.str();
 }
 
+std::string LostDetectionParams::validate() const {
+  std::ostringstream err;
+  if (!(margin_nats >= 0.0) || !std::isfinite(margin_nats)) {
+    err << "lost.margin_nats must be >= 0 (got " << margin_nats << "); ";
+  }
+  if (frames < 1) err << "lost.frames must be >= 1 (got " << frames << "); ";
+  if (grace_frames < 0) err << "lost.grace_frames must be >= 0 (got " << grace_frames << "); ";
+  auto rate = [&err](const char* name, double v) {
+    if (!(v > 0.0 && v <= 1.0)) err << name << " must be in (0, 1] (got " << v << "); ";
+  };
+  rate("lost.reference_rate_up", reference_rate_up);
+  rate("lost.reference_rate_down", reference_rate_down);
+  rate("lost.reinit_fraction", reinit_fraction);
+  if (candidates_per_particle < 1 || candidates_per_particle > 1000) {
+    err << "lost.candidates_per_particle must be in [1, 1000] (got " << candidates_per_particle
+        << "); ";
+  }
+  return err.str();
+}
+
 std::string LocalizerParams::validate() const {
-  std::string err = filter.validate() + frame.validate() + measurement.validate() +
-                    init.validate();
+  std::string err = filter.validate() + lost.validate() + frame.validate() +
+                    measurement.validate() + init.validate();
   if (!T_base_cam.matrix().allFinite()) err += "T_base_cam must be finite; ";
   if (!(max_odometry_step_m > 0.0)) err += "max_odometry_step_m must be positive; ";
   if (backend != "cpu" && backend != "cuda") err += "backend must be 'cpu' or 'cuda' (got '" + backend + "'); ";

@@ -154,6 +154,45 @@ int ParticleFilter::recover(const std::vector<double>& ll, int pixels, const Ini
   return count;
 }
 
+void ParticleFilter::replaceWorst(const std::vector<double>& ll,
+                                  const std::vector<Particle>& replacements) {
+  if (static_cast<int>(ll.size()) != size()) {
+    throw std::invalid_argument("replaceWorst: one log-likelihood per particle expected");
+  }
+  const int count = std::min(size(), static_cast<int>(replacements.size()));
+  if (count <= 0) return;
+  auto key = [&ll](int i) {
+    return std::isfinite(ll[i]) ? ll[i] : -std::numeric_limits<double>::infinity();
+  };
+  std::vector<int> order(size());
+  std::iota(order.begin(), order.end(), 0);
+  std::nth_element(order.begin(), order.begin() + (count - 1), order.end(),
+                   [&key](int a, int b) { return key(a) < key(b); });
+  for (int k = 0; k < count; ++k) {
+    particles_[order[k]] = replacements[k];
+    weights_[order[k]] = 1.0 / size();
+  }
+  const double total = std::accumulate(weights_.begin(), weights_.end(), 0.0);
+  for (double& w : weights_) w /= total;
+}
+
+void ParticleFilter::replaceAll(const std::vector<Particle>& particles) {
+  if (static_cast<int>(particles.size()) != size()) {
+    throw std::invalid_argument("replaceAll: the particle count must not change");
+  }
+  particles_ = particles;
+  std::fill(weights_.begin(), weights_.end(), 1.0 / size());
+}
+
+void ParticleFilter::sampleRegion(const InitRegion& region, int n, std::vector<Particle>* out) {
+  out->resize(std::max(0, n));
+  for (Particle& p : *out) p = sampleUniform(region);
+}
+
+namespace {
+constexpr double kMinVariance = 1e-8;  // (0.1 mm)^2, (1e-4 rad)^2
+}  // namespace
+
 PoseEstimate ParticleFilter::estimate() const {
   PoseEstimate e;
   double sx = 0, sy = 0, sz = 0, sc = 0, ss = 0;
@@ -181,6 +220,12 @@ PoseEstimate ParticleFilter::estimate() const {
   for (int r = 0; r < 4; ++r) {
     for (int k = 0; k < 4; ++k) e.covariance(idx[r], idx[k]) = c(r, k);
   }
+  // Floor: one step of process noise, so that a collapsed set (every particle a copy of one)
+  // still reports a positive-definite covariance instead of a singular one.
+  const double var_t = params_.sigma_translation_m * params_.sigma_translation_m;
+  const double var_yaw = params_.sigma_yaw_rad * params_.sigma_yaw_rad;
+  for (int r = 0; r < 3; ++r) e.covariance(r, r) += std::max(var_t, kMinVariance);
+  e.covariance(5, 5) += std::max(var_yaw, kMinVariance);
   const double att = params_.attitude_sigma_rad * params_.attitude_sigma_rad;
   e.covariance(3, 3) = att;
   e.covariance(4, 4) = att;

@@ -7,6 +7,7 @@
 
 #include "gmm_mcl/backend/likelihood_backend_base.h"
 #include "gmm_mcl/camera/depth_image.h"
+#include "gmm_mcl/filter/lost_detector.h"
 #include "gmm_mcl/filter/particle_filter.h"
 
 namespace gmm_mcl {
@@ -44,6 +45,10 @@ struct StepResult {
   bool odometry_jump = false;  // an odometry step over max_odometry_step_m was ignored
   bool resampled = false;
   int reinitialised = 0;      // augmented-MCL reinitialised particles
+  bool lost = false;          // the LostDetector fired on this frame (see message)
+  int lost_reinitialised = 0;  // particles redrawn because of it
+  int screened_candidates = 0;  // uniform candidates scored on this frame (redraws, start)
+  double reference_loglik_per_pixel = 0.0;  // the LostDetector's reference level
   PoseEstimate estimate;
   double neff = 0.0;          // effective sample size after the update (before resampling)
   int pixels = 0;             // used pixels
@@ -80,15 +85,29 @@ class Localizer {
   const std::string& backendWarning() const { return backend_warning_; }
   Eigen::Isometry3d meanPose() const;
   double rollRad() const { return roll_rad_; }
+  // The map's own expected per-point log-density (the LostDetector's starting reference).
+  double mapSelfLogDensity() const { return map_self_ll_; }
   double pitchRad() const { return pitch_rad_; }
 
  private:
+  // The `count` best-scoring of count * lost.candidates_per_particle uniform draws from the
+  // recovery region, scored on `frame` in batches of the particle count.
+  std::vector<Particle> screenCandidates(const DepthFrame& frame, int count);
+  void evaluateParticles(const DepthFrame& frame, const std::vector<Particle>& particles,
+                         BackendOutput* out);
+
   LocalizerParams params_;
   GmmMap map_;
   std::unique_ptr<LikelihoodBackend> backend_;
   std::string backend_warning_;
   ParticleFilter filter_;
   InitRegion region_;
+  double map_self_ll_ = 0.0;
+  LostDetector lost_;
+  std::vector<double> ll_scratch_;
+  bool screen_pending_ = true;  // after a uniform (re)initialisation: screen the next frame
+  std::vector<Particle> candidates_;
+  BackendOutput candidate_output_;
   bool have_odometry_ = false;
   Eigen::Isometry3d last_odom_ = Eigen::Isometry3d::Identity();
   bool have_stamp_ = false;

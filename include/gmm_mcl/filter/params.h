@@ -63,8 +63,29 @@ struct ParticleFilterParams {
   std::string validate() const;
 };
 
+// Absolute-quality recovery (LostDetector): when the best particle's per-pixel log-likelihood
+// stays more than margin_nats below a reference level for `frames` frames, the worst
+// reinit_fraction of the particles (by that frame's likelihood) are drawn afresh from the
+// recovery region. The reference starts at the map's own expected per-point log-density and
+// follows the best score (rate up, rate down per frame).
+struct LostDetectionParams {
+  double margin_nats = 3.0;          // per pixel; 0 = off
+  int frames = 10;                   // consecutive frames below (1/3 s at 30 Hz)
+  int grace_frames = 30;             // after any (re)initialisation, before judging
+  double reference_rate_up = 0.05;
+  double reference_rate_down = 0.005;
+  double reinit_fraction = 0.9;      // the best (1 - fraction) particles are kept
+  // Redrawn particles (here and at a uniform (re)initialisation) are the best-scoring of this
+  // many uniform candidates per particle, scored on the current frame: a denser search of the
+  // region for the same particle count (1 = plain uniform draws).
+  int candidates_per_particle = 8;
+
+  std::string validate() const;
+};
+
 struct LocalizerParams {
   ParticleFilterParams filter;
+  LostDetectionParams lost;
   FrameParams frame;
   MeasurementParams measurement;
   InitRegion init;

@@ -13,7 +13,9 @@
 
 namespace gmm_mcl {
 
-// Mean base pose and its covariance in ROS order (x, y, z, roll, pitch, yaw).
+// Mean base pose and its covariance in ROS order (x, y, z, roll, pitch, yaw): the weighted
+// particle spread plus one step of process noise (at least 1e-8 per diagonal entry), so it is
+// positive-definite even when the set has collapsed to copies of one particle.
 struct PoseEstimate {
   Particle mean;
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
@@ -46,9 +48,20 @@ class ParticleFilter {
   // Resamples when Neff < resample_neff_fraction * N; returns whether it did.
   bool resampleIfNeeded();
   void resample();
+  // Source index of every particle in the last resample().
+  const std::vector<int>& lastResampleIndices() const { return indices_; }
   // Augmented MCL: feeds the frame's average per-pixel likelihood and reinitialises that many
   // randomly chosen particles from `region`. Returns the count.
   int recover(const std::vector<double>& log_likelihood, int pixels, const InitRegion& region);
+
+  // Replaces the worst particles (lowest log_likelihood; non-finite first), as many as given,
+  // with `replacements`, each with the average weight.
+  void replaceWorst(const std::vector<double>& log_likelihood,
+                    const std::vector<Particle>& replacements);
+  // Replaces the whole set (equal weights), e.g. by screened uniform candidates.
+  void replaceAll(const std::vector<Particle>& particles);
+  // n uniform draws from the region with the filter's generator.
+  void sampleRegion(const InitRegion& region, int n, std::vector<Particle>* out);
 
   PoseEstimate estimate() const;
   // Overrides the particle set (tests, tools); weights normalised here.

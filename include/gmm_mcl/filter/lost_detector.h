@@ -1,0 +1,42 @@
+// Absolute-quality "lost" detection. Augmented MCL (paper) compares a fast and a slow average
+// of the likelihood, so it only sees a drop: a filter that settles in a wrong mode from its
+// first frames (or whose likelihood stays poor after a kidnap longer than the averages remember)
+// is never flagged. This detector compares the best particle's per-pixel log-likelihood with a
+// reference level and flags the filter as lost when it stays more than a margin below for a
+// number of frames; the Localizer then reinitialises the worst particles.
+#pragma once
+
+#include "gmm_mcl/filter/params.h"
+#include "gmm_mcl/map/gmm_map.h"
+
+namespace gmm_mcl {
+
+// Mean of ln(exp(floor) + sum_j lambda_j N(x; mu_j, Sigma_j)) over `samples` points drawn from
+// the map itself (seeded, deterministic): what a perfect sensor at the true pose would score
+// per pixel. The starting reference of the detector.
+double mapSelfLogDensity(const GmmMap& map, float floor_log_density, int samples = 2048,
+                         uint64_t seed = 12345);
+
+class LostDetector {
+ public:
+  LostDetector() = default;
+  LostDetector(const LostDetectionParams& params, double initial_reference);
+
+  // Restarts the grace period (after any re-initialisation of the particle set).
+  void restart();
+  // Feeds one frame's best per-pixel log-likelihood; returns true when the filter is judged
+  // lost on this frame (then the grace period restarts).
+  bool update(double best_loglik_per_pixel);
+
+  double reference() const { return reference_; }
+  int framesBelow() const { return frames_below_; }
+  bool enabled() const { return params_.margin_nats > 0.0; }
+
+ private:
+  LostDetectionParams params_;
+  double reference_ = 0.0;
+  int frames_below_ = 0;
+  int frames_since_restart_ = 0;
+};
+
+}  // namespace gmm_mcl

@@ -1,0 +1,77 @@
+// Kidnapped-robot trials: the filter tracks a sequence from its true start, then the sensor is
+// teleported to another part of the sequence while odometry keeps reporting the old motion;
+// the trial measures whether and when the estimate comes back (DESIGN.md's convergence rule:
+// error below 10 cm for 30 frames). Sources: the built-in synthetic scene and 7-Scenes.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "gmm_mcl/filter/localizer.h"
+
+namespace gmm_mcl {
+namespace reliability {
+
+// A sequence of true base poses with depth frames (rendered or read on demand).
+class FrameSource {
+ public:
+  virtual ~FrameSource() = default;
+  virtual int size() const = 0;
+  virtual const Eigen::Isometry3d& truthBase(int i) const = 0;  // base in the map frame
+  virtual DepthImage depth(int i, std::mt19937_64* rng) const = 0;
+  virtual const Intrinsics& intrinsics() const = 0;
+  virtual const Eigen::Isometry3d& baseToCamera() const = 0;
+  virtual const GmmMap& map() const = 0;
+  virtual double frameRateHz() const { return 30.0; }
+  virtual std::string name() const = 0;
+};
+
+// The built-in synthetic scene (tiled GMM, 0.4 m, 1.5 cm) along its 6-DoF trajectory, rendered
+// with axial noise and dropout.
+std::unique_ptr<FrameSource> makeSyntheticSource(const Intrinsics& K, int frames);
+// 7-Scenes redkitchen (gravity-aligned, like gmm_mcl_replay) against a map file.
+std::unique_ptr<FrameSource> makeSevenScenesSource(const std::string& data_dir,
+                                                   const std::string& map_path);
+
+struct KidnapParams {
+  LocalizerParams localizer;     // T_base_cam and init are set per trial
+  int track_frames = 45;         // tracked frames before the kidnap (filter starts at the truth)
+  int after_frames = 180;        // frames after it
+  double region_half_extent_m = 2.0;          // recovery region: the protocol's 4 m cube ...
+  double region_yaw_half_range_rad = 0.5 * M_PI;  // ... and yaw range pi around the true start
+  double min_jump_m = 1.0;       // the teleport moves at least this far
+  double odom_sigma_m = 0.005;   // per frame (DESIGN.md protocol)
+  double odom_sigma_yaw_rad = 0.002;
+  double attitude_sigma_rad = 0.5 * M_PI / 180.0;
+  double recovered_below_m = 0.10;
+  int hold_frames = 30;
+  double max_recovery_s = 5.0;
+};
+
+struct KidnapResult {
+  uint64_t seed = 0;
+  int start_frame = 0, from_frame = 0, to_frame = 0;  // source indices
+  double jump_m = 0.0, jump_yaw_rad = 0.0;
+  double error_before_m = 0.0;   // at the last frame before the kidnap
+  bool recovered = false;        // back within max_recovery_s and under the threshold at the end
+  double recovery_s = -1.0;      // from the kidnap to the first frame of the holding window
+  double final_error_m = 0.0;
+  double ate_after_m = 0.0;      // RMSE from the recovery on
+  int lost_events = 0;           // LostDetector firings
+  int augmented_reinitialised = 0;
+  bool any_non_finite = false;   // a NaN/inf in any estimate or covariance
+  double mean_step_ms = 0.0;
+};
+
+// Picks, for `seed`, a start frame, the kidnap frame (start + track_frames) and a destination
+// that lies in the recovery region around the start, at least min_jump_m away, with room for
+// after_frames. Throws std::runtime_error when the source has no such destination.
+KidnapResult planKidnap(const FrameSource& src, const KidnapParams& params, uint64_t seed);
+
+KidnapResult runKidnapTrial(const FrameSource& src, const KidnapParams& params, uint64_t seed);
+
+}  // namespace reliability
+}  // namespace gmm_mcl

@@ -1,0 +1,72 @@
+#include "gmm_mcl/filter/lost_detector.h"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include <Eigen/Cholesky>
+
+namespace gmm_mcl {
+
+double mapSelfLogDensity(const GmmMap& map, float floor_log_density, int samples,
+                         uint64_t seed) {
+  const std::vector<GaussianComponent>& comps = map.components();
+  if (comps.empty() || samples <= 0) return floor_log_density;
+  std::vector<Eigen::Matrix3d> L(comps.size());  // Cholesky factors
+  std::vector<double> log_norm(comps.size());    // ln(lambda) - ln((2 pi)^1.5 |Sigma|^0.5)
+  std::vector<double> cumulative(comps.size());
+  double total = 0.0;
+  for (size_t j = 0; j < comps.size(); ++j) {
+    L[j] = comps[j].cov_m2.llt().matrixL();
+    log_norm[j] = std::log(comps[j].weight) - 1.5 * std::log(2.0 * M_PI) -
+                  L[j].diagonal().array().log().sum();
+    total += comps[j].weight;
+    cumulative[j] = total;
+  }
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> pick(0.0, total);
+  std::normal_distribution<double> g(0.0, 1.0);
+  double sum = 0.0;
+  std::vector<double> terms(comps.size());
+  for (int s = 0; s < samples; ++s) {
+    const size_t j = std::min<size_t>(
+        std::lower_bound(cumulative.begin(), cumulative.end(), pick(rng)) - cumulative.begin(),
+        comps.size() - 1);
+    const Eigen::Vector3d x = comps[j].mean_m + L[j] * Eigen::Vector3d(g(rng), g(rng), g(rng));
+    double mx = floor_log_density;
+    for (size_t k = 0; k < comps.size(); ++k) {
+      const Eigen::Vector3d z = L[k].triangularView<Eigen::Lower>().solve(x - comps[k].mean_m);
+      terms[k] = log_norm[k] - 0.5 * z.squaredNorm();
+      mx = std::max(mx, terms[k]);
+    }
+    double acc = std::exp(floor_log_density - mx);
+    for (size_t k = 0; k < comps.size(); ++k) acc += std::exp(terms[k] - mx);
+    sum += mx + std::log(acc);
+  }
+  return sum / samples;
+}
+
+LostDetector::LostDetector(const LostDetectionParams& params, double initial_reference)
+    : params_(params), reference_(initial_reference) {}
+
+void LostDetector::restart() {
+  frames_below_ = 0;
+  frames_since_restart_ = 0;
+}
+
+bool LostDetector::update(double best) {
+  if (!enabled() || !std::isfinite(best)) return false;
+  ++frames_since_restart_;
+  // The reference follows the best score: quickly up, slowly down, so that a scene whose true
+  // pose scores below the map's own level is learned, while a sudden drop stays visible for
+  // several seconds.
+  const double rate = best > reference_ ? params_.reference_rate_up : params_.reference_rate_down;
+  const bool below = best < reference_ - params_.margin_nats;
+  reference_ += rate * (best - reference_);
+  frames_below_ = below ? frames_below_ + 1 : 0;
+  if (frames_since_restart_ <= params_.grace_frames || frames_below_ < params_.frames) return false;
+  restart();
+  return true;
+}
+
+}  // namespace gmm_mcl
