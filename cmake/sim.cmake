@@ -15,6 +15,7 @@ if(GMM_MCL_BUILD_TESTS)
   set(GMM_MCL_SIM_TESTS
     test/sim/test_mesh.cpp
     test/sim/test_mesh_bvh.cpp
+    test/sim/test_sensor_noise.cpp
     test/sim/test_replica_render.cpp
   )
   foreach(src ${GMM_MCL_SIM_TESTS})
