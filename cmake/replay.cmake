@@ -1,7 +1,15 @@
-# Offline replay and evaluation (issue 4): the 7-Scenes sequence reader, the accuracy protocol,
-# the gmm_mcl_replay tool and their tests. Needs no ROS; reading depth PNGs needs libpng.
+# Offline replay and evaluation (issue 4): the data-set readers behind one Sequence interface
+# (7-Scenes, TUM RGB-D / ICL-NUIM, Stanford, the synthetic scene), the folder writers, the
+# protocol's odometry/attitude noise, the accuracy protocol, the gmm_mcl_replay tool and their
+# tests. Needs no ROS; reading and writing depth PNGs needs libpng.
 add_library(gmm_mcl_replay STATIC
+  src/replay/sequence_base.cpp
   src/replay/seven_scenes_sequence.cpp
+  src/replay/tum_sequence.cpp
+  src/replay/stanford_sequence.cpp
+  src/replay/sim_sequence.cpp
+  src/replay/sequence_writer.cpp
+  src/replay/odometry_synthesizer.cpp
   src/replay/evaluation.cpp
   src/replay/replay.cpp
 )
@@ -19,6 +27,23 @@ if(GMM_MCL_BUILD_TESTS)
   add_executable(test_evaluation test/replay/test_evaluation.cpp)
   target_link_libraries(test_evaluation PRIVATE gmm_mcl_replay GTest::gtest_main)
   add_test(NAME test_evaluation COMMAND test_evaluation)
+  add_executable(test_odometry_synthesizer test/replay/test_odometry_synthesizer.cpp)
+  target_link_libraries(test_odometry_synthesizer PRIVATE gmm_mcl_replay GTest::gtest_main)
+  add_test(NAME test_odometry_synthesizer COMMAND test_odometry_synthesizer)
+  if(PNG_FOUND)
+    # Readers on fixtures the tests write (TUM, Stanford from the synthetic scene), bad input,
+    # and replay over each folder format; 7-Scenes reader checks on the shared data.
+    foreach(name test_sequences test_replay_formats)
+      add_executable(${name} test/replay/${name}.cpp)
+      target_link_libraries(${name} PRIVATE gmm_mcl_replay gmm_mcl_test_utils GTest::gtest_main)
+      add_test(NAME ${name} COMMAND ${name})
+    endforeach()
+    # The tool end to end on a TUM fixture (written by the tool's --write-fixture).
+    add_test(NAME test_replay_tool_tum
+      COMMAND ${CMAKE_COMMAND} -DTOOL=$<TARGET_FILE:gmm_mcl_replay_tool>
+              -DWORK=${CMAKE_CURRENT_BINARY_DIR}/replay_tool_test
+              -P ${CMAKE_CURRENT_SOURCE_DIR}/test/replay/replay_tool_test.cmake)
+  endif()
   # Needs the map builder (gmm_mcl_fit) and libpng for the depth frames.
   if(TARGET gmm_mcl_fit AND PNG_FOUND)
     add_executable(test_seven_scenes_regression test/replay/test_seven_scenes_regression.cpp)

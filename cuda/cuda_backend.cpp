@@ -63,14 +63,13 @@ struct CudaBackend::Impl {
   cuda::Stream stream;
   int num_components = 0;
   cuda::DeviceBuffer<ComponentF> components;
-  cuda::DeviceBuffer<cuda::EvalComponent> eval_components;
+  cuda::DeviceBuffer<EvalComponentF> eval_components;  // log2 form (likelihood kernel)
   // Per-update inputs: one pinned staging buffer, one device buffer of the same layout.
   cuda::PinnedBuffer<unsigned char> staging;
   cuda::DeviceBuffer<unsigned char> inputs;
   // Per-batch scratch and per-particle outputs.
   cuda::DeviceBuffer<uint32_t> mask;
   cuda::DeviceBuffer<float> shift;
-  cuda::DeviceBuffer<uint32_t> summary;
   cuda::DeviceBuffer<double> item_ll;
   cuda::DeviceBuffer<int> item_hits, item_evals, item_relevant;
   // Per-particle results (and the frame's patch starts when the GPU prepared it) in one block,
@@ -146,8 +145,8 @@ int CudaBackend::lastFramePixels() const { return impl_->last_frame_pixels; }
 void CudaBackend::setMap(const GmmMap& map) {
   const std::vector<ComponentF>& packed = map.packed();
   const int m = static_cast<int>(packed.size());
-  std::vector<cuda::EvalComponent> ev(m);
-  for (int i = 0; i < m; ++i) ev[i] = cuda::makeEvalComponent(packed[i]);
+  std::vector<EvalComponentF> ev(m);
+  for (int i = 0; i < m; ++i) ev[i] = makeEvalComponentF(packed[i], kEvalScaleLog2);
   Impl& d = *impl_;
   GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(d.stream.get()));
   d.components.reserve(std::max(m, 1));
@@ -156,7 +155,7 @@ void CudaBackend::setMap(const GmmMap& map) {
     GMM_MCL_CUDA_CHECK(cudaMemcpy(d.components.data(), packed.data(), m * sizeof(ComponentF),
                                   cudaMemcpyHostToDevice));
     GMM_MCL_CUDA_CHECK(cudaMemcpy(d.eval_components.data(), ev.data(),
-                                  m * sizeof(cuda::EvalComponent), cudaMemcpyHostToDevice));
+                                  m * sizeof(EvalComponentF), cudaMemcpyHostToDevice));
   }
   d.num_components = m;
 }
@@ -245,16 +244,8 @@ void CudaBackend::Impl::run(const DeviceFrameView& f, int n, const MeasurementPa
   const int batch = static_cast<int>(
       std::max<size_t>(1, std::min<size_t>(std::min<size_t>(n, max_by_threads),
                                            kMaskBudgetBytes / mask_bytes_per_particle)));
-  const int swords = (words + 31) / 32;
   mask.reserve(size_t(batch) * patches * std::max(words, 1));
-  summary.reserve(size_t(batch) * patches * std::max(swords, 1));
   shift.reserve(size_t(batch) * patches);
-  item_ll.reserve(size_t(batch) * patches);
-  item_hits.reserve(size_t(batch) * patches);
-  item_evals.reserve(size_t(batch) * patches);
-  item_relevant.reserve(size_t(batch) * patches);
-  const cuda::ItemPartials partials{item_ll.data(), item_hits.data(), item_evals.data(),
-                                    item_relevant.data()};
   const OutputLayout O(n, patches);  // reserved by the caller
   double* ll = reinterpret_cast<double*>(results.data() + O.ll);
   long long* evals = reinterpret_cast<long long*>(results.data() + O.evals);
@@ -271,18 +262,24 @@ void CudaBackend::Impl::run(const DeviceFrameView& f, int n, const MeasurementPa
   cfg.inflate_px = patchInflation(f.grid.patch_size_px);
   cfg.floor_log_density = params.floor_log_density;
   cuda::LikelihoodShape shape = cuda::chooseLikelihoodShape(max_patch_pixels);
-  if (const char* env = std::getenv("GMM_MCL_CUDA_SHAPE")) {  // tuning: LANESxPX, e.g. 16x2
+  if (const char* env = std::getenv("GMM_MCL_CUDA_SHAPE")) {  // tuning: GROUPSxPX, e.g. 16x4
     int lanes = 0, px = 0;
     if (std::sscanf(env, "%dx%d", &lanes, &px) == 2) {
       shape.lanes = lanes;
       shape.pixels_per_lane = px;
     }
   }
-  if (const char* env = std::getenv("GMM_MCL_CUDA_BITSCAN")) shape.member_list = env[0] != '1';
-  if (cuda::likelihoodSharedBytes(shape, words) > 48 * 1024) {
-    throw BackendError("cuda backend: " + std::to_string(num_components) +
-                       " components exceed the likelihood kernel's shared memory");
+  if (const char* env = std::getenv("GMM_MCL_CUDA_BAND")) {  // tuning: patches per item
+    const int band = std::atoi(env);
+    if (band > 0) shape.band_patches = band;
   }
+  const int items = cuda::likelihoodItemsPerParticle(shape, patches);
+  item_ll.reserve(size_t(batch) * items);
+  item_hits.reserve(size_t(batch) * items);
+  item_evals.reserve(size_t(batch) * items);
+  item_relevant.reserve(size_t(batch) * items);
+  const cuda::ItemPartials partials{item_ll.data(), item_hits.data(), item_evals.data(),
+                                    item_relevant.data()};
   const int batches = (n + batch - 1) / batch;
   ensureEvents(3 * size_t(batches));
   for (int bi = 0; bi < batches; ++bi) {
@@ -290,14 +287,13 @@ void CudaBackend::Impl::run(const DeviceFrameView& f, int n, const MeasurementPa
     const int count = std::min(batch, n - first);
     events[3 * bi].record(s);
     GMM_MCL_CUDA_CHECK(cuda::launchMembership(count, num_components, words, cfg, components.data(),
-                                              f.T_cam_map + first, mask.data(), shift.data(),
-                                              summary.data(), s));
+                                              f.T_cam_map + first, mask.data(), shift.data(), s));
     events[3 * bi + 1].record(s);
     GMM_MCL_CUDA_CHECK(
         cuda::launchLikelihood(count, patches, words, shape, params.floor_log_density, f.x, f.y,
                                f.z, f.patch_begin, eval_components.data(), f.T_map_cam + first,
-                               mask.data(), summary.data(), shift.data(), partials, s));
-    GMM_MCL_CUDA_CHECK(cuda::launchReduce(count, patches, partials, ll + first, hits + first,
+                               mask.data(), shift.data(), partials, s));
+    GMM_MCL_CUDA_CHECK(cuda::launchReduce(count, items, partials, ll + first, hits + first,
                                           evals + first, pairs + first, s));
     events[3 * bi + 2].record(s);
   }
@@ -479,7 +475,6 @@ void CudaBackend::membership(const DepthFrame& frame, const RigidTransformF& T_m
   cuda::DeviceBuffer<RigidTransformF> pose(1);
   cuda::DeviceBuffer<uint32_t> mask(size_t(patches) * words);
   cuda::DeviceBuffer<float> shift(patches);
-  cuda::DeviceBuffer<uint32_t> summary(size_t(patches) * ((words + 31) / 32));
   const RigidTransformF T_cam_map = invertRigid(T_map_cam);
   GMM_MCL_CUDA_CHECK(
       cudaMemcpyAsync(pose.data(), &T_cam_map, sizeof(T_cam_map), cudaMemcpyHostToDevice, s));
@@ -493,8 +488,7 @@ void CudaBackend::membership(const DepthFrame& frame, const RigidTransformF& T_m
   cfg.inflate_px = patchInflation(frame.grid.patch_size_px);
   cfg.floor_log_density = params.floor_log_density;
   GMM_MCL_CUDA_CHECK(cuda::launchMembership(1, d.num_components, words, cfg, d.components.data(),
-                                            pose.data(), mask.data(), shift.data(), summary.data(),
-                                            s));
+                                            pose.data(), mask.data(), shift.data(), s));
   std::vector<uint32_t> h(size_t(patches) * words);
   GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(h.data(), mask.data(), h.size() * sizeof(uint32_t),
                                      cudaMemcpyDeviceToHost, s));

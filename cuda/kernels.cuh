@@ -6,21 +6,10 @@
 #include <stdint.h>
 
 #include "gmm_mcl/common/types.h"
+#include "gmm_mcl/measurement/eval_component.h"
 
 namespace gmm_mcl {
 namespace cuda {
-
-// A component in the layout of the likelihood kernel (48 bytes, three float4 loads):
-// a = (mean x, y, z [m], log_norm * log2(e)); b, c = the precision scaled by -0.5 log2(e) with
-// off-diagonal terms doubled: b = (P_xx, 2 P_xy, 2 P_xz, P_yy), c = (2 P_yz, P_zz, log_norm, 0).
-// The kernel then evaluates log2(lambda N) - shift2 with 6 FMA and 3 multiplications.
-struct alignas(16) EvalComponent {
-  float a[4];
-  float b[4];
-  float c[4];
-};
-
-EvalComponent makeEvalComponent(const ComponentF& c);
 
 // Geometry of the patch grid and the membership test (DESIGN.md "Measurement model").
 struct MembershipConfig {
@@ -45,23 +34,25 @@ cudaError_t preferSharedMemoryForMembership();
 // Projection + patch membership for `num_particles` camera poses.
 // mask_out: [num_particles][patches][words] bit i%32 of word i/32 set when component i is
 // relevant; shift_out: [num_particles][patches] max(floor, max log_norm of the members) (nats);
-// summary_out: [num_particles][patches][ceil(words / 32)], bit w set when mask word w is not 0.
+// Components that componentMayTouchGrid rules out are not projected (same sets).
 cudaError_t launchMembership(int num_particles, int num_components, int words,
                              const MembershipConfig& cfg, const ComponentF* components,
                              const RigidTransformF* T_cam_map, uint32_t* mask_out, float* shift_out,
-                             uint32_t* summary_out, cudaStream_t stream);
+                             cudaStream_t stream);
 
-// How the likelihood kernel maps work onto lanes: a group of `lanes` lanes (8, 16 or 32) per
-// (particle, patch) item, each lane keeping `pixels_per_lane` pixels (1, 2 or 4) in registers.
+// How the likelihood kernel maps work onto a warp: one warp per item (a band of
+// `band_patches` consecutive patches of one particle); `lanes` pixel groups of
+// `pixels_per_lane` pixels each, and 32 / lanes component slices.
 struct LikelihoodShape {
-  int lanes = 32;
-  int pixels_per_lane = 2;
-  bool member_list = true;  // expand members into a shared-memory list (else scan the bits)
+  int lanes = 32;           // pixel groups: 4, 8, 16 or 32
+  int pixels_per_lane = 2;  // 1, 2 or 4
+  int band_patches = 10;    // patches per item
 };
 // The shape for the largest patch of a frame (pixels).
 LikelihoodShape chooseLikelihoodShape(int max_patch_pixels);
-// Shared memory of the likelihood kernel (each group's mask row), bytes.
-// (At most 48 KB: 8 lanes per item hold 48 KB for M = 12288.)
+// Items (bands) per particle.
+int likelihoodItemsPerParticle(const LikelihoodShape& shape, int num_patches);
+// Shared memory of the likelihood kernel (each warp's member list), bytes (at most 16 KB).
 size_t likelihoodSharedBytes(const LikelihoodShape& shape, int words);
 
 // Per-item partial sums of the likelihood kernel, reduced per particle by launchReduce.
@@ -69,20 +60,22 @@ struct ItemPartials {
   double* log_likelihood;  // [items] nats
   int* floor_hits;         // [items]
   int* evaluations;        // [items]
-  int* relevant;           // [items] members of the patch (0 for patches without pixels)
+  int* relevant;           // [items] members summed over the item's patches with pixels
 };
 
-// Per-pixel log-sum over the relevant components for every (particle, patch) item.
+// Per-pixel log-sum over the relevant components for every (particle, band) item.
+// components: the log2 evaluation form (makeEvalComponentF with kEvalScaleLog2).
 cudaError_t launchLikelihood(int num_particles, int num_patches, int words,
                              const LikelihoodShape& shape, float floor_log_density,
                              const float* x_m, const float* y_m, const float* z_m,
-                             const int* patch_begin, const EvalComponent* components,
+                             const int* patch_begin, const EvalComponentF* components,
                              const RigidTransformF* T_map_cam, const uint32_t* mask,
-                             const uint32_t* summary, const float* shift,
-                             const ItemPartials& partials, cudaStream_t stream);
+                             const float* shift, const ItemPartials& partials,
+                             cudaStream_t stream);
 
 // Per-particle sums of the item partials, in a fixed order (deterministic).
-cudaError_t launchReduce(int num_particles, int num_patches, const ItemPartials& partials,
+// items_per_particle: likelihoodItemsPerParticle.
+cudaError_t launchReduce(int num_particles, int items_per_particle, const ItemPartials& partials,
                          double* log_likelihood, int* floor_hits, long long* evaluations,
                          long long* relevant_pairs, cudaStream_t stream);
 

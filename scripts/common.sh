@@ -24,7 +24,7 @@ ensure_packages() {
 }
 
 # Build dependencies of the ROS-free core, tools and tests.
-CORE_PACKAGES=(build-essential cmake libeigen3-dev libpng-dev libgtest-dev googletest)
+CORE_PACKAGES=(build-essential cmake libeigen3-dev libpng-dev libgtest-dev googletest python3-matplotlib)
 
 # find_tool NAME VAR: the path of a built gmm_mcl tool: $VAR if set, else the build folders that
 # the scripts use (build-fit, build, the catkin devel folder of build/test), else PATH.

@@ -5,6 +5,7 @@
 #
 #   scripts/gpu_check.sh            # everything
 #   GPU_CHECK_STEPS="build test bench" scripts/gpu_check.sh
+#   GPU_CHECK_STEPS="build ncu" scripts/gpu_check.sh   # Nsight Compute counters of the kernels
 #
 # Inputs (optional, else the synthetic scene): $GMM_MCL_MAP (7-Scenes M=1000 map) and
 # $GMM_MCL_7SCENES_FRAMES (raw frames from `gmm_mcl_bench --export-frames`); by default the
@@ -58,6 +59,45 @@ for tool in memcheck racecheck; do
   echo "   rc=$rc, $(( $(date +%s) - start )) s"
   [[ $rc -eq 0 ]] || status=1
 done
+
+if step ncu; then
+  # Hardware counters of one membership and one likelihood launch (paper workload, after the
+  # warm-up): duration, issue activity, and the FP32 instructions actually executed, from
+  # which ncu_flops.txt gives the measured FP32 FLOP rate (FFMA counts 2, FADD and FMUL 1).
+  echo "== ncu (${NCU_WORKLOAD:-paper})"
+  args=(--backend cuda --workload "${NCU_WORKLOAD:-paper}" --frames 2 --warmup 3 --min-timed 1)
+  [[ -n "${GMM_MCL_MAP:-}" ]] && args+=(--map "$GMM_MCL_MAP")
+  [[ -n "${GMM_MCL_7SCENES_FRAMES:-}" ]] && args+=(--frames-raw "$GMM_MCL_7SCENES_FRAMES")
+  metrics=gpu__time_duration.sum,sm__inst_executed.sum,smsp__issue_active.avg.pct_of_peak_sustained_active
+  metrics+=,sm__warps_active.avg.pct_of_peak_sustained_active,smsp__thread_inst_executed_per_inst_executed.ratio
+  metrics+=,sm__sass_thread_inst_executed_op_ffma_pred_on.sum,sm__sass_thread_inst_executed_op_fadd_pred_on.sum
+  metrics+=,sm__sass_thread_inst_executed_op_fmul_pred_on.sum,sm__cycles_elapsed.avg.per_second
+  timeout 300 ncu --clock-control none --kernel-name regex:"likelihoodKernel|membershipKernel" \
+    --launch-skip 6 --launch-count 2 --metrics "$metrics" --csv "$BUILD/gmm_mcl_bench" "${args[@]}" \
+    > "$LOGS/ncu.csv" 2> "$LOGS/ncu.err" || { echo "ncu failed"; tail -5 "$LOGS/ncu.err"; }
+  python3 - "$LOGS/ncu.csv" <<'PY' | tee "$LOGS/ncu_flops.txt"
+import csv, sys, collections
+rows = [r for r in csv.reader(open(sys.argv[1])) if len(r) > 10]
+hdr = rows[0]; idx = {h: i for i, h in enumerate(hdr)}
+k = collections.defaultdict(dict)
+for r in rows[1:]:
+    name = r[idx["Kernel Name"]].split("(")[0][-40:]
+    unit = r[idx["Metric Unit"]].lower()
+    scale = {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0, "nsecond": 1e-9, "usecond": 1e-6, "msecond": 1e-3, "second": 1.0, "cycle/nsecond": 1e9,
+             "cycle/usecond": 1e6, "cycle/second": 1.0, "ghz": 1e9, "mhz": 1e6, "hz": 1.0}.get(unit, 1.0)
+    k[(r[idx["ID"]], name)][r[idx["Metric Name"]]] = float(r[idx["Metric Value"]].replace(",", "")) * scale
+for (i, name), m in sorted(k.items()):
+    t = m["gpu__time_duration.sum"]  # s
+    flops = 2 * m["sm__sass_thread_inst_executed_op_ffma_pred_on.sum"] + \
+        m["sm__sass_thread_inst_executed_op_fadd_pred_on.sum"] + m["sm__sass_thread_inst_executed_op_fmul_pred_on.sum"]
+    clk = m["sm__cycles_elapsed.avg.per_second"]
+    peak = 2 * 128 * 132 * clk  # H100 SXM: 132 SMs x 128 FP32 lanes, at the measured clock
+    print(f"{name}: {t*1e6:.1f} us, issue active {m['smsp__issue_active.avg.pct_of_peak_sustained_active']:.1f}%, "
+          f"warps active {m['sm__warps_active.avg.pct_of_peak_sustained_active']:.1f}%, "
+          f"threads/inst {m['smsp__thread_inst_executed_per_inst_executed.ratio']:.1f}, "
+          f"FP32 FLOP executed {flops:.3e} = {flops/t*1e-12:.2f} TFLOP/s = {100*flops/t/peak:.1f}% of peak at {clk*1e-9:.2f} GHz")
+PY
+fi
 
 if step bench; then
   echo "== benchmark"

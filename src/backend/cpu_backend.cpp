@@ -28,9 +28,8 @@ void CpuBackend::evaluate(const DepthFrame& frame, const std::vector<RigidTransf
       computeMembership(components_, invertRigid(T_map_cam[i]), frame.intrinsics, frame.grid,
                         params, &s.projected, &s.valid, &s.membership);
       const double t1 = omp_get_wtime();
-      const FrameLikelihood fl = frameLogLikelihood(components_, frame, T_map_cam[i],
-                                                    s.membership, params.floor_log_density,
-                                                    &s.values);
+      const FrameLikelihood fl = frameLogLikelihood(eval_.data(), frame, T_map_cam[i],
+                                                    s.membership, params.floor_log_density);
       likelihood_s[tid] += omp_get_wtime() - t1;
       membership_s[tid] += t1 - t0;
       out->log_likelihood[i] = fl.log_likelihood;

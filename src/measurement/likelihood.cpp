@@ -11,107 +11,122 @@
 namespace gmm_mcl {
 namespace {
 
-// The inner loops are small functions over restrict pointers: in that form GCC vectorises
-// them (AVX2: 8 pixels per instruction); inside one loop nest over local arrays it did not.
-
-// row[i] = ln(lambda N) of one component at each point; mx[i] = max(mx[i], row[i]).
-__attribute__((noinline)) void componentLogDensities(const ComponentF& c, const float* __restrict wx,
-                           const float* __restrict wy, const float* __restrict wz, int n,
-                           float* __restrict row, float* __restrict mx) {
-  const float m0 = c.mean_m[0], m1 = c.mean_m[1], m2 = c.mean_m[2];
-  const float p0 = c.precision[0], p1 = 2.f * c.precision[1], p2 = 2.f * c.precision[2];
-  const float p3 = c.precision[3], p4 = 2.f * c.precision[4], p5 = c.precision[5];
-  const float ln = c.log_norm;
-  for (int i = 0; i < n; ++i) {
-    const float dx = wx[i] - m0, dy = wy[i] - m1, dz = wz[i] - m2;
-    const float q = dx * (p0 * dx + p1 * dy + p2 * dz) + dy * (p3 * dy + p4 * dz) + p5 * dz * dz;
-    const float v = ln - 0.5f * q;
-    row[i] = v;
-    mx[i] = maxf(mx[i], v);
+// sum[i] = sum over the k members of exp(ln(lambda_j N_j(p_i)) - shift) for the n points
+// (n a multiple of B, B pixels per block). The pixel loop of one block has a compile-time trip
+// count (B / 8 AVX2 vectors), inside the member loop: each member's 10 constants are loaded
+// once per block. Every exponent is <= 0 (shift >= every member's log_norm).
+template <int B>
+__attribute__((noinline)) void patchMixture(const EvalComponentF* __restrict comps,
+                                            const int* __restrict members, int k, float shift,
+                                            const float* __restrict wx,
+                                            const float* __restrict wy,
+                                            const float* __restrict wz, int n,
+                                            float* __restrict sum) {
+  for (int i0 = 0; i0 < n; i0 += B) {
+    alignas(32) float acc[B];
+    for (int i = 0; i < B; ++i) acc[i] = 0.f;
+    const float* __restrict x = wx + i0;
+    const float* __restrict y = wy + i0;
+    const float* __restrict z = wz + i0;
+    for (int j = 0; j < k; ++j) {
+      const EvalComponentF& e = comps[members[j]];
+      const float b = e.base - shift;
+      const float c0 = e.c[0], c1 = e.c[1], c2 = e.c[2];
+      const float u00 = e.u00, u01 = e.u01, u02 = e.u02, u11 = e.u11, u12 = e.u12, u22 = e.u22;
+#pragma omp simd
+      for (int i = 0; i < B; ++i) {
+        const float y0 = u00 * x[i] + (u01 * y[i] + (u02 * z[i] + c0));
+        const float y1 = u11 * y[i] + (u12 * z[i] + c1);
+        const float y2 = u22 * z[i] + c2;
+        acc[i] += expNonPositive(b - y0 * y0 - y1 * y1 - y2 * y2);
+      }
+    }
+    for (int i = 0; i < B; ++i) sum[i0 + i] = acc[i];
   }
-}
-
-// sum[i] += exp(row[i] - mx[i]).
-__attribute__((noinline)) void accumulateExp(const float* __restrict row, const float* __restrict mx, int n,
-                   float* __restrict sum) {
-  for (int i = 0; i < n; ++i) sum[i] += expNonPositive(row[i] - mx[i]);
-}
-
-// floor_term[i] = exp(floor - mx[i]).
-__attribute__((noinline)) void floorTerms(float floor_ld, const float* __restrict mx, int n, float* __restrict out) {
-  for (int i = 0; i < n; ++i) out[i] = expNonPositive(floor_ld - mx[i]);
-}
-
-// Log-likelihood of up to kPixelChunk map-frame points against `k` relevant components.
-// Accumulates into *sum and counts floor hits.
-void chunkLogLikelihood(const std::vector<ComponentF>& components, const int* relevant, int k,
-                        const float* wx, const float* wy, const float* wz, int n, float floor_ld,
-                        float* values, double* sum, int* floor_hits) {
-  alignas(32) float mx[kPixelChunk];
-  alignas(32) float floor_term[kPixelChunk];
-  alignas(32) float mixture[kPixelChunk];  // sum_j exp(v_j - mx): the density relative to exp(mx)
-  for (int i = 0; i < n; ++i) {
-    mx[i] = floor_ld;
-    mixture[i] = 0.f;
-  }
-  for (int j = 0; j < k; ++j) {
-    componentLogDensities(components[relevant[j]], wx, wy, wz, n, values + j * kPixelChunk, mx);
-  }
-  floorTerms(floor_ld, mx, n, floor_term);
-  for (int j = 0; j < k; ++j) accumulateExp(values + j * kPixelChunk, mx, n, mixture);
-  double acc = 0.0;
-  int hits = 0;
-  for (int i = 0; i < n; ++i) {
-    acc += static_cast<double>(mx[i] + std::log(floor_term[i] + mixture[i]));
-    hits += mixture[i] < floor_term[i] ? 1 : 0;  // mixture density below exp(floor)
-  }
-  *sum += acc;
-  *floor_hits += hits;
 }
 
 }  // namespace
 
-FrameLikelihood frameLogLikelihood(const std::vector<ComponentF>& components,
-                                   const DepthFrame& frame, const RigidTransformF& T_map_cam,
-                                   const PatchMembership& membership, float floor_log_density,
-                                   std::vector<float>* values) {
+void makeEvalComponents(const std::vector<ComponentF>& components,
+                        std::vector<EvalComponentF>* out) {
+  out->resize(components.size());
+  for (size_t i = 0; i < components.size(); ++i) {
+    (*out)[i] = makeEvalComponentF(components[i], kEvalScaleNats);
+  }
+}
+
+FrameLikelihood frameLogLikelihood(const EvalComponentF* eval, const DepthFrame& frame,
+                                   const RigidTransformF& T_map_cam,
+                                   const PatchMembership& membership, float floor_log_density) {
   FrameLikelihood out;
   out.pixels = static_cast<int>(frame.size());
   const int num_patches = frame.grid.count();
-  float wx[kPixelChunk], wy[kPixelChunk], wz[kPixelChunk];
+  alignas(32) float wx[kPixelChunk], wy[kPixelChunk], wz[kPixelChunk], sum[kPixelChunk];
   const float* R = T_map_cam.R;
   const float* t = T_map_cam.t;
-  double sum = 0.0;
+  double total = 0.0;
   for (int p = 0; p < num_patches; ++p) {
     const int b = frame.patch_begin[p];
     const int e = frame.patch_begin[p + 1];
     if (b == e) continue;
     const int k = membership.countFor(p);
     if (k == 0) {
-      sum += static_cast<double>(floor_log_density) * (e - b);
+      total += static_cast<double>(floor_log_density) * (e - b);
       out.floor_hits += e - b;
       continue;
     }
-    const int* relevant = membership.comps.data() + membership.begin[p];
-    if (values->size() < static_cast<size_t>(k) * kPixelChunk) values->resize(k * kPixelChunk);
+    const int* members = membership.comps.data() + membership.begin[p];
+    float shift = floor_log_density;
+    for (int j = 0; j < k; ++j) shift = maxf(shift, eval[members[j]].log_norm);
+    const float floor_term = expNonPositive(floor_log_density - shift);
     for (int c = b; c < e; c += kPixelChunk) {
       const int n = std::min(kPixelChunk, e - c);
       const float* x = frame.x_m.data() + c;
       const float* y = frame.y_m.data() + c;
       const float* z = frame.z_m.data() + c;
+      // Blocks of 8, 16 or 32 pixels; the padding repeats the chunk's first point.
+      const int B = n > 16 ? 32 : (n > 8 ? 16 : 8);
+      const int padded = (n + B - 1) / B * B;
 #pragma omp simd
       for (int i = 0; i < n; ++i) {
         wx[i] = R[0] * x[i] + R[1] * y[i] + R[2] * z[i] + t[0];
         wy[i] = R[3] * x[i] + R[4] * y[i] + R[5] * z[i] + t[1];
         wz[i] = R[6] * x[i] + R[7] * y[i] + R[8] * z[i] + t[2];
       }
-      chunkLogLikelihood(components, relevant, k, wx, wy, wz, n, floor_log_density,
-                         values->data(), &sum, &out.floor_hits);
+      for (int i = n; i < padded; ++i) {
+        wx[i] = wx[0];
+        wy[i] = wy[0];
+        wz[i] = wz[0];
+      }
+      if (B == 32) {
+        patchMixture<32>(eval, members, k, shift, wx, wy, wz, padded, sum);
+      } else if (B == 16) {
+        patchMixture<16>(eval, members, k, shift, wx, wy, wz, padded, sum);
+      } else {
+        patchMixture<8>(eval, members, k, shift, wx, wy, wz, padded, sum);
+      }
+      double acc = 0.0;
+      int hits = 0;
+      for (int i = 0; i < n; ++i) {
+        acc += static_cast<double>(shift + std::log(floor_term + sum[i]));
+        hits += sum[i] < floor_term ? 1 : 0;  // mixture density below exp(floor)
+      }
+      total += acc;
+      out.floor_hits += hits;
       out.evaluations += static_cast<long long>(k) * n;
     }
   }
-  out.log_likelihood = sum;
+  out.log_likelihood = total;
   return out;
+}
+
+FrameLikelihood frameLogLikelihood(const std::vector<ComponentF>& components,
+                                   const DepthFrame& frame, const RigidTransformF& T_map_cam,
+                                   const PatchMembership& membership, float floor_log_density,
+                                   std::vector<float>* /*values*/) {
+  std::vector<EvalComponentF> eval;
+  makeEvalComponents(components, &eval);
+  return frameLogLikelihood(eval.data(), frame, T_map_cam, membership, floor_log_density);
 }
 
 FrameLikelihood poseLogLikelihood(const std::vector<ComponentF>& components,
@@ -119,8 +134,9 @@ FrameLikelihood poseLogLikelihood(const std::vector<ComponentF>& components,
                                   const MeasurementParams& params, LikelihoodScratch* scratch) {
   computeMembership(components, invertRigid(T_map_cam), frame.intrinsics, frame.grid, params,
                     &scratch->projected, &scratch->valid, &scratch->membership);
-  return frameLogLikelihood(components, frame, T_map_cam, scratch->membership,
-                            params.floor_log_density, &scratch->values);
+  makeEvalComponents(components, &scratch->eval);
+  return frameLogLikelihood(scratch->eval.data(), frame, T_map_cam, scratch->membership,
+                            params.floor_log_density);
 }
 
 FrameLikelihood exactFrameLogLikelihood(const GmmMap& map, const DepthFrame& frame,

@@ -32,41 +32,19 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
   projected->resize(m);
   valid->resize(m);
   out->begin.assign(num_patches + 1, 0);
-  // Pass 1: project, and count candidates per patch.
-  // Conservative cull before the full projection (same table as without it): the inflated
-  // ellipse's semi-axes are at most sigma_bound sqrt(l1) + inflate with
-  // l1 <= ||J||_F^2 lambda_max(Sigma) <= ||J||_F^2 trace(Sigma); a component whose square of that
-  // half-size (plus a margin for rounding) around its projected mean holds no patch centre, or
-  // whose mean is clearly nearer than the near limit, cannot be relevant to any patch.
-  const float near_cull = params.min_component_depth_m - 1e-4f;
+  // Pass 1: project, and count candidates per patch. Components that cannot touch any patch
+  // (componentMayTouchGrid, conservative: the same table as without it) skip the projection.
   // (patch, component) pairs found in pass 1, in component order, so pass 2 need not test again.
   static thread_local std::vector<int> pairs;
+  static thread_local std::vector<int> cursor;
   pairs.clear();
   for (int i = 0; i < m; ++i) {
     ProjectedComponent& p = (*projected)[i];
-    {
-      const ComponentF& c = components[i];
-      float mc[3];
-      transformPoint(T_cam_map, c.mean_m, mc);
-      if (!(mc[2] >= near_cull)) {
-        (*valid)[i] = 0;
-        continue;
-      }
-      const float iz = 1.f / mc[2];
-      const float iz2 = iz * iz;
-      const float jf2 = K.fx_px * K.fx_px * iz2 * (1.f + mc[0] * mc[0] * iz2) +
-                        K.fy_px * K.fy_px * iz2 * (1.f + mc[1] * mc[1] * iz2);
-      const float trace = c.cov_m2[0] + c.cov_m2[3] + c.cov_m2[5];
-      const float r = (params.sigma_bound * std::sqrt(jf2 * trace) + inflate) * 1.01f + 1.f;
-      const float u = K.cx_px + K.fx_px * mc[0] * iz;
-      const float v = K.cy_px + K.fy_px * mc[1] * iz;
-      if (std::ceil((u - r - c0) / ps) > std::floor((u + r - c0) / ps) ||
-          std::ceil((u - r - c0) / ps) > grid.cols - 1 || std::floor((u + r - c0) / ps) < 0 ||
-          std::ceil((v - r - c0) / ps) > grid.rows - 1 || std::floor((v + r - c0) / ps) < 0 ||
-          std::ceil((v - r - c0) / ps) > std::floor((v + r - c0) / ps)) {
-        (*valid)[i] = 0;
-        continue;
-      }
+    if (!componentMayTouchGrid(components[i], T_cam_map, K, grid.patch_size_px, grid.cols,
+                               grid.rows, params.min_component_depth_m, params.sigma_bound,
+                               inflate)) {
+      (*valid)[i] = 0;
+      continue;
     }
     (*valid)[i] = projectComponent(components[i], T_cam_map, K, params.min_component_depth_m,
                                    params.sigma_bound, inflate, &p);
@@ -94,7 +72,7 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
   for (int p = 0; p < num_patches; ++p) out->begin[p + 1] += out->begin[p];
   out->comps.resize(out->begin[num_patches]);
   // Pass 2: scatter the pairs of pass 1 (components ascending within each patch).
-  std::vector<int> cursor(out->begin.begin(), out->begin.end() - 1);
+  cursor.assign(out->begin.begin(), out->begin.end() - 1);
   for (size_t k = 0; k < pairs.size(); k += 2) out->comps[cursor[pairs[k]]++] = pairs[k + 1];
 }
 

@@ -1,11 +1,21 @@
 #include "gmm_mcl/replay/replay.h"
 
 #include <cmath>
+#include <cstdio>
 #include <fstream>
-#include <random>
 #include <stdexcept>
 
 namespace gmm_mcl {
+namespace {
+
+// Stamps with microseconds whatever their magnitude (TUM stamps are about 1.3e9 s).
+std::string stampText(double t_s) {
+  char buf[48];
+  std::snprintf(buf, sizeof(buf), "%.6f", t_s);
+  return buf;
+}
+
+}  // namespace
 
 Eigen::Isometry3d opticalToBase() {
   // Columns: optical x, y, z expressed in the base frame.
@@ -26,18 +36,50 @@ GmmMap rotateMap(const GmmMap& map, const Eigen::Matrix3d& R, const std::string&
   return GmmMap(std::move(comps), source);
 }
 
-TrialResult runSevenScenesTrial(const SevenScenesSequence& seq, const DepthProvider& depth,
-                                const GmmMap& map_aligned, const ReplayParams& params,
-                                uint64_t seed, const ProgressCallback& progress) {
-  const int n = params.max_frames > 0 ? std::min(params.max_frames, seq.size()) : seq.size();
-  const Eigen::Isometry3d T_base_cam = opticalToBase();
+std::vector<Eigen::Isometry3d> alignedBaseTrajectory(const Sequence& seq, int n) {
+  const Eigen::Isometry3d T_cam_base = opticalToBase().inverse();
   Eigen::Isometry3d T_aligned_world = Eigen::Isometry3d::Identity();
   T_aligned_world.linear() = seq.R_aligned_world();
   std::vector<Eigen::Isometry3d> truth(n);
-  for (int f = 0; f < n; ++f) truth[f] = T_aligned_world * seq.T_world_cam(f) * T_base_cam.inverse();
+  for (int f = 0; f < n; ++f) truth[f] = T_aligned_world * seq.T_world_cam(f) * T_cam_base;
+  return truth;
+}
+
+ReplayFrame makeReplayFrame(double stamp_s, const StepResult& step, const Particle* truth) {
+  ReplayFrame rf;
+  rf.stamp_s = stamp_s;
+  rf.step = step;
+  rf.estimate = step.estimate.mean;
+  rf.error.stamp_s = stamp_s;
+  rf.has_truth = truth != nullptr;
+  if (truth) {
+    rf.truth = *truth;
+    rf.error.translation_m = std::sqrt(std::pow(rf.estimate.x_m - truth->x_m, 2) +
+                                       std::pow(rf.estimate.y_m - truth->y_m, 2) +
+                                       std::pow(rf.estimate.z_m - truth->z_m, 2));
+    rf.error.yaw_rad = std::abs(wrapAngle(rf.estimate.yaw_rad - truth->yaw_rad));
+  }
+  return rf;
+}
+
+void finishTrial(const EvaluationParams& params, TrialResult* result) {
+  std::vector<FrameError> errors;
+  double total_ms = 0.0;
+  for (const ReplayFrame& rf : result->frames) {
+    if (rf.has_truth) errors.push_back(rf.error);
+    total_ms += rf.step.timings.total_ms;
+  }
+  result->metrics = evaluateTrial(errors, params);
+  result->mean_step_ms = result->frames.empty() ? 0.0 : total_ms / result->frames.size();
+}
+
+TrialResult runTrial(const Sequence& seq, const DepthProvider& depth, const GmmMap& map_aligned,
+                     const ReplayParams& params, uint64_t seed, const ProgressCallback& progress) {
+  const int n = params.max_frames > 0 ? std::min(params.max_frames, seq.size()) : seq.size();
+  const std::vector<Eigen::Isometry3d> truth = alignedBaseTrajectory(seq, n);
 
   LocalizerParams lp = params.localizer;
-  lp.T_base_cam = T_base_cam;
+  lp.T_base_cam = opticalToBase();
   lp.filter.seed = seed;
   const Particle start = poseToParticle(truth[0]);
   lp.init.centre_m = Eigen::Vector3d(start.x_m, start.y_m, start.z_m);
@@ -46,51 +88,24 @@ TrialResult runSevenScenesTrial(const SevenScenesSequence& seq, const DepthProvi
   lp.init.yaw_half_range_rad = params.init_yaw_half_range_rad;
   Localizer loc(lp, map_aligned);
 
-  std::mt19937_64 rng(seed * 7919 + 17);  // odometry and attitude noise, apart from the filter's
-  std::normal_distribution<double> g(0.0, 1.0);
-  Eigen::Isometry3d odom = truth[0];
+  OdometrySynthesizer odometry(params.noise, seed);  // apart from the filter's generator
   TrialResult out;
   out.seed = seed;
   out.frames.reserve(n);
-  double total_ms = 0.0;
   for (int f = 0; f < n; ++f) {
-    if (f > 0) {
-      Eigen::Isometry3d delta = truth[f - 1].inverse() * truth[f];
-      delta.translation() += params.odom_sigma_m * Eigen::Vector3d(g(rng), g(rng), g(rng));
-      delta.linear() = delta.linear() * Eigen::AngleAxisd(params.odom_sigma_yaw_rad * g(rng),
-                                                          Eigen::Vector3d::UnitZ())
-                                            .toRotationMatrix();
-      odom = odom * delta;
-    }
-    double roll, pitch, yaw;
-    rpyFromRotation(truth[f].linear(), &roll, &pitch, &yaw);
     StepInput in;
-    in.stamp_s = f / seq.frameRateHz();
+    in.stamp_s = seq.stampS(f);
     in.has_odometry = true;
-    in.T_odom_base = odom;
+    in.T_odom_base = odometry.next(truth[f]);
     in.has_attitude = true;
-    in.roll_rad = roll + params.attitude_sigma_rad * g(rng);
-    in.pitch_rad = pitch + params.attitude_sigma_rad * g(rng);
+    odometry.attitude(truth[f], &in.roll_rad, &in.pitch_rad);
     in.depth = &depth(f);
     in.intrinsics = seq.intrinsics();
-    ReplayFrame rf;
-    rf.stamp_s = in.stamp_s;
-    rf.step = loc.step(in);
-    rf.estimate = rf.step.estimate.mean;
-    rf.truth = poseToParticle(truth[f]);
-    rf.error.stamp_s = in.stamp_s;
-    rf.error.translation_m = std::sqrt(std::pow(rf.estimate.x_m - rf.truth.x_m, 2) +
-                                       std::pow(rf.estimate.y_m - rf.truth.y_m, 2) +
-                                       std::pow(rf.estimate.z_m - rf.truth.z_m, 2));
-    rf.error.yaw_rad = std::abs(wrapAngle(rf.estimate.yaw_rad - rf.truth.yaw_rad));
-    total_ms += rf.step.timings.total_ms;
-    out.frames.push_back(rf);
+    const Particle true_pose = poseToParticle(truth[f]);
+    out.frames.push_back(makeReplayFrame(in.stamp_s, loc.step(in), &true_pose));
     if (progress) progress(f, n, out.frames.back());
   }
-  std::vector<FrameError> errors;
-  for (const ReplayFrame& rf : out.frames) errors.push_back(rf.error);
-  out.metrics = evaluateTrial(errors, params.evaluation);
-  out.mean_step_ms = n > 0 ? total_ms / n : 0.0;
+  finishTrial(params.evaluation, &out);
   return out;
 }
 
@@ -99,10 +114,11 @@ void writeTum(const TrialResult& r, bool truth, const std::string& path) {
   if (!out) throw std::runtime_error(path + ": cannot open for writing");
   out.precision(9);
   for (const ReplayFrame& f : r.frames) {
+    if (truth && !f.has_truth) continue;
     const Particle& p = truth ? f.truth : f.estimate;
     const Eigen::Quaterniond q(
         Eigen::AngleAxisd(p.yaw_rad, Eigen::Vector3d::UnitZ()));  // yaw of the 4-DoF state
-    out << f.stamp_s << ' ' << p.x_m << ' ' << p.y_m << ' ' << p.z_m << ' ' << q.x() << ' '
+    out << stampText(f.stamp_s) << ' ' << p.x_m << ' ' << p.y_m << ' ' << p.z_m << ' ' << q.x() << ' '
         << q.y() << ' ' << q.z() << ' ' << q.w() << '\n';
   }
 }
@@ -117,10 +133,17 @@ void writeFrameCsv(const TrialResult& r, const std::string& path) {
   out.precision(7);
   for (const ReplayFrame& f : r.frames) {
     const StepResult& s = f.step;
-    out << f.stamp_s << ',' << f.error.translation_m << ',' << f.error.yaw_rad * 180.0 / M_PI
-        << ',' << f.estimate.x_m << ',' << f.estimate.y_m << ',' << f.estimate.z_m << ','
-        << f.estimate.yaw_rad << ',' << f.truth.x_m << ',' << f.truth.y_m << ',' << f.truth.z_m
-        << ',' << f.truth.yaw_rad << ',' << s.neff << ',' << s.best_loglik_per_pixel << ','
+    out << stampText(f.stamp_s) << ',';
+    if (f.has_truth) out << f.error.translation_m << ',' << f.error.yaw_rad * 180.0 / M_PI;
+    else out << ',';
+    out << ',' << f.estimate.x_m << ',' << f.estimate.y_m << ',' << f.estimate.z_m << ','
+        << f.estimate.yaw_rad << ',';
+    if (f.has_truth) {
+      out << f.truth.x_m << ',' << f.truth.y_m << ',' << f.truth.z_m << ',' << f.truth.yaw_rad;
+    } else {
+      out << ",,,";
+    }
+    out << ',' << s.neff << ',' << s.best_loglik_per_pixel << ','
         << s.mean_loglik_per_pixel << ',' << s.floor_hit_fraction << ',' << s.relevant_per_patch
         << ',' << s.beta_fraction << ',' << s.reinitialised << ',' << stepStatusName(s.status)
         << ',' << s.pixels << ',' << s.timings.frame_prep_ms << ','

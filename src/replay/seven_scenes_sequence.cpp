@@ -1,13 +1,9 @@
 #include "gmm_mcl/replay/seven_scenes_sequence.h"
 
-#include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <stdexcept>
 
-#if defined(GMM_MCL_HAVE_PNG)
-#include "gmm_mcl/camera/png_io.h"
-#endif
+#include "sequence_io.h"
 
 namespace gmm_mcl {
 namespace {
@@ -18,78 +14,58 @@ std::string framePath(const std::string& dir, int i, const char* suffix) {
   return dir + name;
 }
 
-bool readNumbers(const std::string& path, int count, double* out) {
-  std::ifstream in(path);
-  for (int k = 0; k < count; ++k) {
-    if (!(in >> out[k]) || !std::isfinite(out[k])) return false;
-  }
-  return true;
-}
-
 }  // namespace
 
-Eigen::Matrix3d gravityAlignment(const Eigen::Vector3d& down_world) {
-  const Eigen::Vector3d z = -down_world.normalized();
-  Eigen::Vector3d x = Eigen::Vector3d::UnitX() - z * z.x();
-  if (x.norm() < 1e-6) x = Eigen::Vector3d::UnitY() - z * z.y();
-  x.normalize();
-  const Eigen::Vector3d y = z.cross(x);
-  Eigen::Matrix3d R;
-  R.row(0) = x.transpose();
-  R.row(1) = y.transpose();
-  R.row(2) = z.transpose();
-  return R;
-}
-
-SevenScenesSequence::SevenScenesSequence(const std::string& data_dir, int max_frames)
-    : dir_(data_dir) {
-  double K[9];
+SevenScenesSequence::SevenScenesSequence(const std::string& data_dir, int max_frames,
+                                         const SequenceOptions& options)
+    : dir_(data_dir), frame_rate_hz_(options.frame_rate_hz) {
+  if (!(frame_rate_hz_ > 0.0)) seqio::fail(data_dir, "frame rate must be positive");
+  std::vector<double> v;
+  std::string why;
   const std::string kpath = dir_ + "/camera-intrinsics.txt";
-  if (!readNumbers(kpath, 9, K)) {
-    throw std::runtime_error(kpath + ": cannot read 9 finite numbers (3x3 camera matrix)");
+  if (options.intrinsics.empty()) {
+    if (!seqio::readNumberFile(kpath, &v, &why)) seqio::fail(kpath, why);
+    if (v.size() != 9) {
+      seqio::fail(kpath, "expected 9 numbers (3x3 camera matrix), found " + std::to_string(v.size()));
+    }
+    try {
+      intrinsics_ = makeIntrinsics(v.data(), 640, 480);
+    } catch (const std::invalid_argument& e) {
+      seqio::fail(kpath, e.what());
+    }
+  } else {
+    intrinsics_ = parseIntrinsicsOption(options.intrinsics, 640, 480, dir_);
   }
-  intrinsics_ = makeIntrinsics(K, 640, 480);
   for (int i = 0; max_frames < 0 || i < max_frames; ++i) {
     const std::string ppath = framePath(dir_, i, "pose.txt");
-    std::ifstream probe(ppath);
-    if (!probe) break;
-    double m[16];
-    if (!readNumbers(ppath, 16, m)) {
-      throw std::runtime_error(ppath + ": cannot read a 4x4 pose of finite numbers");
+    if (!seqio::fileExists(ppath)) break;
+    if (!seqio::readNumberFile(ppath, &v, &why)) seqio::fail(ppath, why);
+    if (v.size() != 16) {
+      seqio::fail(ppath, "expected a 4x4 pose (16 numbers), found " + std::to_string(v.size()));
     }
     Eigen::Matrix4d M;
-    for (int k = 0; k < 16; ++k) M(k / 4, k % 4) = m[k];
+    for (int k = 0; k < 16; ++k) M(k / 4, k % 4) = v[k];
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-    // Orthonormalise the rotation (text poses carry rounding).
-    Eigen::Quaterniond q(Eigen::Matrix3d(M.topLeftCorner<3, 3>()));
-    T.linear() = q.normalized().toRotationMatrix();
+    T.linear() = seqio::orthonormalise(M.topLeftCorner<3, 3>(), ppath);
     T.translation() = M.topRightCorner<3, 1>();
     T_world_cam_.push_back(T);
   }
   if (T_world_cam_.empty()) {
-    throw std::runtime_error(data_dir + ": no frame-000000.pose.txt: not a 7-Scenes sequence folder");
+    seqio::fail(data_dir, "no frame-000000.pose.txt: not a 7-Scenes sequence folder");
   }
-  double g[3];
-  const std::string gpath = dir_ + "/gravity-direction.txt";
-  if (std::ifstream(gpath) && readNumbers(gpath, 3, g)) {
-    R_aligned_world_ = gravityAlignment(Eigen::Vector3d(g[0], g[1], g[2]));
-    has_gravity_ = true;
-  }
+  R_aligned_world_ =
+      resolveGravity(options.gravity, dir_, "none", T_world_cam_.front(), &gravity_source_);
 }
 
 std::string SevenScenesSequence::depthPath(int i) const { return framePath(dir_, i, "depth.png"); }
 
 DepthImage SevenScenesSequence::loadDepth(int i) const {
-#if defined(GMM_MCL_HAVE_PNG)
-  DepthImage img = loadDepthPng16(depthPath(i));
+  DepthImage img = seqio::loadDepthPngScaled(depthPath(i), 1000.0);
   if (img.width_px != intrinsics_.width_px || img.height_px != intrinsics_.height_px) {
-    throw std::runtime_error(depthPath(i) + ": unexpected image size");
+    seqio::fail(depthPath(i), "image is " + std::to_string(img.width_px) + "x" +
+                                  std::to_string(img.height_px) + ", expected 640x480");
   }
   return img;
-#else
-  (void)i;
-  throw std::runtime_error("built without libpng: cannot read 7-Scenes depth PNGs");
-#endif
 }
 
 }  // namespace gmm_mcl

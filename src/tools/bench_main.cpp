@@ -4,6 +4,7 @@
 // second, and for CUDA the likelihood kernel's fraction of the GPU's FP32 peak. One table out.
 #include <omp.h>
 #include <sys/stat.h>
+#include <time.h>
 
 #include <algorithm>
 #include <chrono>
@@ -111,6 +112,13 @@ std::vector<RigidTransformF> makeParticles(const Eigen::Isometry3d& T_true, int 
   return out;
 }
 
+// CPU time of the whole process (all threads), milliseconds.
+double processCpuMs() {
+  timespec ts;
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+}
+
 double median(std::vector<double> v) {
   if (v.empty()) return 0.0;
   std::sort(v.begin(), v.end());
@@ -123,6 +131,7 @@ struct Row {
   int particles = 0, stride = 0, timed = 0;
   double pixels = 0, comps_per_patch = 0, evals_per_update = 0, updates_per_s = 0;
   double prep_ms = 0, membership_ms = 0, likelihood_ms = 0, transfer_ms = 0, total_ms = 0;
+  double cpu_ms = 0;  // process CPU time per update (all threads)
   double gevals_per_s = 0, kernel_gevals_per_s = 0, peak_fraction = -1, floor_hit_fraction = 0;
 };
 
@@ -141,7 +150,7 @@ Row runWorkload(LikelihoodBackend* backend, double fp32_peak_gflops, const Workl
   fp.pixel_stride = w.stride_px;
   fp.patch_size_px = 32;
   const MeasurementParams mp;
-  std::vector<double> total_ms, prep_ms, memb_ms, lik_ms, xfer_ms, pixels, cpp, evals, hits;
+  std::vector<double> total_ms, prep_ms, memb_ms, lik_ms, xfer_ms, pixels, cpp, evals, hits, cpu_ms;
   BackendOutput out;
   const int nf = static_cast<int>(frames.images.size());
   double timed_s = 0.0;
@@ -157,6 +166,7 @@ Row runWorkload(LikelihoodBackend* backend, double fp32_peak_gflops, const Workl
         makeParticles(frames.T_map_cam[f], row.particles, opt.spread_m, opt.spread_rad,
                       opt.seed * 7919u + static_cast<unsigned>(f));
     double prep = 0.0, total = 0.0, used_pixels = 0.0;
+    const double cpu0 = processCpuMs();
 #if defined(GMM_MCL_HAVE_CUDA)
     auto* cuda_backend = dynamic_cast<CudaBackend*>(backend);
     if (cuda_backend && !opt.cuda_host_prep) {
@@ -179,7 +189,9 @@ Row runWorkload(LikelihoodBackend* backend, double fp32_peak_gflops, const Workl
       total = std::chrono::duration<double, std::milli>(t2 - t0).count();
       used_pixels = static_cast<double>(frame.size());
     }
+    const double cpu = processCpuMs() - cpu0;
     if (warm) continue;
+    cpu_ms.push_back(cpu);
     timed_s += total * 1e-3;
     total_ms.push_back(total);
     prep_ms.push_back(prep);
@@ -207,6 +219,7 @@ Row runWorkload(LikelihoodBackend* backend, double fp32_peak_gflops, const Workl
   row.total_ms = median(total_ms);
   row.updates_per_s = row.total_ms > 0 ? 1e3 / row.total_ms : 0;
   row.prep_ms = median(prep_ms);
+  row.cpu_ms = median(cpu_ms);
   row.membership_ms = median(memb_ms);
   row.likelihood_ms = median(lik_ms);
   row.transfer_ms = xfer_ms.empty() ? -1 : median(xfer_ms);
@@ -332,6 +345,12 @@ int run(int argc, char** argv) {
   }
   std::printf("# frames: %s (%zu), map: %s (M = %zu)\n", frames.source.c_str(),
               frames.images.size(), map_source.c_str(), map.size());
+  double load[3] = {0, 0, 0};
+  if (getloadavg(load, 3) == 3) {
+    std::printf("# host load average %.2f %.2f %.2f on %d CPUs (CPU ms/update = process CPU time, "
+                "all threads, per update)\n",
+                load[0], load[1], load[2], omp_get_num_procs());
+  }
   std::printf(
       "# particles: uniform +-%.2f m per axis and +-%.2f rad of yaw around the true camera "
       "pose (particle 0 = the true pose), seed %u\n",
@@ -390,8 +409,8 @@ int run(int argc, char** argv) {
   std::printf(
       "\n| backend | workload | N | stride | pixels | comps/patch | evals/update | updates/s "
       "| prep ms | proj+memb ms | likelihood ms | transfer ms | update ms | Geval/s "
-      "| lik. kernel Geval/s | FP32 peak | floor hits | timed |\n");
-  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+      "| lik. kernel Geval/s | FP32 peak | floor hits | CPU ms/update | timed |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (const Row& r : rows) {
     char xfer[32], peak[32];
     if (r.transfer_ms >= 0)
@@ -404,10 +423,11 @@ int run(int argc, char** argv) {
       std::snprintf(peak, sizeof(peak), "-");
     std::printf(
         "| %s | %s | %d | %d | %.0f | %.1f | %.3g | %.2f | %.3f | %.3f | %.3f | %s | %.3f "
-        "| %.2f | %.2f | %s | %.3f | %d |\n",
+        "| %.2f | %.2f | %s | %.3f | %.1f | %d |\n",
         r.backend.c_str(), r.workload.c_str(), r.particles, r.stride, r.pixels, r.comps_per_patch,
         r.evals_per_update, r.updates_per_s, r.prep_ms, r.membership_ms, r.likelihood_ms, xfer,
-        r.total_ms, r.gevals_per_s, r.kernel_gevals_per_s, peak, r.floor_hit_fraction, r.timed);
+        r.total_ms, r.gevals_per_s, r.kernel_gevals_per_s, peak, r.floor_hit_fraction, r.cpu_ms,
+        r.timed);
   }
   return 0;
 }

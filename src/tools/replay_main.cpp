@@ -1,17 +1,21 @@
-// gmm_mcl_replay: the DESIGN.md accuracy protocol on a 7-Scenes sequence, offline and seeded.
-// Writes per trial a TUM trajectory (estimate and ground truth) and a per-frame CSV, and a
-// summary table (markdown and CSV) over all trials.
+// gmm_mcl_replay: the DESIGN.md accuracy protocol on a data-set folder (7-Scenes, TUM RGB-D /
+// ICL-NUIM, Stanford), offline and seeded. Writes per trial a TUM trajectory (estimate and
+// ground truth) and a per-frame CSV, and a summary table (markdown and CSV) over all trials.
+// --make-fixture writes the synthetic scene as a TUM or Stanford folder with its map.
 #include <sys/stat.h>
 
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/replay/replay.h"
+#include "gmm_mcl/replay/sequence_writer.h"
+#include "gmm_mcl/replay/sim_sequence.h"
 
 using namespace gmm_mcl;
 
@@ -19,12 +23,42 @@ namespace {
 
 void usage() {
   std::printf(
-      "usage: gmm_mcl_replay --map MAP.gmm [--dataset DIR] [--trials N] [--first-seed S]\n"
-      "                      [--frames N] [--stride PX] [--particles N]\n"
-      "                      [--weighting paper|tempered] [--temperature T] [--neff-floor F]\n"
+      "usage: gmm_mcl_replay --map MAP.gmm [--format 7scenes|tum|stanford] [--dataset DIR]\n"
+      "                      [--trials N] [--first-seed S] [--frames N] [--stride PX]\n"
+      "                      [--particles N] [--weighting paper|tempered] [--temperature T]\n"
+      "                      [--neff-floor F] [--init-half-extent M] [--init-yaw-half-range RAD]\n"
+      "                      [--hold-frames N (30)] [--tail-frames N (100)]\n"
       "                      [--out DIR] [--quiet]\n"
+      "       folder options: [--intrinsics fr1|fr2|fr3|icl|kinect|fx,fy,cx,cy|FILE]\n"
+      "                      [--depth-scale UNITS_PER_M] [--tolerance S] [--gravity z-up|\n"
+      "                      first-camera|gx,gy,gz] [--trajectory FILE.log] [--rate HZ]\n"
+      "       gmm_mcl_replay --make-fixture tum|stanford DIR [--frames N] [--width PX] [--seed S]\n"
       "DIR defaults to $GMM_MCL_DATASETS/7scenes_redkitchen/data, else\n"
-      "../shared/datasets/7scenes_redkitchen/data. Runs trials with seeds S..S+N-1 (1..10).\n");
+      "../shared/datasets/7scenes_redkitchen/data. Runs trials with seeds S..S+N-1 (1..10).\n"
+      "MAP is in the data set's world frame; it is rotated into the gravity-aligned frame.\n"
+      "--make-fixture writes the synthetic scene as a folder of that format and DIR/map.gmm.\n");
+}
+
+int makeFixture(const std::string& format, const std::string& dir, int frames, int width,
+                uint64_t seed) {
+  SimSequenceParams sp;
+  sp.frames = frames > 0 ? frames : 120;
+  sp.width_px = width;
+  sp.seed = seed;
+  sp.start_s = format == "tum" ? 1305031102.175304 : 0.0;  // a TUM-like epoch stamp
+  const SimSequence seq(sp);
+  if (format == "tum") {
+    writeTumFolder(seq, dir);
+  } else if (format == "stanford") {
+    writeStanfordFolder(seq, dir);
+  } else {
+    std::fprintf(stderr, "--make-fixture: format must be tum or stanford\n");
+    return 2;
+  }
+  saveMap(seq.map(), dir + "/map.gmm");
+  std::printf("wrote %s (%s, %d frames %dx%d) and %s/map.gmm\n", dir.c_str(), format.c_str(),
+              seq.size(), seq.intrinsics().width_px, seq.intrinsics().height_px, dir.c_str());
+  return 0;
 }
 
 std::string defaultDataset() {
@@ -36,10 +70,14 @@ std::string defaultDataset() {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string dataset = defaultDataset(), map_path, out_dir, weighting = "tempered";
-  int trials = 10, frames = -1, stride = 4, particles = kDefaultParticleCount;
+  std::string dataset, map_path, out_dir, weighting = "tempered", format = "7scenes";
+  std::string fixture_format, fixture_dir;
+  int trials = 10, frames = -1, stride = 4, particles = kDefaultParticleCount, width = 160;
   uint64_t first_seed = 1;
   double temperature = -1.0, neff_floor = -1.0;
+  double init_half_extent_m = 2.0, init_yaw_half_range_rad = 0.5 * M_PI;
+  SequenceOptions so;
+  int hold_frames = -1, tail_frames = -1;
   bool quiet = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -61,22 +99,53 @@ int main(int argc, char** argv) {
     else if (a == "--temperature") temperature = std::atof(next());
     else if (a == "--neff-floor") neff_floor = std::atof(next());
     else if (a == "--out") out_dir = next();
+    else if (a == "--format") format = next();
+    else if (a == "--intrinsics") so.intrinsics = next();
+    else if (a == "--depth-scale") so.depth_units_per_m = std::atof(next());
+    else if (a == "--tolerance") so.association_tolerance_s = std::atof(next());
+    else if (a == "--gravity") so.gravity = next();
+    else if (a == "--trajectory") so.trajectory = next();
+    else if (a == "--rate") so.frame_rate_hz = std::atof(next());
+    else if (a == "--init-half-extent") init_half_extent_m = std::atof(next());
+    else if (a == "--init-yaw-half-range") init_yaw_half_range_rad = std::atof(next());
+    else if (a == "--width") width = std::atoi(next());
+    else if (a == "--hold-frames") hold_frames = std::atoi(next());
+    else if (a == "--tail-frames") tail_frames = std::atoi(next());
+    else if (a == "--seed") first_seed = std::strtoull(next(), nullptr, 10);
+    else if (a == "--make-fixture") {
+      fixture_format = next();
+      fixture_dir = next();
+    }
     else if (a == "--quiet") quiet = true;
     else {
       usage();
       return a == "--help" || a == "-h" ? 0 : 2;
     }
   }
-  if (map_path.empty()) {
-    usage();
-    return 2;
-  }
   try {
-    const SevenScenesSequence seq(dataset, frames);
+    if (!fixture_dir.empty()) return makeFixture(fixture_format, fixture_dir, frames, width, first_seed);
+    if (map_path.empty()) {
+      usage();
+      return 2;
+    }
+    if (dataset.empty()) {
+      if (format != "7scenes") {
+        std::fprintf(stderr, "--format %s needs --dataset DIR\n", format.c_str());
+        return 2;
+      }
+      dataset = defaultDataset();
+    }
+    so.max_frames = frames;
+    const std::unique_ptr<Sequence> seq_ptr = openSequence(format, dataset, so);
+    const Sequence& seq = *seq_ptr;
     const GmmMap map_world = loadMap(map_path);
     const GmmMap map = rotateMap(map_world, seq.R_aligned_world(), map_path + " (gravity-aligned)");
     ReplayParams rp;
     rp.max_frames = frames;
+    rp.init_half_extent_m = init_half_extent_m;
+    rp.init_yaw_half_range_rad = init_yaw_half_range_rad;
+    if (hold_frames > 0) rp.evaluation.hold_frames = hold_frames;
+    if (tail_frames > 0) rp.evaluation.tail_frames = tail_frames;
     rp.localizer.filter.num_particles = particles;
     rp.localizer.frame.pixel_stride = stride;
     if (!parseWeightingMode(weighting, &rp.localizer.filter.weighting)) {
@@ -87,16 +156,26 @@ int main(int argc, char** argv) {
     if (neff_floor >= 0.0) rp.localizer.filter.neff_floor_fraction = neff_floor;
     if (!out_dir.empty()) mkdir(out_dir.c_str(), 0755);
 
-    std::printf("gmm_mcl replay: %s, %d frames, map %s (%zu components%s), %d particles, "
+    const Intrinsics& K = seq.intrinsics();
+    std::printf("gmm_mcl replay: %s (%s), %d frames %dx%d (fx %.1f fy %.1f cx %.1f cy %.1f), "
+                "gravity: %s; map %s (%zu components), %d particles, "
                 "stride %d, %s weighting (T %.3g, Neff floor %.2f), %d trials from seed %llu\n",
-                dataset.c_str(), seq.size(), map_path.c_str(), map.size(),
-                seq.hasGravity() ? ", gravity-aligned" : "", particles, stride,
+                dataset.c_str(), seq.format(), seq.size(), K.width_px, K.height_px, K.fx_px,
+                K.fy_px, K.cx_px, K.cy_px, seq.gravitySource().c_str(), map_path.c_str(),
+                map.size(), particles, stride,
                 weighting.c_str(), rp.localizer.filter.temperature,
                 rp.localizer.filter.neff_floor_fraction, trials,
                 static_cast<unsigned long long>(first_seed));
     std::fflush(stdout);
+    // Every frame is decoded once up front, so that trials time the filter only.
     std::vector<DepthImage> depth(seq.size());
-    for (int f = 0; f < seq.size(); ++f) depth[f] = seq.loadDepth(f);
+    for (int f = 0; f < seq.size(); ++f) {
+      depth[f] = seq.loadDepth(f);
+      if (!quiet && (f % 50 == 0 || f == seq.size() - 1)) {
+        std::fprintf(stderr, "\r  reading depth %d/%d  ", f + 1, seq.size());
+        if (f == seq.size() - 1) std::fprintf(stderr, "\n");
+      }
+    }
     const DepthProvider provider = [&depth](int f) -> const DepthImage& { return depth[f]; };
 
     std::vector<TrialResult> results;
@@ -105,15 +184,16 @@ int main(int argc, char** argv) {
       const ProgressCallback progress = [&](int f, int total, const ReplayFrame& rf) {
         if (quiet) return;
         if (f % 25 == 0 || f == total - 1) {
-          const int width = 30, done = (f + 1) * width / total;
-          std::fprintf(stderr, "\r  seed %2llu [%.*s%*s] %4d/%d  error %6.3f m  %5.0f ms  ",
+          const int bar = 30, done = (f + 1) * bar / total;
+          std::fprintf(stderr,
+                       "\r  seed %2llu [%.*s%*s] %4d/%d  error %6.3f m  Neff %5.0f  %5.0f ms  ",
                        static_cast<unsigned long long>(seed), done,
-                       "==============================", width - done, "", f + 1, total,
-                       rf.error.translation_m, rf.step.timings.total_ms);
+                       "==============================", bar - done, "", f + 1, total,
+                       rf.error.translation_m, rf.step.neff, rf.step.timings.total_ms);
           if (f == total - 1) std::fprintf(stderr, "\n");
         }
       };
-      results.push_back(runSevenScenesTrial(seq, provider, map, rp, seed, progress));
+      results.push_back(runTrial(seq, provider, map, rp, seed, progress));
       const TrialResult& r = results.back();
       const TrialMetrics& m = r.metrics;
       std::printf("trial seed %2llu: %s, converged at %.2f s, ATE %.2f cm / %.2f deg, "

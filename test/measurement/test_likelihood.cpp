@@ -1,5 +1,11 @@
 #include <gtest/gtest.h>
 
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <random>
+
 #include "gmm_mcl/common/fast_math.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/measurement/likelihood.h"
@@ -72,6 +78,37 @@ TEST(LikelihoodTest, FloatKernelAgreesWithDoubleReferencePerPixel) {
   const FrameLikelihood d = exactFrameLogLikelihood(w.map, frame, T, -10.f);
   EXPECT_NEAR(f.log_likelihood, d.log_likelihood, 2e-4 * f.pixels);
   EXPECT_EQ(f.floor_hits, d.floor_hits);
+}
+
+TEST(LikelihoodTest, CholeskyEvaluationFormMatchesThePrecisionForm) {
+  // makeEvalComponentF: base - |U p + c|^2 (both kernels) against the double-precision density
+  // of the packed component, within 3 standard deviations of each mean.
+  const auto& comps = test::world().map.packed();
+  std::mt19937 rng(7);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  double worst = 0.0;
+  for (const ComponentF& c : comps) {
+    const EvalComponentF e = makeEvalComponentF(c, kEvalScaleNats);
+    const EvalComponentF e2 = makeEvalComponentF(c, kEvalScaleLog2);
+    const Eigen::Matrix3d cov = (Eigen::Matrix3d() << c.cov_m2[0], c.cov_m2[1], c.cov_m2[2],
+                                 c.cov_m2[1], c.cov_m2[3], c.cov_m2[4], c.cov_m2[2], c.cov_m2[4],
+                                 c.cov_m2[5]).finished();
+    const Eigen::Matrix3d L = cov.llt().matrixL();
+    for (int k = 0; k < 20; ++k) {
+      Eigen::Vector3d z(n01(rng), n01(rng), n01(rng));
+      if (z.norm() > 3.0) z *= 3.0 / z.norm();
+      const Eigen::Vector3d p = Eigen::Vector3d(c.mean_m[0], c.mean_m[1], c.mean_m[2]) + L * z;
+      const double ref = c.log_norm - 0.5 * z.squaredNorm();
+      const float pf[3] = {static_cast<float>(p.x()), static_cast<float>(p.y()),
+                           static_cast<float>(p.z())};
+      worst = std::max(worst, std::abs(evalLogDensity(e, pf[0], pf[1], pf[2]) - ref));
+      worst = std::max(worst,
+                       std::abs(evalLogDensity(e2, pf[0], pf[1], pf[2]) / kEvalScaleLog2 - ref));
+    }
+  }
+  std::printf("[ measured ] Cholesky form: worst |ln density error| %.2e nats over %zu components\n",
+              worst, comps.size());
+  EXPECT_LT(worst, 1e-3);  // float rounding of map-frame points (DESIGN.md: ~1e-4 per pixel)
 }
 
 TEST(LikelihoodTest, FastExpIsAccurate) {

@@ -11,7 +11,10 @@ class CpuBackend : public LikelihoodBackend {
   // num_threads <= 0: OpenMP's default.
   explicit CpuBackend(int num_threads = 0) : num_threads_(num_threads) {}
   std::string name() const override { return "cpu"; }
-  void setMap(const GmmMap& map) override { components_ = map.packed(); }
+  void setMap(const GmmMap& map) override {
+    components_ = map.packed();
+    makeEvalComponents(components_, &eval_);
+  }
   void evaluate(const DepthFrame& frame, const std::vector<RigidTransformF>& T_map_cam,
                 const MeasurementParams& params, BackendOutput* out) override;
   void membership(const DepthFrame& frame, const RigidTransformF& T_map_cam,
@@ -20,6 +23,7 @@ class CpuBackend : public LikelihoodBackend {
  private:
   int num_threads_;
   std::vector<ComponentF> components_;
+  std::vector<EvalComponentF> eval_;  // the likelihood kernel's form of components_ (nats)
   std::vector<LikelihoodScratch> scratch_;  // one per thread
 };
 

@@ -7,6 +7,7 @@
 
 #include "gmm_mcl/camera/depth_frame.h"
 #include "gmm_mcl/map/gmm_map.h"
+#include "gmm_mcl/measurement/eval_component.h"
 #include "gmm_mcl/measurement/membership.h"
 
 namespace gmm_mcl {
@@ -23,14 +24,29 @@ struct LikelihoodScratch {
   std::vector<ProjectedComponent> projected;
   std::vector<char> valid;
   PatchMembership membership;
-  std::vector<float> values;  // component x pixel-chunk log-densities
+  std::vector<float> values;  // unused (kept for source compatibility)
+  std::vector<EvalComponentF> eval;  // evaluation form of the components (nats)
 };
 
 // Pixels evaluated together in the CPU kernel (one chunk of a patch).
 constexpr int kPixelChunk = 64;
 
+// The components in the CPU kernel's evaluation form (nats); `out` is resized.
+void makeEvalComponents(const std::vector<ComponentF>& components,
+                        std::vector<EvalComponentF>* out);
+
+// The CPU kernel. Per patch, the log-sum-exp is shifted by
+// S = max(floor, max over the patch's members of log_norm) (>= every member's log-density, so one
+// pass suffices): per pixel ln(exp(floor) + sum_j lambda_j N_j) = S + ln(exp(floor - S) +
+// sum_j exp(ln(lambda_j N_j) - S)), the same function as the CUDA kernel. float32 evaluation,
+// double accumulation over pixels. `eval` from makeEvalComponents (indexed like the components).
+FrameLikelihood frameLogLikelihood(const EvalComponentF* eval, const DepthFrame& frame,
+                                   const RigidTransformF& T_map_cam,
+                                   const PatchMembership& membership, float floor_log_density);
+
 // Approximate likelihood with the given membership (float32 kernel, double accumulation).
-// T_map_cam maps camera points into the map frame.
+// T_map_cam maps camera points into the map frame. Builds the evaluation form on each call;
+// `values` is unused.
 FrameLikelihood frameLogLikelihood(const std::vector<ComponentF>& components,
                                    const DepthFrame& frame, const RigidTransformF& T_map_cam,
                                    const PatchMembership& membership, float floor_log_density,

@@ -59,31 +59,62 @@ GMM_MCL_HD bool projectComponent(const ComponentF& c, const RigidTransformF& T_c
   out->cov_uv = suv;
   out->cov_vv = svv;
   out->depth_m = m[2];
-  // Eigen-decomposition of the symmetric 2x2 covariance.
+  // Eigen-decomposition of the symmetric 2x2 covariance, without trigonometry: with
+  // l1 >= l2 its eigenvalues and e1 the unit eigenvector of l1, the projector e1 e1^T equals
+  // (Sigma2 - l2 I) / (l1 - l2), so e1u^2 = (rad + diff) / (2 rad), e1v^2 = (rad - diff) / (2 rad)
+  // and e1u e1v = suv / (2 rad) (the same quantities as cos^2, sin^2 and cos sin of half the
+  // angle atan2(suv, diff); only rounding differs).
   const float half_tr = 0.5f * (suu + svv);
   const float diff = 0.5f * (suu - svv);
   const float rad = sqrtf(diff * diff + suv * suv);
   const float l1 = fmaxf(half_tr + rad, 0.f);
   const float l2 = fmaxf(half_tr - rad, 0.f);
-  // Unit eigenvector of l1 (the major axis).
-  float e1u, e1v;
+  float cu2 = 1.f, cv2 = 0.f, cuv = 0.f;  // e1u^2, e1v^2, e1u e1v
   if (rad > 0.f) {
-    const float ang = 0.5f * atan2f(suv, diff);
-    e1u = cosf(ang);
-    e1v = sinf(ang);
-  } else {
-    e1u = 1.f;
-    e1v = 0.f;
+    const float h = 0.5f / rad;
+    cu2 = (rad + diff) * h;
+    cv2 = (rad - diff) * h;
+    cuv = suv * h;
   }
   const float a = sigma_bound * sqrtf(l1) + inflate_px;  // semi-axis along e1
   const float b = sigma_bound * sqrtf(l2) + inflate_px;  // semi-axis along e2 = (-e1v, e1u)
   const float ia2 = 1.f / (a * a), ib2 = 1.f / (b * b);
-  out->q_uu = e1u * e1u * ia2 + e1v * e1v * ib2;
-  out->q_uv = e1u * e1v * (ia2 - ib2);
-  out->q_vv = e1v * e1v * ia2 + e1u * e1u * ib2;
-  out->half_w_px = sqrtf(a * a * e1u * e1u + b * b * e1v * e1v);
-  out->half_h_px = sqrtf(a * a * e1v * e1v + b * b * e1u * e1u);
+  out->q_uu = cu2 * ia2 + cv2 * ib2;
+  out->q_uv = cuv * (ia2 - ib2);
+  out->q_vv = cv2 * ia2 + cu2 * ib2;
+  out->half_w_px = sqrtf(a * a * cu2 + b * b * cv2);
+  out->half_h_px = sqrtf(a * a * cv2 + b * b * cu2);
   return true;
+}
+
+// Conservative test before the full projection, shared by both backends (it never drops a
+// component that projectComponent + ellipseContains would find relevant to some patch): the
+// inflated ellipse's semi-axes are at most sigma_bound sqrt(l1) + inflate with
+// l1 <= ||J||_F^2 lambda_max(Sigma) <= ||J||_F^2 trace(Sigma); false when the square of that
+// half-size (plus 1% and 1 px for rounding) around the projected mean holds no patch centre of
+// the cols x rows grid, or when the mean is clearly nearer than the near limit.
+GMM_MCL_HD bool componentMayTouchGrid(const ComponentF& c, const RigidTransformF& T_cam_map,
+                                      const Intrinsics& K, int patch_size_px, int cols, int rows,
+                                      float min_depth_m, float sigma_bound, float inflate_px) {
+  float m[3];
+  transformPoint(T_cam_map, c.mean_m, m);
+  if (!(m[2] >= min_depth_m - 1e-4f)) return false;
+  const float iz = 1.f / m[2];
+  const float iz2 = iz * iz;
+  const float jf2 = K.fx_px * K.fx_px * iz2 * (1.f + m[0] * m[0] * iz2) +
+                    K.fy_px * K.fy_px * iz2 * (1.f + m[1] * m[1] * iz2);
+  const float trace = c.cov_m2[0] + c.cov_m2[3] + c.cov_m2[5];
+  const float r = (sigma_bound * sqrtf(jf2 * trace) + inflate_px) * 1.01f + 1.f;
+  const float u = K.cx_px + K.fx_px * m[0] * iz;
+  const float v = K.cy_px + K.fy_px * m[1] * iz;
+  const float ips = 1.f / static_cast<float>(patch_size_px);
+  const float c0 = 0.5f * (static_cast<float>(patch_size_px) - 1.f);  // centre of patch 0
+  // Patch-centre indices inside [u - r, u + r] x [v - r, v + r], clamped to the grid.
+  const float col0 = ceilf((u - r - c0) * ips), col1 = floorf((u + r - c0) * ips);
+  const float row0 = ceilf((v - r - c0) * ips), row1 = floorf((v + r - c0) * ips);
+  // Each comparison is false for NaN, so a NaN bound culls.
+  return col0 <= col1 && col0 <= static_cast<float>(cols - 1) && col1 >= 0.f && row0 <= row1 &&
+         row0 <= static_cast<float>(rows - 1) && row1 >= 0.f;
 }
 
 // True when pixel point (u, v) lies within or on the inflated ellipse.

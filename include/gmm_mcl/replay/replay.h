@@ -1,5 +1,6 @@
-// Offline replay of a recorded sequence through the Localizer (no ROS master, as fast as the
-// CPU allows, seeded): odometry and attitude synthesised from ground truth per DESIGN.md.
+// Offline replay of a recorded sequence (any Sequence format) through the Localizer (no ROS
+// master, as fast as the CPU allows, seeded): odometry and attitude synthesised from ground
+// truth per DESIGN.md (OdometrySynthesizer).
 #pragma once
 
 #include <functional>
@@ -8,6 +9,7 @@
 
 #include "gmm_mcl/filter/localizer.h"
 #include "gmm_mcl/replay/evaluation.h"
+#include "gmm_mcl/replay/odometry_synthesizer.h"
 #include "gmm_mcl/replay/seven_scenes_sequence.h"
 
 namespace gmm_mcl {
@@ -15,9 +17,7 @@ namespace gmm_mcl {
 struct ReplayParams {
   LocalizerParams localizer;         // init region is set per trial around the true start
   int max_frames = -1;               // all
-  double odom_sigma_m = 0.005;       // per frame, per axis (DESIGN.md protocol)
-  double odom_sigma_yaw_rad = 0.002;  // per frame
-  double attitude_sigma_rad = 0.5 * M_PI / 180.0;
+  ProtocolNoise noise;               // odometry and attitude noise (DESIGN.md protocol)
   double init_half_extent_m = 2.0;   // 4 m cube
   double init_yaw_half_range_rad = 0.5 * M_PI;  // yaw range pi
   EvaluationParams evaluation;
@@ -26,6 +26,7 @@ struct ReplayParams {
 struct ReplayFrame {
   double stamp_s = 0.0;
   Particle estimate;
+  bool has_truth = true;  // false: truth and error are unknown (a bag without ground truth)
   Particle truth;
   FrameError error;
   StepResult step;
@@ -46,14 +47,28 @@ GmmMap rotateMap(const GmmMap& map, const Eigen::Matrix3d& R, const std::string&
 using DepthProvider = std::function<const DepthImage&(int frame)>;
 using ProgressCallback = std::function<void(int frame, int total, const ReplayFrame&)>;
 
-// One seeded trial over a 7-Scenes sequence. `map_aligned` must already be in the
-// gravity-aligned frame (rotateMap with seq.R_aligned_world()).
-TrialResult runSevenScenesTrial(const SevenScenesSequence& seq, const DepthProvider& depth,
-                                const GmmMap& map_aligned, const ReplayParams& params,
-                                uint64_t seed, const ProgressCallback& progress = nullptr);
+// True base poses of the first n frames in the gravity-aligned frame (base = opticalToBase()).
+std::vector<Eigen::Isometry3d> alignedBaseTrajectory(const Sequence& seq, int n);
 
-// Writers: TUM trajectory (t tx ty tz qx qy qz qw, readable by evo) of the estimate, and the
-// per-frame CSV (errors, Neff, log-likelihood, stage timings).
+// Fills the estimate, truth and error of a frame from a step result.
+ReplayFrame makeReplayFrame(double stamp_s, const StepResult& step, const Particle* truth);
+
+// One seeded trial over a sequence. `map_aligned` must already be in the gravity-aligned frame
+// (rotateMap with seq.R_aligned_world()). Stamps are the sequence's own.
+TrialResult runTrial(const Sequence& seq, const DepthProvider& depth, const GmmMap& map_aligned,
+                     const ReplayParams& params, uint64_t seed,
+                     const ProgressCallback& progress = nullptr);
+inline TrialResult runSevenScenesTrial(const SevenScenesSequence& seq, const DepthProvider& depth,
+                                       const GmmMap& map_aligned, const ReplayParams& params,
+                                       uint64_t seed, const ProgressCallback& progress = nullptr) {
+  return runTrial(seq, depth, map_aligned, params, seed, progress);
+}
+// Metrics of a trial's frames with truth (evaluateTrial) and the mean step time.
+void finishTrial(const EvaluationParams& params, TrialResult* result);
+
+// Writers: TUM trajectory (t tx ty tz qx qy qz qw, readable by evo) of the estimate or the
+// truth (frames with truth only), and the per-frame CSV (errors, empty where the truth is
+// unknown, Neff, log-likelihood, stage timings).
 void writeTum(const TrialResult& r, bool truth, const std::string& path);
 void writeFrameCsv(const TrialResult& r, const std::string& path);
 

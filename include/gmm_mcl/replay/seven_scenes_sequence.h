@@ -5,39 +5,38 @@
 #include <string>
 #include <vector>
 
-#include <Eigen/Geometry>
-
-#include "gmm_mcl/camera/depth_image.h"
+#include "gmm_mcl/replay/sequence_base.h"
 
 namespace gmm_mcl {
 
-class SevenScenesSequence {
+class SevenScenesSequence : public Sequence {
  public:
   // Reads the intrinsics, every pose and the gravity direction; throws std::runtime_error
   // naming the file and the fault. Depth images are read on demand (needs libpng).
-  explicit SevenScenesSequence(const std::string& data_dir, int max_frames = -1);
+  explicit SevenScenesSequence(const std::string& data_dir, int max_frames = -1,
+                               const SequenceOptions& options = SequenceOptions());
 
-  int size() const { return static_cast<int>(T_world_cam_.size()); }
-  const Intrinsics& intrinsics() const { return intrinsics_; }
-  double frameRateHz() const { return 30.0; }
-  // Camera-to-world pose of frame i (optical frame).
-  const Eigen::Isometry3d& T_world_cam(int i) const { return T_world_cam_[i]; }
-  // Rotation taking world coordinates into a gravity-aligned frame (z up); identity when the
-  // folder has no gravity-direction.txt.
-  const Eigen::Matrix3d& R_aligned_world() const { return R_aligned_world_; }
-  bool hasGravity() const { return has_gravity_; }
-  DepthImage loadDepth(int i) const;
-  std::string depthPath(int i) const;
+  const char* format() const override { return "7scenes"; }
+  const std::string& source() const override { return dir_; }
+  int size() const override { return static_cast<int>(T_world_cam_.size()); }
+  const Intrinsics& intrinsics() const override { return intrinsics_; }
+  double frameRateHz() const { return frame_rate_hz_; }
+  double stampS(int i) const override { return i / frame_rate_hz_; }
+  const Eigen::Isometry3d& T_world_cam(int i) const override { return T_world_cam_[i]; }
+  // Identity when the folder has no gravity-direction.txt (and no option names one).
+  const Eigen::Matrix3d& R_aligned_world() const override { return R_aligned_world_; }
+  std::string gravitySource() const override { return gravity_source_; }
+  bool hasGravity() const { return gravity_source_ != "none"; }
+  DepthImage loadDepth(int i) const override;
+  std::string depthPath(int i) const override;
 
  private:
   std::string dir_;
   Intrinsics intrinsics_;
+  double frame_rate_hz_ = 30.0;
   std::vector<Eigen::Isometry3d> T_world_cam_;
   Eigen::Matrix3d R_aligned_world_ = Eigen::Matrix3d::Identity();
-  bool has_gravity_ = false;
+  std::string gravity_source_ = "none";
 };
-
-// Rotation R with R * down = (0, 0, -1), keeping the x axis as close to world x as possible.
-Eigen::Matrix3d gravityAlignment(const Eigen::Vector3d& down_world);
 
 }  // namespace gmm_mcl

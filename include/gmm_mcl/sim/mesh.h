@@ -1,0 +1,50 @@
+// Triangle meshes for the synthetic scenes and the depth renderer (map frame, metres), and a
+// validating PLY reader/writer (ascii, binary little- and big-endian).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace gmm_mcl {
+namespace sim {
+
+struct Mesh {
+  std::vector<Eigen::Vector3f> vertices_m;
+  std::vector<std::array<uint32_t, 3>> triangles;  // vertex indices (polygons fan-triangulated)
+
+  // Appends another mesh (its indices offset by the current vertex count).
+  void append(const Mesh& other);
+  // Total area of the triangles (m^2).
+  double area_m2() const;
+  // Axis-aligned bounds of the vertices; both zero for an empty mesh.
+  void bounds(Eigen::Vector3f* min_m, Eigen::Vector3f* max_m) const;
+  // Empty string when every index is in range and every vertex finite, else the first fault.
+  std::string check() const;
+};
+
+// A PLY file that cannot be read as a mesh: the message names the file and the fault.
+class MeshError : public std::runtime_error {
+ public:
+  explicit MeshError(const std::string& what) : std::runtime_error(what) {}
+};
+
+// Reads a PLY mesh: a `vertex` element with x, y, z (any numeric type; other properties
+// ignored) and a `face` element with a `vertex_indices` (or `vertex_index`) list; other elements
+// are skipped. Polygons with more than 3 vertices are fan-triangulated. Throws MeshError naming
+// the file and the fault for a missing or unreadable file, a bad header, truncated data, a
+// vertex index out of range, a polygon with fewer than 3 vertices, a non-finite coordinate, or
+// no triangles at all.
+Mesh loadPlyMesh(const std::string& path);
+
+// Writes a binary little-endian PLY (float x y z, uchar-count int vertex_indices); throws
+// MeshError on failure.
+void savePlyMesh(const Mesh& mesh, const std::string& path);
+
+}  // namespace sim
+}  // namespace gmm_mcl

@@ -1,0 +1,54 @@
+// The built-in synthetic scene as a triangle mesh: a room with box furniture (the box scene's)
+// and cylinders (a column, a drum, a stool, a round side table, a ceiling lamp), deliberately
+// asymmetric so that the pose is observable. Rendered by the BVH ray caster; its GMM tiles
+// every visible surface of the primitives with flat Gaussians whose moments are those of the
+// tile (computed by quadrature), plus a normal sigma.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "gmm_mcl/map/gmm_map.h"
+#include "gmm_mcl/sim/box_scene.h"
+#include "gmm_mcl/sim/mesh.h"
+#include "gmm_mcl/sim/mesh_bvh.h"
+
+namespace gmm_mcl {
+namespace sim {
+
+// Vertical cylinder (axis along z), closed by caps where they are not on the floor or ceiling.
+struct Cylinder {
+  Eigen::Vector2d centre_m;
+  double radius_m = 0.0;
+  double z_min_m = 0.0;
+  double z_max_m = 0.0;
+};
+
+struct PrimitiveScene {
+  Box room;                          // seen from inside
+  std::vector<Box> boxes;            // solid, seen from outside
+  std::vector<Cylinder> cylinders;   // solid, seen from outside
+};
+
+// The box scene's room and ten blocks plus five cylinders (8 m x 6 m x 3 m).
+PrimitiveScene makeDefaultPrimitiveScene();
+
+// Triangles of every surface that can be seen (faces lying on the room's walls, floor or
+// ceiling are left out); cylinders as `segments`-sided prisms.
+Mesh meshFromScene(const PrimitiveScene& scene, int cylinder_segments = 48);
+
+// Tiles the same surfaces with about spacing_m tiles (arcs and rings for cylinders); each tile
+// is one Gaussian with the tile's area as weight (normalised), its centroid as mean and its
+// second moments plus normal_sigma_m^2 along the surface normal as covariance.
+GmmMap tileScene(const PrimitiveScene& scene, double spacing_m, double normal_sigma_m);
+
+// The default scene ready to render: primitives, mesh, BVH.
+struct MeshScene {
+  PrimitiveScene primitives;
+  Mesh mesh;
+  std::shared_ptr<const MeshBvh> bvh;
+};
+MeshScene makeDefaultMeshScene();
+
+}  // namespace sim
+}  // namespace gmm_mcl
