@@ -98,12 +98,21 @@ std::unique_ptr<FrameSource> makeSevenScenesSource(const std::string& data_dir,
 KidnapResult planKidnap(const FrameSource& src, const KidnapParams& params, uint64_t seed) {
   const int n = src.size();
   const int span = params.track_frames + params.after_frames;
-  if (params.track_frames < 2 || params.after_frames < params.hold_frames || n < span) {
+  if (params.track_frames == 1 || params.after_frames < params.hold_frames || n < span) {
     throw std::runtime_error(src.name() + ": too few frames for a kidnap trial");
   }
   std::mt19937_64 rng(seed * 104729 + 3);
+  if (params.track_frames == 0) {  // global localisation from the region around the start
+    KidnapResult r;
+    r.seed = seed;
+    r.start_frame = r.from_frame = r.to_frame =
+        params.start_frame >= 0 ? std::min(params.start_frame, n - span)
+                                : std::uniform_int_distribution<int>(0, n - span)(rng);
+    return r;
+  }
   for (int attempt = 0; attempt < 200; ++attempt) {
-    const int start = std::uniform_int_distribution<int>(0, n - span)(rng);
+    const int drawn = std::uniform_int_distribution<int>(0, n - span)(rng);
+    const int start = params.start_frame >= 0 ? std::min(params.start_frame, n - span) : drawn;
     const int from = start + params.track_frames;  // first frame shown from elsewhere
     const Particle centre = poseToParticle(src.truthBase(start));
     const Particle last = poseToParticle(src.truthBase(from - 1));
@@ -144,7 +153,7 @@ KidnapResult runKidnapTrial(const FrameSource& src, const KidnapParams& params, 
   lp.init.yaw_centre_rad = start.yaw_rad;
   lp.init.yaw_half_range_rad = params.region_yaw_half_range_rad;
   Localizer loc(lp, src.map());
-  loc.resetToPose(start, Eigen::Vector4d(0.05, 0.05, 0.05, 0.05));
+  if (params.track_frames > 0) loc.resetToPose(start, Eigen::Vector4d(0.05, 0.05, 0.05, 0.05));
 
   std::mt19937_64 rng(seed * 7919 + 17);
   std::normal_distribution<double> g(0.0, 1.0);
@@ -188,7 +197,7 @@ KidnapResult runKidnapTrial(const FrameSource& src, const KidnapParams& params, 
     errors[k] = distance(est, poseToParticle(src.truthBase(i)));
   }
   r.mean_step_ms = total_ms / total;
-  r.error_before_m = errors[params.track_frames - 1];
+  r.error_before_m = params.track_frames > 0 ? errors[params.track_frames - 1] : 0.0;
   r.final_error_m = errors.back();
   // Recovery: the first frame after the kidnap from which the error stays below the threshold
   // for hold_frames frames.

@@ -18,8 +18,11 @@ void usage() {
   std::printf(
       "usage: gmm_mcl_kidnap [--scene synthetic|7scenes] [--map MAP.gmm] [--dataset DIR]\n"
       "                      [--trials N] [--first-seed S] [--stride PX] [--particles N]\n"
-      "                      [--track-frames N] [--after-frames N] [--backend cpu|cuda]\n"
+      "                      [--track-frames N] [--after-frames N] [--start-frame F]\n"
+      "                      [--backend cpu|cuda]\n"
       "                      [--weighting paper|tempered] [--no-lost-detector]\n"
+      "                      [--candidates K] [--reinit-fraction F] [--margin NATS]\n"
+      "--track-frames 0: global localisation trials (uniform start, no kidnap).\n"
       "7scenes needs --map (scripts/build_map_7scenes.sh); DIR defaults to\n"
       "$GMM_MCL_DATASETS/7scenes_redkitchen/data, else ../shared/datasets/...\n");
 }
@@ -53,9 +56,13 @@ int main(int argc, char** argv) {
     else if (a == "--particles") particles = std::atoi(next());
     else if (a == "--track-frames") kp.track_frames = std::atoi(next());
     else if (a == "--after-frames") kp.after_frames = std::atoi(next());
+    else if (a == "--start-frame") kp.start_frame = std::atoi(next());
     else if (a == "--backend") backend = next();
     else if (a == "--weighting") weighting = next();
     else if (a == "--no-lost-detector") lost_detector = false;
+    else if (a == "--candidates") kp.localizer.lost.candidates_per_particle = std::atoi(next());
+    else if (a == "--reinit-fraction") kp.localizer.lost.reinit_fraction = std::atof(next());
+    else if (a == "--margin") kp.localizer.lost.margin_nats = std::atof(next());
     else {
       usage();
       return a == "--help" || a == "-h" ? 0 : 2;
@@ -92,10 +99,12 @@ int main(int argc, char** argv) {
     }
     if (!lost_detector) kp.localizer.lost.margin_nats = 0.0;
     std::printf("gmm_mcl kidnap: %s, %d particles, stride %d, %s weighting, lost detector %s, "
-                "%d tracked + %d frames after the kidnap\n\n",
+                "%d tracked + %d frames after the kidnap; %d candidates per redrawn particle, "
+                "redraw fraction %.2f, margin %.1f nats/px\n\n",
                 src->name().c_str(), particles, kp.localizer.frame.pixel_stride,
                 weighting.c_str(), lost_detector ? "on" : "off", kp.track_frames,
-                kp.after_frames);
+                kp.after_frames, kp.localizer.lost.candidates_per_particle,
+                kp.localizer.lost.reinit_fraction, kp.localizer.lost.margin_nats);
     std::printf("| seed | frames | jump (m) | yaw jump (deg) | error before (cm) | recovered in (s) "
                 "| final error (cm) | ATE after (cm) | lost events | success |\n"
                 "|---|---|---|---|---|---|---|---|---|---|\n");

@@ -26,6 +26,7 @@ void usage() {
       "usage: gmm_mcl_replay --map MAP.gmm [--format 7scenes|tum|stanford] [--dataset DIR]\n"
       "                      [--trials N] [--first-seed S] [--frames N] [--stride PX]\n"
       "                      [--particles N] [--weighting paper|tempered] [--temperature T]\n"
+      "                      [--backend cpu|cuda]\n"
       "                      [--neff-floor F] [--init-half-extent M] [--init-yaw-half-range RAD]\n"
       "                      [--hold-frames N (30)] [--tail-frames N (100)]\n"
       "                      [--out DIR] [--quiet]\n"
@@ -71,6 +72,7 @@ std::string defaultDataset() {
 
 int main(int argc, char** argv) {
   std::string dataset, map_path, out_dir, weighting = "tempered", format = "7scenes";
+  std::string backend = "cpu";
   std::string fixture_format, fixture_dir;
   int trials = 10, frames = -1, stride = 4, particles = kDefaultParticleCount, width = 160;
   uint64_t first_seed = 1;
@@ -96,6 +98,7 @@ int main(int argc, char** argv) {
     else if (a == "--stride") stride = std::atoi(next());
     else if (a == "--particles") particles = std::atoi(next());
     else if (a == "--weighting") weighting = next();
+    else if (a == "--backend") backend = next();
     else if (a == "--temperature") temperature = std::atof(next());
     else if (a == "--neff-floor") neff_floor = std::atof(next());
     else if (a == "--out") out_dir = next();
@@ -147,6 +150,7 @@ int main(int argc, char** argv) {
     if (hold_frames > 0) rp.evaluation.hold_frames = hold_frames;
     if (tail_frames > 0) rp.evaluation.tail_frames = tail_frames;
     rp.localizer.filter.num_particles = particles;
+    rp.localizer.backend = backend;
     rp.localizer.frame.pixel_stride = stride;
     if (!parseWeightingMode(weighting, &rp.localizer.filter.weighting)) {
       std::fprintf(stderr, "unknown weighting '%s' (paper, tempered)\n", weighting.c_str());

@@ -78,7 +78,7 @@ struct LostDetectionParams {
   // Redrawn particles (here and at a uniform (re)initialisation) are the best-scoring of this
   // many uniform candidates per particle, scored on the current frame: a denser search of the
   // region for the same particle count (1 = plain uniform draws).
-  int candidates_per_particle = 8;
+  int candidates_per_particle = 16;
 
   std::string validate() const;
 };

@@ -38,8 +38,12 @@ std::unique_ptr<FrameSource> makeSevenScenesSource(const std::string& data_dir,
 
 struct KidnapParams {
   LocalizerParams localizer;     // T_base_cam and init are set per trial
-  int track_frames = 45;         // tracked frames before the kidnap (filter starts at the truth)
+  // Tracked frames before the kidnap (the filter starts at the truth). 0: a global
+  // localisation trial instead: the filter starts uniform over the recovery region around a
+  // random start frame and the recovery time is the convergence time.
+  int track_frames = 45;
   int after_frames = 180;        // frames after it
+  int start_frame = -1;          // -1: drawn per seed
   double region_half_extent_m = 2.0;          // recovery region: the protocol's 4 m cube ...
   double region_yaw_half_range_rad = 0.5 * M_PI;  // ... and yaw range pi around the true start
   double min_jump_m = 1.0;       // the teleport moves at least this far
