@@ -159,7 +159,10 @@ void parseArgs(int argc, char** argv, Options* o) {
     else if (a == "--init") o->init = next();
     else if (a == "--data-seed") o->data_seed = std::strtoull(next().c_str(), nullptr, 10);
     else if (a == "--max-iter") o->max_iter = std::atoi(next().c_str());
-    else {
+    else if (a == "--help" || a == "-h") {
+      usage();
+      std::exit(0);
+    } else {
       std::fprintf(stderr, "unknown option %s\n", a.c_str());
       usage();
       std::exit(2);
