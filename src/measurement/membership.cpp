@@ -114,9 +114,13 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
     const int row1 = std::min(grid.rows - 1,
                               static_cast<int>(std::floor((p.v_px + p.half_h_px - c0) / ps)));
     bool any = false;
-    for (int r = row0; r <= row1; ++r) {
-      for (int c = col0; c <= col1; ++c) {
-        if (ellipseContains(p, grid.centreU(c), grid.centreV(r))) {
+    // Patch centres are integers + 0.5 (or integers): exact in float, so stepping by the patch
+    // size gives the same values as centreU(c) / centreV(r) without a conversion per test.
+    float v = grid.centreV(row0);
+    for (int r = row0; r <= row1; ++r, v += ps) {
+      float u = grid.centreU(col0);
+      for (int c = col0; c <= col1; ++c, u += ps) {
+        if (ellipseContains(p, u, v)) {
           const int patch = r * grid.cols + c;
           ++out->begin[patch + 1];
           pairs.push_back(patch);
