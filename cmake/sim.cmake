@@ -25,3 +25,17 @@ if(GMM_MCL_BUILD_TESTS)
     add_test(NAME ${name} COMMAND ${name})
   endforeach()
 endif()
+
+# The offline demo (defined in the top CMakeLists) draws odometry and attitude noise from the
+# replay library's OdometrySynthesizer (one implementation of the protocol's noise).
+target_link_libraries(gmm_mcl_sim_demo PRIVATE gmm_mcl_replay)
+if(TARGET make_sim_bag)
+  target_link_libraries(make_sim_bag PRIVATE gmm_mcl_replay)
+endif()
+
+# gmm_mcl_render: mesh + trajectory -> TUM RGB-D folder (the replay library writes the folder).
+if(TARGET gmm_mcl_replay)
+  add_executable(gmm_mcl_render src/tools/render_main.cpp)
+  target_link_libraries(gmm_mcl_render PRIVATE gmm_mcl_replay)
+  target_compile_options(gmm_mcl_render PRIVATE -Wall -Wextra)
+endif()

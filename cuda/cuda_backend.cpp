@@ -267,7 +267,11 @@ void CudaBackend::Impl::run(const DeviceFrameView& f, int n, const MeasurementPa
     if (std::sscanf(env, "%dx%d", &lanes, &px) == 2) {
       shape.lanes = lanes;
       shape.pixels_per_lane = px;
+      shape.stage_members = lanes == 32 && px == 4 && max_patch_pixels > 128;
     }
+  }
+  if (const char* env = std::getenv("GMM_MCL_CUDA_STAGE")) {  // tuning: 0/1 (32x4 only)
+    shape.stage_members = env[0] == '1' && shape.lanes == 32 && shape.pixels_per_lane == 4;
   }
   if (const char* env = std::getenv("GMM_MCL_CUDA_BAND")) {  // tuning: patches per item
     const int band = std::atoi(env);

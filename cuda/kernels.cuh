@@ -47,12 +47,14 @@ struct LikelihoodShape {
   int lanes = 32;           // pixel groups: 4, 8, 16 or 32
   int pixels_per_lane = 2;  // 1, 2 or 4
   int band_patches = 10;    // patches per item
+  bool stage_members = false;  // copy the members' records to shared memory per patch (32 x 4)
 };
 // The shape for the largest patch of a frame (pixels).
 LikelihoodShape chooseLikelihoodShape(int max_patch_pixels);
 // Items (bands) per particle.
 int likelihoodItemsPerParticle(const LikelihoodShape& shape, int num_patches);
-// Shared memory of the likelihood kernel (each warp's member list), bytes (at most 16 KB).
+// Shared memory of the likelihood kernel (each warp's member list, and staged records), bytes
+// (at most 40 KB).
 size_t likelihoodSharedBytes(const LikelihoodShape& shape, int words);
 
 // Per-item partial sums of the likelihood kernel, reduced per particle by launchReduce.

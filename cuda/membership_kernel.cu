@@ -11,6 +11,8 @@ namespace cuda {
 namespace {
 
 constexpr int kMembershipThreads = 256;
+// Survivors of the cull queued per warp (at most 31 waiting + 32 new).
+constexpr int kQueuePerWarp = 64;
 // Blocks per multiprocessor the register allocation must allow (five ~40 KB bitmasks fit in an
 // H100's shared memory); sm_75 runs at most 1024 threads per multiprocessor.
 #if defined(__CUDA_ARCH__) && __CUDA_ARCH__ == 750
@@ -48,38 +50,56 @@ __global__ void __launch_bounds__(kMembershipThreads, kMembershipMinBlocks)
   const RigidTransformF T = T_cam_map[particle];
   const float ps = static_cast<float>(cfg.patch_size_px);
   const float c0 = 0.5f * (ps - 1.f);  // centre of patch 0, as PatchGrid::centreU
-  // One thread per component (measured on an H100, paper workload: 0.104 ms; a warp-cooperative
-  // variant that culled and projected 32 components per warp and then tested each survivor's
-  // bounding box with all lanes took 0.120 ms).
-  for (int i = threadIdx.x; i < num_components; i += blockDim.x) {
-    const ComponentF c = components[i];
+  // Cull 32 components per warp (one per lane), queue the survivors in shared memory and
+  // project them 32 at a time, so that the projection and the box tests run with full warps
+  // instead of the few lanes whose component survived the cull.
+  const int lane = threadIdx.x & 31;
+  int* queue = shift_key + patches + (threadIdx.x >> 5) * kQueuePerWarp;  // [kQueuePerWarp]
+  int queued = 0;  // warp-uniform
+  const int rounds = (num_components + blockDim.x - 1) / blockDim.x;
+  for (int round = 0; round < rounds; ++round) {
+    const int i = round * blockDim.x + threadIdx.x;
     // Conservative cull (as computeMembership): no patch centre within reach, no projection.
-    if (!componentMayTouchGrid(c, T, cfg.K, cfg.patch_size_px, cfg.patch_cols, cfg.patch_rows,
-                               cfg.min_depth_m, cfg.sigma_bound, cfg.inflate_px)) {
-      continue;
-    }
-    ProjectedComponent p;
-    if (!projectComponent(c, T, cfg.K, cfg.min_depth_m, cfg.sigma_bound, cfg.inflate_px, &p)) {
-      continue;
-    }
-    // Candidate patches from the inflated ellipse's bounding box (as computeMembership).
-    const int col0 = max(0, static_cast<int>(ceilf((p.u_px - p.half_w_px - c0) / ps)));
-    const int col1 =
-        min(cfg.patch_cols - 1, static_cast<int>(floorf((p.u_px + p.half_w_px - c0) / ps)));
-    const int row0 = max(0, static_cast<int>(ceilf((p.v_px - p.half_h_px - c0) / ps)));
-    const int row1 =
-        min(cfg.patch_rows - 1, static_cast<int>(floorf((p.v_px + p.half_h_px - c0) / ps)));
-    const uint32_t bit = 1u << (i & 31);
-    const int word = i >> 5;
-    const int key = floatToOrderedInt(c.log_norm);
-    for (int r = row0; r <= row1; ++r) {
-      const float v = static_cast<float>(r * cfg.patch_size_px) + c0;
-      for (int col = col0; col <= col1; ++col) {
-        const float u = static_cast<float>(col * cfg.patch_size_px) + c0;
-        if (ellipseContains(p, u, v)) {
-          const int patch = r * cfg.patch_cols + col;
-          atomicOr(&mask[patch * words + word], bit);
-          atomicMax(&shift_key[patch], key);
+    const bool keep = i < num_components &&
+                      componentMayTouchGrid(components[i], T, cfg.K, cfg.patch_size_px,
+                                            cfg.patch_cols, cfg.patch_rows, cfg.min_depth_m,
+                                            cfg.sigma_bound, cfg.inflate_px);
+    const uint32_t ballot = __ballot_sync(0xffffffffu, keep);
+    if (keep) queue[queued + __popc(ballot & ((1u << lane) - 1u))] = i;
+    queued += __popc(ballot);
+    __syncwarp();
+    while (queued >= 32 || (round == rounds - 1 && queued > 0)) {
+      const int cnt = min(queued, 32);
+      const int j = lane < cnt ? queue[lane] : -1;
+      __syncwarp();
+      if (lane + 32 < queued) queue[lane] = queue[lane + 32];
+      __syncwarp();
+      queued -= cnt;
+      if (j < 0) continue;
+      const ComponentF c = components[j];
+      ProjectedComponent p;
+      if (!projectComponent(c, T, cfg.K, cfg.min_depth_m, cfg.sigma_bound, cfg.inflate_px, &p)) {
+        continue;
+      }
+      // Candidate patches from the inflated ellipse's bounding box (as computeMembership).
+      const int col0 = max(0, static_cast<int>(ceilf((p.u_px - p.half_w_px - c0) / ps)));
+      const int col1 =
+          min(cfg.patch_cols - 1, static_cast<int>(floorf((p.u_px + p.half_w_px - c0) / ps)));
+      const int row0 = max(0, static_cast<int>(ceilf((p.v_px - p.half_h_px - c0) / ps)));
+      const int row1 =
+          min(cfg.patch_rows - 1, static_cast<int>(floorf((p.v_px + p.half_h_px - c0) / ps)));
+      const uint32_t bit = 1u << (j & 31);
+      const int word = j >> 5;
+      const int key = floatToOrderedInt(c.log_norm);
+      for (int r = row0; r <= row1; ++r) {
+        const float v = static_cast<float>(r * cfg.patch_size_px) + c0;
+        for (int col = col0; col <= col1; ++col) {
+          const float u = static_cast<float>(col * cfg.patch_size_px) + c0;
+          if (ellipseContains(p, u, v)) {
+            const int patch = r * cfg.patch_cols + col;
+            atomicOr(&mask[patch * words + word], bit);
+            atomicMax(&shift_key[patch], key);
+          }
         }
       }
     }
@@ -95,7 +115,8 @@ __global__ void __launch_bounds__(kMembershipThreads, kMembershipMinBlocks)
 }  // namespace
 
 size_t membershipSharedBytes(int patches, int words) {
-  return sizeof(uint32_t) * static_cast<size_t>(patches) * words + sizeof(int) * patches;
+  return sizeof(uint32_t) * static_cast<size_t>(patches) * words + sizeof(int) * patches +
+         sizeof(int) * (kMembershipThreads / 32) * kQueuePerWarp;
 }
 
 cudaError_t setMembershipSharedLimit(size_t bytes) {

@@ -8,6 +8,12 @@
 #   OUTPUT_MAP    default $GMM_MCL_MAP_DIR/replica_office0_m1000.gmm (GMM_MCL_MAP_DIR defaults
 #                 to build/maps)
 #   GMM_FIT       the gmm_fit binary (default: build-fit/gmm_fit, build/gmm_fit, or on PATH)
+#
+# With GMM_MCL_REPLICA_SEQUENCE=DIR it also renders a depth sequence from the same mesh along
+# Replica's traj.txt with cam_params.json (1200x680) into DIR, in TUM RGB-D layout, with the
+# structured-light sensor model (gmm_mcl_render; GMM_MCL_REPLICA_FRAMES poses, default 300,
+# every GMM_MCL_REPLICA_STRIDE-th, default 1; GMM_MCL_RENDER names the binary). The Replica
+# world is z up. The map and the sequence together are a localization test case.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 DATASETS="${1:-${GMM_MCL_DATASETS:-$ROOT/../shared/datasets}}"
@@ -26,3 +32,11 @@ fi
 mkdir -p "$(dirname "$OUT")"
 "$GMM_FIT" "$MESH" --mesh-samples 250000 -m 1000 --seed 1 -o "$OUT" "$@"
 "$GMM_INSPECT" "$OUT"
+
+if [[ -n "${GMM_MCL_REPLICA_SEQUENCE:-}" ]]; then
+  GMM_MCL_RENDER="$(find_tool gmm_mcl_render GMM_MCL_RENDER)"
+  "$GMM_MCL_RENDER" --mesh "$MESH" --trajectory "$DATASETS/replica_office0/traj.txt" \
+    --camera "$DATASETS/replica_office0/cam_params.json" \
+    --frames "${GMM_MCL_REPLICA_FRAMES:-300}" --stride "${GMM_MCL_REPLICA_STRIDE:-1}" \
+    --seed 1 --out "$GMM_MCL_REPLICA_SEQUENCE"
+fi

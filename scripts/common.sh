@@ -25,6 +25,8 @@ ensure_packages() {
 
 # Build dependencies of the ROS-free core, tools and tests.
 CORE_PACKAGES=(build-essential cmake libeigen3-dev libpng-dev libgtest-dev googletest python3-matplotlib)
+# libFuzzer targets (scripts/fuzz.sh): clang, its sanitizer/fuzzer runtimes and OpenMP runtime.
+FUZZ_PACKAGES=(clang libclang-rt-14-dev libomp-14-dev)
 
 # find_tool NAME VAR: the path of a built gmm_mcl tool: $VAR if set, else the build folders that
 # the scripts use (build-fit, build, the catkin devel folder of build/test), else PATH.

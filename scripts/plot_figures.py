@@ -119,16 +119,17 @@ def plot_sensitivity(plt, directory, dpi):
             ax.axvline(refv, color="tab:red", ls=":", lw=1)
             ax.text(refv, ax.get_ylim()[1], " reference\n %s" % refv, color="tab:red", fontsize=8,
                     va="top", ha="right")
+        ref_value = ref[0]["value"] if ref else "?"
         if sweep == "particles":
-            title = "vs particle count (reference N=%s)" % meta.get("reference_particles", "?")
+            title = "vs particle count (reference N=%s)" % meta.get("reference_particles", ref_value)
         else:
             title = "vs component count (reference M=%s, N=%s; runs N=%s)" % (
-                meta.get("reference_components", "?"),
+                meta.get("reference_components", ref_value),
                 meta.get("component_reference_particles", "?"),
                 meta.get("component_particles", "?"))
         ax.set_title(title, fontsize=10)
     if meta:
-        fig.suptitle("KL-divergence variance against a reference filter: %s, %s runs, frames %s..%s, "
+        fig.suptitle("KL-divergence variance against a reference filter\n%s, %s runs, frames %s..%s, "
                      "stride %s, %s init" % (meta.get("scene", "?"), meta.get("runs", "?"),
                                              meta.get("eval_from", "?"),
                                              int(meta.get("frames", "0")) - 1,

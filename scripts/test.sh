@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Every test: installs what is missing (apt), builds the core, the backends, the tools, the ROS
-# nodelet and all tests, and runs them with ctest (gtest suites and rostests); then compiles the
-# CUDA backend with nvcc (its tests skip without a GPU). Data-set tests read ../shared/datasets
-# (or $GMM_MCL_DATASETS) and skip with a printed reason when it is absent.
+# nodelet and all tests, and runs them with ctest (gtest suites, rostests, fuzz corpus replays);
+# then compiles the CUDA backend with nvcc (its tests skip without a GPU); then builds the core's
+# unit tests with ASan and UBSan in their own folder and runs them. Data-set tests read
+# ../shared/datasets (or $GMM_MCL_DATASETS) and skip with a printed reason when it is absent.
 set -euo pipefail
 source "$(dirname "$0")/common.sh"
 source "$(dirname "$0")/ros_common.sh"
@@ -37,10 +38,45 @@ else
   echo "== nvcc not found: CUDA backend not compiled"
 fi
 
-# One closing line over both ctest runs (set -e has already stopped on any failure).
+# Sanitizers: the core's unit tests (gtest) and the fuzz corpus replays built with
+# -fsanitize=address,undefined (cmake/sanitize.cmake) in their own folder, ROS off, and run.
+# Not here: the rostests (ROS), the 7-Scenes regression (minutes even without ASan) and the
+# sklearn oracle (Python). A sanitizer report aborts the test, so it fails the stage.
+#  - detect_leaks=1: LeakSanitizer at exit (the default on x86-64 Linux, stated).
+#  - halt_on_error/abort_on_error: the first report ends the test with a non-zero status.
+#  - libgomp is not instrumented; the OpenMP loops of the CPU backend and the map builder run
+#    under ASan without reports (its thread pool is reachable at exit, so not a leak), and no
+#    suppression is needed.
+SAN_BUILD="${GMM_MCL_SANITIZE_BUILD_DIR:-${BUILD}-asan}"
+SANITIZE_TESTS=(test_gmm_map test_depth_frame test_projection test_membership test_likelihood
+  test_params test_resampling test_particle_filter test_localizer test_evaluation
+  test_em_fitter test_point_cloud_io test_map_inspect test_input_validation
+  fuzz_replay_map_loader fuzz_replay_depth_frame fuzz_replay_compressed_depth)
+mkdir -p "$SAN_BUILD"
+cmake -S "$GMM_MCL_ROOT" -B "$SAN_BUILD" -DGMM_MCL_BUILD_ROS=OFF -DGMM_MCL_BUILD_TESTS=ON \
+  -DGMM_MCL_SANITIZE=ON -DCMAKE_BUILD_TYPE=Release > "$SAN_BUILD/cmake.log" 2>&1 \
+  || { cat "$SAN_BUILD/cmake.log"; exit 1; }
+# Only the listed targets that this tree defines (a part may be configured out).
+targets=$(cmake --build "$SAN_BUILD" --target help | sed -n 's/^\.\.\. \([A-Za-z0-9_]*\).*/\1/p')
+san_targets=()
+for t in "${SANITIZE_TESTS[@]}"; do
+  grep -qx "$t" <<< "$targets" && san_targets+=("$t")
+done
+start=$(date +%s)
+cmake --build "$SAN_BUILD" -j2 --target "${san_targets[@]}"
+echo "== sanitizer build took $(( $(date +%s) - start )) s"
+start=$(date +%s)
+regex="^($(IFS='|'; echo "${san_targets[*]}"))\$"
+(cd "$SAN_BUILD" && \
+  ASAN_OPTIONS="detect_leaks=1:halt_on_error=1:abort_on_error=1:strict_string_checks=1" \
+  UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1" \
+  ctest --output-on-failure --timeout 600 -R "$regex") | tee "$SAN_BUILD/ctest.log"
+echo "== sanitizer tests took $(( $(date +%s) - start )) s"
+
+# One closing line over all ctest runs (set -e has already stopped on any failure).
 passed=0
 skipped=0
-for log in "$BUILD/ctest.log" "${CUDA_BUILD:-/nonexistent}/ctest.log"; do
+for log in "$BUILD/ctest.log" "${CUDA_BUILD:-/nonexistent}/ctest.log" "$SAN_BUILD/ctest.log"; do
   [ -f "$log" ] || continue
   passed=$((passed + $(grep -cE 'Test +#[0-9]+: .* Passed' "$log" || true)))
   skipped=$((skipped + $(grep -cE 'Test +#[0-9]+: .*\*\*\*Skipped' "$log" || true)))

@@ -1,6 +1,8 @@
 #include "gmm_mcl/camera/depth_frame.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <sstream>
 #include <stdexcept>
 
@@ -23,8 +25,9 @@ std::string FrameParams::validate() const {
 PatchGrid PatchGrid::forImage(int width_px, int height_px, int patch_size_px) {
   PatchGrid g;
   g.patch_size_px = patch_size_px;
-  g.cols = (width_px + patch_size_px - 1) / patch_size_px;
-  g.rows = (height_px + patch_size_px - 1) / patch_size_px;
+  // 64-bit: width + patch_size - 1 overflows int for patch sizes near INT_MAX.
+  g.cols = static_cast<int>((int64_t{width_px} + patch_size_px - 1) / patch_size_px);
+  g.rows = static_cast<int>((int64_t{height_px} + patch_size_px - 1) / patch_size_px);
   return g;
 }
 
@@ -44,22 +47,24 @@ DepthFrame prepareFrame(const DepthImage& image, const Intrinsics& intrinsics,
   f.intrinsics = intrinsics;
   f.grid = PatchGrid::forImage(image.width_px, image.height_px, params.patch_size_px);
   f.patch_begin.assign(f.grid.count() + 1, 0);
-  const int ps = params.patch_size_px;
-  const int stride = params.pixel_stride;
+  // Pixel bounds in 64 bits: patch sizes and strides up to INT_MAX are valid parameters, and
+  // (pr + 1) * ps or pc * ps + stride - 1 would overflow int.
+  const int64_t ps = params.patch_size_px;
+  const int64_t stride = params.pixel_stride;
   // Patch by patch so that each patch's points are contiguous.
   for (int pr = 0; pr < f.grid.rows; ++pr) {
     for (int pc = 0; pc < f.grid.cols; ++pc) {
       const int p = pr * f.grid.cols + pc;
       f.patch_begin[p] = static_cast<int>(f.x_m.size());
       // Stride grid anchored at the image origin, independent of the patch size.
-      const int v0 = ((pr * ps + stride - 1) / stride) * stride;
-      const int u0 = ((pc * ps + stride - 1) / stride) * stride;
-      const int v_end = std::min(image.height_px, (pr + 1) * ps);
-      const int u_end = std::min(image.width_px, (pc + 1) * ps);
-      for (int v = v0; v < v_end; v += stride) {
-        for (int u = u0; u < u_end; u += stride) {
+      const int64_t v0 = ((pr * ps + stride - 1) / stride) * stride;
+      const int64_t u0 = ((pc * ps + stride - 1) / stride) * stride;
+      const int64_t v_end = std::min<int64_t>(image.height_px, (pr + 1) * ps);
+      const int64_t u_end = std::min<int64_t>(image.width_px, (pc + 1) * ps);
+      for (int64_t v = v0; v < v_end; v += stride) {
+        for (int64_t u = u0; u < u_end; u += stride) {
           ++f.total_pixels_sampled;
-          const float z = image.depthMetres(u, v);
+          const float z = image.depthMetres(static_cast<int>(u), static_cast<int>(v));
           if (!std::isfinite(z)) {
             ++f.invalid_pixels;
             continue;

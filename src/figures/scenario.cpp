@@ -33,7 +33,14 @@ Scenario sevenScenesScenario(const std::string& data_dir, int first_frame, int f
                              std::to_string(first_frame + frames - 1));
   }
   Scenario s;
-  s.name = "7-Scenes " + data_dir + " frames " + std::to_string(first_frame) + "-" +
+  // The folder's last two path components (e.g. 7scenes_redkitchen/data) name it.
+  std::string shortname = data_dir;
+  while (shortname.size() > 1 && shortname.back() == '/') shortname.pop_back();
+  const size_t last = shortname.rfind('/');
+  const size_t prev = last == std::string::npos || last == 0 ? std::string::npos
+                                                             : shortname.rfind('/', last - 1);
+  if (prev != std::string::npos) shortname = shortname.substr(prev + 1);
+  s.name = "7-Scenes " + shortname + " frames " + std::to_string(first_frame) + "-" +
            std::to_string(first_frame + frames - 1);
   s.dataset_dir = data_dir;
   s.intrinsics = seq.intrinsics();

@@ -6,7 +6,10 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <sstream>
+
+#include <Eigen/LU>
 
 namespace gmm_mcl {
 namespace {
@@ -131,7 +134,26 @@ GmmMap decodeMap(const std::vector<uint8_t>& bytes, const std::string& source) {
     const double yy = getF32(s + 12), yz = getF32(s + 16), zz = getF32(s + 20);
     c.cov_m2 << xx, xy, xz, xy, yy, yz, xz, yz, zz;
   }
+  // GmmMap's checks first, so that each fault keeps its own message; then the float32 range of
+  // the precision that GmmMap packs for the backends: beyond it the cast gives infinity, and an
+  // infinite precision turns the component's likelihood terms into NaN or -Inf.
+  validateComponents(comps, source);
+  for (uint32_t i = 0; i < count; ++i) {
+    const double max_precision = comps[i].cov_m2.inverse().cwiseAbs().maxCoeff();
+    if (!(max_precision <= std::numeric_limits<float>::max())) {
+      std::ostringstream msg;
+      msg << "component " << i << ": covariance is too close to singular (its inverse has an entry "
+          << max_precision << ", beyond float32)";
+      fail(source, msg.str());
+    }
+  }
   return GmmMap(std::move(comps), source);
+}
+
+GmmMap readMap(std::istream& in, const std::string& source) {
+  std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) fail(source, "read error");
+  return decodeMap(bytes, source);
 }
 
 void saveMap(const GmmMap& map, const std::string& path) {
@@ -145,9 +167,7 @@ void saveMap(const GmmMap& map, const std::string& path) {
 GmmMap loadMap(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) fail(path, std::string("cannot open: ") + std::strerror(errno));
-  std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) fail(path, "read error");
-  return decodeMap(bytes, path);
+  return readMap(in, path);
 }
 
 }  // namespace gmm_mcl

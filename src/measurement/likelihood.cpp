@@ -105,10 +105,13 @@ FrameLikelihood frameLogLikelihood(const EvalComponentF* eval, const DepthFrame&
       } else {
         patchMixture<8>(eval, members, k, shift, wx, wy, wz, padded, sum);
       }
+      alignas(32) float lv[kPixelChunk];
+#pragma omp simd
+      for (int i = 0; i < n; ++i) lv[i] = logPositive(floor_term + sum[i]);
       double acc = 0.0;
       int hits = 0;
       for (int i = 0; i < n; ++i) {
-        acc += static_cast<double>(shift + std::log(floor_term + sum[i]));
+        acc += static_cast<double>(shift + lv[i]);
         hits += sum[i] < floor_term ? 1 : 0;  // mixture density below exp(floor)
       }
       total += acc;

@@ -17,7 +17,10 @@ namespace {
 int fieldOffset(const sensor_msgs::PointCloud2& msg, const std::string& name) {
   for (const auto& f : msg.fields) {
     if (f.name == name && f.datatype == sensor_msgs::PointField::FLOAT32 && f.count >= 1) {
-      return static_cast<int>(f.offset);
+      // An offset beyond int cannot fit any point: the layout check rejects it.
+      return f.offset > static_cast<uint32_t>(std::numeric_limits<int>::max())
+                 ? std::numeric_limits<int>::max()
+                 : static_cast<int>(f.offset);
     }
   }
   return -1;
@@ -26,140 +29,28 @@ int fieldOffset(const sensor_msgs::PointCloud2& msg, const std::string& name) {
 }  // namespace
 
 bool depthImageFromMsg(const sensor_msgs::Image& msg, DepthImage* out, std::string* error) {
-  DepthEncoding enc;
-  if (!parseDepthEncoding(msg.encoding, &enc)) {
-    *error = "unsupported depth encoding '" + msg.encoding + "' (expected 16UC1, mono16 or 32FC1)";
-    return false;
-  }
-  const size_t sample = enc == DepthEncoding::kMono16Millimetres ? 2 : 4;
-  if (msg.width == 0 || msg.height == 0) {
-    *error = "empty depth image (" + std::to_string(msg.width) + "x" +
-             std::to_string(msg.height) + ")";
-    return false;
-  }
-  if (msg.step < msg.width * sample) {
-    std::ostringstream s;
-    s << "depth image step " << msg.step << " is shorter than width " << msg.width << " x "
-      << sample << " bytes";
-    *error = s.str();
-    return false;
-  }
-  if (msg.data.size() < static_cast<size_t>(msg.step) * msg.height) {
-    std::ostringstream s;
-    s << "depth image data has " << msg.data.size() << " bytes, step x height = "
-      << static_cast<size_t>(msg.step) * msg.height;
-    *error = s.str();
-    return false;
-  }
-  out->width_px = static_cast<int>(msg.width);
-  out->height_px = static_cast<int>(msg.height);
-  out->encoding = enc;
-  out->row_bytes = msg.step;
-  out->data.assign(msg.data.begin(), msg.data.begin() + static_cast<size_t>(msg.step) * msg.height);
-  // The core reads little-endian samples; swap when the message's order differs.
-  const bool msg_big = msg.is_bigendian != 0;
-  if (msg_big) {
-    for (size_t r = 0; r < msg.height; ++r) {
-      uint8_t* row = out->data.data() + r * msg.step;
-      for (size_t c = 0; c < msg.width; ++c) {
-        uint8_t* s = row + c * sample;
-        for (size_t k = 0; k < sample / 2; ++k) std::swap(s[k], s[sample - 1 - k]);
-      }
-    }
-  }
-  const std::string layout = out->checkLayout();
-  if (!layout.empty()) {
-    *error = layout;
-    return false;
-  }
-  return true;
+  return depthImageFromBuffer(msg.encoding, msg.width, msg.height, msg.step, msg.is_bigendian != 0,
+                              msg.data.data(), msg.data.size(), out, error);
 }
 
 bool intrinsicsFromCameraInfo(const sensor_msgs::CameraInfo& msg, int expected_width,
                               int expected_height, Intrinsics* out, std::string* error) {
-  bool all_zero = true;
-  for (double k : msg.K) all_zero = all_zero && k == 0.0;
-  if (all_zero) {
-    *error = "CameraInfo is uncalibrated (K is all zero)";
-    return false;
-  }
-  if (expected_width > 0 && expected_height > 0 &&
-      (static_cast<int>(msg.width) != expected_width ||
-       static_cast<int>(msg.height) != expected_height)) {
-    std::ostringstream s;
-    s << "depth image is " << expected_width << "x" << expected_height << " but CameraInfo says "
-      << msg.width << "x" << msg.height;
-    *error = s.str();
-    return false;
-  }
-  try {
-    *out = makeIntrinsics(msg.K.data(), static_cast<int>(msg.width), static_cast<int>(msg.height));
-  } catch (const std::exception& e) {
-    *error = std::string("CameraInfo: ") + e.what();
-    return false;
-  }
-  return true;
+  return intrinsicsFromCameraMatrix(msg.K.data(), msg.width, msg.height, expected_width,
+                                    expected_height, out, error);
 }
 
 bool depthImageFromCloud(const sensor_msgs::PointCloud2& msg, DepthImage* out, Intrinsics* K,
                          std::string* error) {
-  if (msg.height <= 1 || msg.width == 0) {
-    *error = "point cloud is not organized (height " + std::to_string(msg.height) + ")";
-    return false;
-  }
-  const int ox = fieldOffset(msg, "x"), oy = fieldOffset(msg, "y"), oz = fieldOffset(msg, "z");
-  if (ox < 0 || oy < 0 || oz < 0) {
-    *error = "point cloud lacks float32 x, y, z fields";
-    return false;
-  }
-  if (msg.is_bigendian) {
-    *error = "big-endian point clouds are not supported";
-    return false;
-  }
-  if (msg.point_step < 12 || msg.row_step < msg.width * msg.point_step ||
-      msg.data.size() < static_cast<size_t>(msg.row_step) * msg.height) {
-    *error = "point cloud data is shorter than its declared layout";
-    return false;
-  }
-  const int w = static_cast<int>(msg.width), h = static_cast<int>(msg.height);
-  std::vector<float> depth(static_cast<size_t>(w) * h, std::numeric_limits<float>::quiet_NaN());
-  // Normal equations for (fx, cx) from u = fx a + cx with a = x / z, and (fy, cy) likewise.
-  double su[5] = {0, 0, 0, 0, 0}, sv[5] = {0, 0, 0, 0, 0};  // n, sum a, sum a^2, sum u, sum a u
-  for (int v = 0; v < h; ++v) {
-    const uint8_t* row = msg.data.data() + static_cast<size_t>(v) * msg.row_step;
-    for (int u = 0; u < w; ++u) {
-      const uint8_t* p = row + static_cast<size_t>(u) * msg.point_step;
-      float x, y, z;
-      std::memcpy(&x, p + ox, 4);
-      std::memcpy(&y, p + oy, 4);
-      std::memcpy(&z, p + oz, 4);
-      if (!(std::isfinite(x) && std::isfinite(y) && std::isfinite(z)) || z <= 0.f) continue;
-      depth[static_cast<size_t>(v) * w + u] = z;
-      const double a = x / z, b = y / z;
-      su[0] += 1; su[1] += a; su[2] += a * a; su[3] += u; su[4] += a * u;
-      sv[0] += 1; sv[1] += b; sv[2] += b * b; sv[3] += v; sv[4] += b * v;
-    }
-  }
-  auto fit = [](const double* s, double* f, double* c) {
-    const double det = s[0] * s[2] - s[1] * s[1];
-    if (!(std::abs(det) > 1e-12)) return false;
-    *f = (s[0] * s[4] - s[1] * s[3]) / det;
-    *c = (s[3] - *f * s[1]) / s[0];
-    return std::isfinite(*f) && *f > 0.0 && std::isfinite(*c);
-  };
-  double fx, cx, fy, cy;
-  if (su[0] < 16 || !fit(su, &fx, &cx) || !fit(sv, &fy, &cy)) {
-    *error = "point cloud has too few valid points to recover the camera intrinsics";
-    return false;
-  }
-  *out = DepthImage::fromMetres(w, h, depth);
-  K->fx_px = static_cast<float>(fx);
-  K->fy_px = static_cast<float>(fy);
-  K->cx_px = static_cast<float>(cx);
-  K->cy_px = static_cast<float>(cy);
-  K->width_px = w;
-  K->height_px = h;
-  return true;
+  CloudLayout layout;
+  layout.width = msg.width;
+  layout.height = msg.height;
+  layout.point_step = msg.point_step;
+  layout.row_step = msg.row_step;
+  layout.big_endian = msg.is_bigendian != 0;
+  layout.x_offset = fieldOffset(msg, "x");
+  layout.y_offset = fieldOffset(msg, "y");
+  layout.z_offset = fieldOffset(msg, "z");
+  return depthImageFromCloudBuffer(layout, msg.data.data(), msg.data.size(), out, K, error);
 }
 
 bool attitudeFromImu(const sensor_msgs::Imu& msg, double* roll_rad, double* pitch_rad) {

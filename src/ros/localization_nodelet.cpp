@@ -125,8 +125,19 @@ void LocalizationNodelet::onInit() {
 
 // ---- inputs ---------------------------------------------------------------------------------
 
-void LocalizationNodelet::frameRejected(const std::string& what, const std::string& why) {
+void LocalizationNodelet::frameReceived(const std_msgs::Header& header) {
+  ++frames_received_;
+  last_input_wall_ = ros::WallTime::now();
+  // A publisher's seq grows by one per message; a smaller one is a restarted publisher.
+  if (have_last_seq_ && header.seq > last_seq_ + 1) frames_missed_seq_ += header.seq - last_seq_ - 1;
+  have_last_seq_ = true;
+  last_seq_ = header.seq;
+}
+
+void LocalizationNodelet::frameRejected(const std::string& what, const std::string& why,
+                                        long long* reason) {
   ++frames_rejected_;
+  ++*reason;
   last_problem_ = what + ": " + why;
   last_problem_time_ = ros::WallTime::now();
   NODELET_ERROR_THROTTLE(2.0, "gmm_mcl: %s dropped: %s", what.c_str(), why.c_str());
@@ -136,13 +147,15 @@ void LocalizationNodelet::depthCallback(const sensor_msgs::ImageConstPtr& image,
                                         const sensor_msgs::CameraInfoConstPtr& info) {
   const double t0 = wallNowS();
   std::lock_guard<std::mutex> lock(mutex_);
-  last_input_wall_ = ros::WallTime::now();
+  frameReceived(image->header);
   DepthImage depth;
   std::string why;
-  if (!ros_conv::depthImageFromMsg(*image, &depth, &why)) return frameRejected("depth frame", why);
+  if (!ros_conv::depthImageFromMsg(*image, &depth, &why)) {
+    return frameRejected("depth frame", why, &dropped_conversion_);
+  }
   Intrinsics K;
   if (!ros_conv::intrinsicsFromCameraInfo(*info, depth.width_px, depth.height_px, &K, &why)) {
-    return frameRejected("depth frame", why);
+    return frameRejected("depth frame", why, &dropped_camera_info_);
   }
   processFrame(image->header, depth, K, t0);
 }
@@ -151,13 +164,15 @@ void LocalizationNodelet::compressedDepthCallback(const sensor_msgs::CompressedI
                                                   const sensor_msgs::CameraInfoConstPtr& info) {
   const double t0 = wallNowS();
   std::lock_guard<std::mutex> lock(mutex_);
-  last_input_wall_ = ros::WallTime::now();
+  frameReceived(image->header);
   DepthImage depth;
   std::string why;
-  if (!ros_conv::depthImageFromCompressedDepth(*image, &depth, &why)) return frameRejected("depth frame", why);
+  if (!ros_conv::depthImageFromCompressedDepth(*image, &depth, &why)) {
+    return frameRejected("depth frame", why, &dropped_conversion_);
+  }
   Intrinsics K;
   if (!ros_conv::intrinsicsFromCameraInfo(*info, depth.width_px, depth.height_px, &K, &why)) {
-    return frameRejected("depth frame", why);
+    return frameRejected("depth frame", why, &dropped_camera_info_);
   }
   processFrame(image->header, depth, K, t0);
 }
@@ -165,11 +180,13 @@ void LocalizationNodelet::compressedDepthCallback(const sensor_msgs::CompressedI
 void LocalizationNodelet::cloudCallback(const sensor_msgs::PointCloud2ConstPtr& cloud) {
   const double t0 = wallNowS();
   std::lock_guard<std::mutex> lock(mutex_);
-  last_input_wall_ = ros::WallTime::now();
+  frameReceived(cloud->header);
   DepthImage depth;
   Intrinsics K;
   std::string why;
-  if (!ros_conv::depthImageFromCloud(*cloud, &depth, &K, &why)) return frameRejected("point cloud", why);
+  if (!ros_conv::depthImageFromCloud(*cloud, &depth, &K, &why)) {
+    return frameRejected("point cloud", why, &dropped_conversion_);
+  }
   processFrame(cloud->header, depth, K, t0);
 }
 
@@ -215,6 +232,8 @@ bool LocalizationNodelet::lookupExtrinsics(const std::string& camera_frame, cons
       return true;
     }
     ++tf_failures_;
+    ++dropped_extrinsics_;
+    ++frames_rejected_;
     last_problem_ = "no transform " + opts_.base_frame + " -> " + camera_frame + ": " + e.what();
     last_problem_time_ = ros::WallTime::now();
     NODELET_WARN_THROTTLE(2.0, "gmm_mcl: frame at %.3f dropped: %s", stamp.toSec(),
@@ -374,11 +393,11 @@ void LocalizationNodelet::processFrame(const std_msgs::Header& header, const Dep
 
 // ---- outputs --------------------------------------------------------------------------------
 
-void LocalizationNodelet::publishTf(const ros::Time& stamp) {
-  if (!have_map_odom_) return;
+bool LocalizationNodelet::publishTf(const ros::Time& stamp) {
+  if (!have_map_odom_) return false;
   // Future-dated by transform_tolerance, from the frame stamp (never now()), and monotonic.
   const ros::Time tf_stamp = stamp + ros::Duration(opts_.transform_tolerance_s);
-  if (!last_tf_stamp_.isZero() && tf_stamp <= last_tf_stamp_) return;
+  if (!last_tf_stamp_.isZero() && tf_stamp <= last_tf_stamp_) return false;
   last_tf_stamp_ = tf_stamp;
   geometry_msgs::TransformStamped t;
   t.header.stamp = tf_stamp;
@@ -387,6 +406,7 @@ void LocalizationNodelet::publishTf(const ros::Time& stamp) {
   t.child_frame_id = no_odom ? opts_.base_frame : opts_.odom_frame;
   t.transform = ros_conv::transformFromIsometry(T_map_odom_);
   tf_broadcaster_->sendTransform(t);
+  return true;
 }
 
 void LocalizationNodelet::publishOutputs(const std_msgs::Header& header, const StepResult& r,
@@ -398,7 +418,7 @@ void LocalizationNodelet::publishOutputs(const std_msgs::Header& header, const S
   pose.header.frame_id = opts_.map_frame;
   pose.pose = ros_conv::poseWithCovarianceFromEstimate(r.estimate, roll, pitch);
   pose_pub_.publish(pose);
-  publishTf(header.stamp);
+  if (!publishTf(header.stamp)) ++tf_skipped_;
 
   if (particles_pub_.getNumSubscribers() > 0) {
     geometry_msgs::PoseArray particles;
@@ -432,6 +452,16 @@ void LocalizationNodelet::publishOutputs(const std_msgs::Header& header, const S
   s.estimate_ms = r.timings.estimate_ms;
   s.total_ms = r.timings.total_ms;
   s.callback_ms = callback_ms;
+  s.frames_received = frames_received_;
+  s.frames_processed = frames_;
+  s.dropped_conversion = dropped_conversion_;
+  s.dropped_camera_info = dropped_camera_info_;
+  s.dropped_extrinsics = dropped_extrinsics_;
+  s.frames_missed_seq = frames_missed_seq_;
+  s.odometry_gaps = odom_gaps_;
+  s.imu_missing = imu_missing_;
+  s.tf_skipped = tf_skipped_;
+  s.time_jumps = time_jumps_;
   status_pub_.publish(s);
   last_step_status_ = s.step_status;
   last_neff_ = r.neff;
@@ -611,6 +641,13 @@ void LocalizationNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& 
   }
   stat.add("frames used", frames_);
   stat.add("frames rejected", frames_rejected_);
+  // Accounting: received == used + the three dropped counters.
+  stat.add("frames received", frames_received_);
+  stat.add("dropped: conversion", dropped_conversion_);
+  stat.add("dropped: camera info", dropped_camera_info_);
+  stat.add("dropped: no extrinsics", dropped_extrinsics_);
+  stat.add("missed before a callback (seq gaps)", frames_missed_seq_);
+  stat.add("tf not published", tf_skipped_);
   stat.add("last step", last_step_status_);
   stat.add("Neff", last_neff_);
   stat.add("update ms", last_total_ms_);

@@ -244,5 +244,20 @@ MeshScene makeDefaultMeshScene() {
   return s;
 }
 
+Intrinsics defaultCamera(int width_px) {
+  Intrinsics K;
+  const float scale = width_px / 640.f;
+  K.fx_px = K.fy_px = 585.f * scale;
+  K.width_px = width_px;
+  K.height_px = width_px * 3 / 4;
+  K.cx_px = 0.5f * (K.width_px - 1);
+  K.cy_px = 0.5f * (K.height_px - 1);
+  return K;
+}
+
+uint64_t frameSeed(uint64_t seed, int frame) {
+  return seed * 0x9e3779b97f4a7c15ull + static_cast<uint64_t>(frame) + 1;
+}
+
 }  // namespace sim
 }  // namespace gmm_mcl

@@ -1,6 +1,8 @@
 // Offline demo: the localizer on the built-in synthetic scene (no ROS, no data files).
-// Renders noisy depth along a smooth trajectory, feeds drifting odometry and noisy attitude,
-// starts from a uniform 4 m cube / pi yaw range and prints the error as it converges.
+// Renders depth along a smooth trajectory (default: the mesh scene with boxes and cylinders,
+// ray cast through the BVH, with the structured-light sensor model; --scene box: the analytic
+// box scene with its simple noise), feeds drifting odometry and noisy attitude (the protocol's
+// OdometrySynthesizer), starts from a uniform 4 m cube / pi yaw range and prints the error.
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -11,7 +13,10 @@
 #include "gmm_mcl/filter/localizer.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/measurement/likelihood.h"
+#include "gmm_mcl/replay/odometry_synthesizer.h"
 #include "gmm_mcl/sim/box_scene.h"
+#include "gmm_mcl/sim/mesh_renderer.h"
+#include "gmm_mcl/sim/mesh_scene.h"
 
 using namespace gmm_mcl;
 
@@ -22,7 +27,8 @@ void usage() {
       "usage: gmm_mcl_sim_demo [--frames N] [--particles N] [--seed S] [--stride PX]\n"
       "                        [--weighting paper|tempered] [--temperature T] [--backend cpu|cuda]\n"
       "                        [--width PX] [--map-spacing M] [--map-normal-sigma M]\n"
-      "                        [--save-map FILE] [--quiet]\n");
+      "                        [--scene mesh|box] [--no-sensor-noise] [--save-map FILE]\n"
+      "                        [--save-mesh FILE.ply] [--quiet]\n");
 }
 
 }  // namespace
@@ -33,8 +39,8 @@ int main(int argc, char** argv) {
   double spacing_m = 0.4, normal_sigma_m = 0.015, neff_floor = -1.0;
   int width_px = 640;
   uint64_t seed = 1;
-  std::string weighting = "tempered", backend = "cpu", save_map;
-  bool quiet = false;
+  std::string weighting = "tempered", backend = "cpu", save_map, save_mesh, scene_name = "mesh";
+  bool quiet = false, sensor_noise = true;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> const char* {
@@ -56,6 +62,9 @@ int main(int argc, char** argv) {
     else if (a == "--neff-floor") neff_floor = std::atof(next());
     else if (a == "--backend") backend = next();
     else if (a == "--save-map") save_map = next();
+    else if (a == "--scene") scene_name = next();
+    else if (a == "--no-sensor-noise") sensor_noise = false;
+    else if (a == "--save-mesh") save_mesh = next();
     else if (a == "--quiet") quiet = true;
     else {
       usage();
@@ -63,19 +72,26 @@ int main(int argc, char** argv) {
     }
   }
 
-  const sim::BoxScene scene = sim::makeDefaultScene();
-  GmmMap map = sim::tileScene(scene, spacing_m, normal_sigma_m);
+  if (scene_name != "mesh" && scene_name != "box") {
+    std::fprintf(stderr, "unknown scene '%s' (mesh, box)\n", scene_name.c_str());
+    return 2;
+  }
+  const bool mesh_scene = scene_name == "mesh";
+  const sim::BoxScene box_scene = sim::makeDefaultScene();
+  sim::MeshScene scene;
+  if (mesh_scene) scene = sim::makeDefaultMeshScene();
+  GmmMap map = mesh_scene ? sim::tileScene(scene.primitives, spacing_m, normal_sigma_m)
+                          : sim::tileScene(box_scene, spacing_m, normal_sigma_m);
   if (!save_map.empty()) saveMap(map, save_map);
+  if (!save_mesh.empty()) {
+    sim::PrimitiveScene boxes_only;
+    boxes_only.room = box_scene.room;
+    boxes_only.boxes = box_scene.blocks;
+    sim::savePlyMesh(mesh_scene ? scene.mesh : sim::meshFromScene(boxes_only), save_mesh);
+  }
   const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(frames);
   const Eigen::Isometry3d T_base_cam = sim::defaultBaseToCamera();
-  Intrinsics K;
-  // 7-Scenes-like camera (f = 585 px at 640x480), scaled to the requested width.
-  const float scale = width_px / 640.f;
-  K.fx_px = K.fy_px = 585.f * scale;
-  K.width_px = width_px;
-  K.height_px = width_px * 3 / 4;
-  K.cx_px = 0.5f * (K.width_px - 1);
-  K.cy_px = 0.5f * (K.height_px - 1);
+  const Intrinsics K = sim::defaultCamera(width_px);
 
   LocalizerParams params;
   params.filter.num_particles = particles;
@@ -97,39 +113,36 @@ int main(int argc, char** argv) {
   if (!localizer.backendWarning().empty()) {
     std::fprintf(stderr, "warning: %s\n", localizer.backendWarning().c_str());
   }
-  std::printf("gmm_mcl demo: synthetic room, %zu components, %d particles, %dx%d depth, stride %d, "
+  std::printf("gmm_mcl demo: synthetic %s scene, %zu components, %d particles, %dx%d depth, stride %d, "
               "%s weighting, %s backend, seed %llu\n",
-              map.size(), particles, K.width_px, K.height_px, stride, weighting.c_str(),
+              mesh_scene ? "mesh (boxes and cylinders)" : "box", map.size(), particles, K.width_px, K.height_px, stride, weighting.c_str(),
               localizer.backend().name().c_str(), static_cast<unsigned long long>(seed));
 
+  // Odometry and attitude noise per the DESIGN.md protocol; depth noise seeded per frame.
+  OdometrySynthesizer motion(ProtocolNoise(), seed + 1000);
   std::mt19937_64 rng(seed + 1000);
-  std::normal_distribution<double> g(0.0, 1.0);
-  const sim::DepthNoise noise{0.0015, 0.02};
-  Eigen::Isometry3d odom = truth[0];
+  const sim::DepthNoise box_noise{0.0015, 0.02};
+  const sim::SensorNoiseParams sensor;  // Kinect v1 class defaults (docs/sim.md)
   double sum_sq = 0.0, total_ms = 0.0;
   int counted = 0;
   double err_t = 0.0, err_yaw = 0.0;
   for (int f = 0; f < frames; ++f) {
-    if (f > 0) {
-      // Drifting odometry: true frame-to-frame motion plus noise (DESIGN.md protocol).
-      Eigen::Isometry3d delta = truth[f - 1].inverse() * truth[f];
-      delta.translation() += 0.005 * Eigen::Vector3d(g(rng), g(rng), g(rng));
-      delta.linear() = delta.linear() *
-                       Eigen::AngleAxisd(0.002 * g(rng), Eigen::Vector3d::UnitZ()).toRotationMatrix();
-      odom = odom * delta;
-    }
-    double roll, pitch, yaw;
-    rpyFromRotation(truth[f].linear(), &roll, &pitch, &yaw);
-    const DepthImage depth = sim::renderDepth(scene, K, truth[f] * T_base_cam,
-                                              DepthEncoding::kMono16Millimetres, 8.0, noise, &rng);
+    const Eigen::Isometry3d odom = motion.next(truth[f]);
+    double roll, pitch;
+    motion.attitude(truth[f], &roll, &pitch);
+    const Eigen::Isometry3d T_map_cam = truth[f] * T_base_cam;
+    const DepthImage depth =
+        mesh_scene ? sim::renderDepth(*scene.bvh, K, T_map_cam, DepthEncoding::kMono16Millimetres,
+                                      8.0, sensor_noise ? &sensor : nullptr, sim::frameSeed(seed, f))
+                   : sim::renderDepth(box_scene, K, T_map_cam, DepthEncoding::kMono16Millimetres,
+                                      8.0, sensor_noise ? box_noise : sim::DepthNoise(), &rng);
     StepInput in;
     in.stamp_s = f / 30.0;
     in.has_odometry = true;
     in.T_odom_base = odom;
     in.has_attitude = true;
-    const double att_sigma = 0.5 * M_PI / 180.0;
-    in.roll_rad = roll + att_sigma * g(rng);
-    in.pitch_rad = pitch + att_sigma * g(rng);
+    in.roll_rad = roll;
+    in.pitch_rad = pitch;
     in.depth = &depth;
     in.intrinsics = K;
     const StepResult r = localizer.step(in);

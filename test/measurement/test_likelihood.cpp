@@ -111,6 +111,18 @@ TEST(LikelihoodTest, CholeskyEvaluationFormMatchesThePrecisionForm) {
   EXPECT_LT(worst, 1e-3);  // float rounding of map-frame points (DESIGN.md: ~1e-4 per pixel)
 }
 
+TEST(LikelihoodTest, FastLogIsAccurate) {
+  double worst = 0.0;
+  for (double lx = -85.0; lx <= 85.0; lx += 0.00037) {
+    const float x = static_cast<float>(std::exp(lx));
+    const double ref = std::log(static_cast<double>(x));
+    worst = std::max(worst, std::abs(logPositive(x) - ref) / std::max(1.0, std::abs(ref)));
+  }
+  std::printf("[ measured ] logPositive: worst error / max(1, |ln x|) = %.2e\n", worst);
+  EXPECT_LT(worst, 1e-7);
+  EXPECT_EQ(logPositive(1.f), 0.f);
+}
+
 TEST(LikelihoodTest, FastExpIsAccurate) {
   double worst = 0.0;
   for (float x = -87.f; x <= 0.f; x += 0.0137f) {

@@ -30,6 +30,24 @@ GMM_MCL_HD float bitsToFloat(int32_t bits) {
 #endif
 }
 
+GMM_MCL_HD int32_t floatToBits(float f) {
+#if defined(__CUDA_ARCH__)
+  return __float_as_int(f);
+#elif defined(__has_builtin)
+#if __has_builtin(__builtin_bit_cast)
+  return __builtin_bit_cast(int32_t, f);
+#else
+  int32_t b;
+  memcpy(&b, &f, sizeof(b));
+  return b;
+#endif
+#else
+  int32_t b;
+  memcpy(&b, &f, sizeof(b));
+  return b;
+#endif
+}
+
 // max without fmaxf's NaN rules, which keep GCC from vectorising (maps to vmaxps).
 GMM_MCL_HD float maxf(float a, float b) { return a < b ? b : a; }
 
@@ -47,6 +65,34 @@ GMM_MCL_HD float expNonPositive(float x) {
   y = y * r + 5.0000001201e-1f;
   y = y * r * r + r + 1.0f;
   return y * bitsToFloat((static_cast<int32_t>(n) + 127) << 23);
+}
+
+// ln(x) for positive normal finite x, as plain arithmetic that the compiler vectorises (the CPU
+// kernel's per-pixel log). Cephes-style: x = m 2^e with m in [sqrt(1/2), sqrt(2)), a degree-9
+// polynomial in m - 1, ln 2 split in two parts; error below 1e-7 max(1, |ln x|) for x in
+// [e^-85, e^85] (test_likelihood checks it).
+GMM_MCL_HD float logPositive(float x) {
+  const int32_t bits = floatToBits(x);
+  int32_t e = ((bits >> 23) & 0xff) - 126;                     // x = m 2^e, m in [0.5, 1)
+  float m = bitsToFloat((bits & 0x007fffff) | 0x3f000000);
+  const bool low = m < 0.70710678118654752f;
+  e -= low ? 1 : 0;
+  m = low ? (m + m - 1.0f) : (m - 1.0f);                       // m - 1 in [-0.29, 0.41)
+  const float z = m * m;
+  float y = 7.0376836292e-2f;
+  y = y * m - 1.1514610310e-1f;
+  y = y * m + 1.1676998740e-1f;
+  y = y * m - 1.2420140846e-1f;
+  y = y * m + 1.4249322787e-1f;
+  y = y * m - 1.6668057665e-1f;
+  y = y * m + 2.0000714765e-1f;
+  y = y * m - 2.4999993993e-1f;
+  y = y * m + 3.3333331174e-1f;
+  y = y * m * z;
+  const float fe = static_cast<float>(e);
+  y += -2.12194440e-4f * fe;
+  y += -0.5f * z;
+  return (m + y) + 0.693359375f * fe;
 }
 
 }  // namespace gmm_mcl

@@ -15,6 +15,7 @@
 #pragma once
 
 #include <cstdint>
+#include <istream>
 #include <string>
 #include <vector>
 
@@ -31,8 +32,12 @@ uint32_t crc32(const uint8_t* data, size_t size, uint32_t crc = 0);
 
 // Serialises a map to bytes (no validation beyond what GmmMap already did).
 std::vector<uint8_t> encodeMap(const GmmMap& map);
-// Parses and validates bytes; throws MapError("<source>: <fault>").
+// Parses and validates bytes; throws MapError("<source>: <fault>"). Beyond GmmMap's own checks
+// it rejects covariances so close to singular that their inverse overflows float32 (the
+// backends' precision), which would otherwise load as a map with infinite precisions.
 GmmMap decodeMap(const std::vector<uint8_t>& bytes, const std::string& source);
+// Reads the whole stream, then decodeMap; throws MapError naming `source` on a read error.
+GmmMap readMap(std::istream& in, const std::string& source);
 
 // Writes the map; throws MapError naming the path when it cannot be written.
 void saveMap(const GmmMap& map, const std::string& path);

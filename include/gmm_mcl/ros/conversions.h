@@ -24,6 +24,9 @@
 namespace gmm_mcl {
 namespace ros_conv {
 
+// The byte-level checks and decoding of the depth inputs live in the ROS-free core
+// (gmm_mcl/camera/depth_image.h, png_io.h: fuzzed in test/fuzz); these unpack the messages.
+
 // sensor_msgs/Image (16UC1/mono16 millimetres, 32FC1 metres; either endianness) -> DepthImage.
 // False with *error saying why (encoding, size, step, data length).
 bool depthImageFromMsg(const sensor_msgs::Image& msg, DepthImage* out, std::string* error);
@@ -46,7 +49,8 @@ bool intrinsicsFromCameraInfo(const sensor_msgs::CameraInfo& msg, int expected_w
 // Organized PointCloud2 in the camera optical frame (float32 x, y, z) -> 32FC1 depth image
 // (z per pixel, NaN where missing) and pinhole intrinsics fitted to the points by least
 // squares (u = fx x / z + cx, v = fy y / z + cy). False with why when unorganized, fields are
-// missing or too few points to fit.
+// missing or do not fit the point, the data is shorter than the layout, or too few points fit
+// intrinsics in makeIntrinsics' range.
 bool depthImageFromCloud(const sensor_msgs::PointCloud2& msg, DepthImage* out, Intrinsics* K,
                          std::string* error);
 

@@ -69,8 +69,14 @@ class LocalizationNodelet : public nodelet::Nodelet {
   void publishOutputs(const std_msgs::Header& header, const StepResult& result,
                       const DepthImage& depth, const Intrinsics& K, double callback_ms,
                       const std::string& input_warnings);
-  void publishTf(const ros::Time& stamp);
-  void frameRejected(const std::string& what, const std::string& why);
+  // False when no transform was sent (no estimate in the odometry frame yet, or a stamp not
+  // after the last one).
+  bool publishTf(const ros::Time& stamp);
+  // A depth input was delivered to a callback: counts it and the frames that header.seq says
+  // went missing before it.
+  void frameReceived(const std_msgs::Header& header);
+  // Drops the frame: counts it under *reason (one of the dropped_* counters) and says why.
+  void frameRejected(const std::string& what, const std::string& why, long long* reason);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
 
   std::mutex mutex_;
@@ -120,6 +126,13 @@ class LocalizationNodelet : public nodelet::Nodelet {
   // Diagnostics.
   long long frames_ = 0, frames_rejected_ = 0, time_jumps_ = 0, odom_gaps_ = 0, imu_missing_ = 0,
             tf_failures_ = 0, reinitialised_total_ = 0;
+  // Frame accounting: frames_received_ == frames_ (processed: a core step ran) + the dropped_*
+  // counters (frames_rejected_ is their sum). frames_missed_seq_ counts frames that never reached
+  // a callback (subscriber queue, image/CameraInfo synchronizer), from gaps in header.seq.
+  long long frames_received_ = 0, dropped_conversion_ = 0, dropped_camera_info_ = 0,
+            dropped_extrinsics_ = 0, frames_missed_seq_ = 0, tf_skipped_ = 0;
+  bool have_last_seq_ = false;
+  uint32_t last_seq_ = 0;
   int resets_ = 0;
   std::string last_problem_;
   ros::WallTime last_problem_time_;

@@ -50,5 +50,12 @@ struct MeshScene {
 };
 MeshScene makeDefaultMeshScene();
 
+// The synthetic scenes' camera: 7-Scenes-like (f = 585 px at 640x480) scaled to width_px,
+// height 3/4 of it, principal point at the image centre.
+Intrinsics defaultCamera(int width_px);
+
+// A per-frame noise seed from a run's seed and the frame index (distinct streams).
+uint64_t frameSeed(uint64_t seed, int frame);
+
 }  // namespace sim
 }  // namespace gmm_mcl

@@ -1,0 +1,351 @@
+// gmm_mcl_replay_bag: replays a bag through the core localizer directly (rosbag C++ API, no
+// ROS master), as fast as it runs, seeded; the offline counterpart of replay.launch and
+// cow_and_lady.launch. Inputs per depth frame (16UC1/32FC1 image + CameraInfo, or an organized
+// PointCloud2): odometry from nav_msgs/Odometry, from tf odom -> base, or synthesised from the
+// ground truth (DESIGN.md noise, as gmm_mcl_ground_truth_odometry); roll/pitch from the IMU
+// (or synthesised from the truth); ground truth from a PoseStamped (base in map) or a
+// TransformStamped (marker in world, with the marker -> camera calibration). Outputs as
+// gmm_mcl_replay: TUM trajectories, per-frame CSV, the protocol's metrics.
+#include <sys/stat.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <geometry_msgs/PoseStamped.h>
+#include <geometry_msgs/TransformStamped.h>
+#include <nav_msgs/Odometry.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/Imu.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <tf2_msgs/TFMessage.h>
+
+#include "gmm_mcl/map/gmm_map_io.h"
+#include "gmm_mcl/replay/odometry_synthesizer.h"
+#include "gmm_mcl/replay/replay.h"
+#include "gmm_mcl/ros/bag_writer.h"
+#include "gmm_mcl/ros/conversions.h"
+
+using namespace gmm_mcl;
+
+namespace {
+
+void usage() {
+  std::printf(
+      "usage: gmm_mcl_replay_bag BAG --map MAP.gmm [--out DIR] [--seed S] [--frames N]\n"
+      "  [--particles N] [--stride PX] [--max-range M (4)] [--weighting paper|tempered]\n"
+      "  [--init-half-extent M (2)] [--init-yaw-half-range RAD (pi/2)] (around the true start;\n"
+      "   without ground truth the whole map)\n"
+      "  [--depth-topic T (/camera/depth/image_raw)] [--info-topic T (.../camera_info)]\n"
+      "  [--cloud-topic T] (organized PointCloud2 instead of the image)\n"
+      "  [--imu-topic T (/imu/data)] [--odom-topic T (/odom)] [--truth-topic T (/ground_truth)]\n"
+      "  [--odometry topic|tf|truth] (default: topic if present, else tf, else truth)\n"
+      "  [--marker-to-camera x,y,z,qx,qy,qz,qw] (TransformStamped truth: marker -> camera)\n"
+      "  [--odom-frame odom] [--base-frame base_link] [--quiet]\n"
+      "  --cow-and-lady: --cloud-topic /camera/depth_registered/points --truth-topic\n"
+      "                  /kinect/vrpn_client/estimated_transform --odometry truth\n");
+}
+
+using PoseTrack = std::map<double, Eigen::Isometry3d>;  // stamp (s) -> pose
+
+// Pose at t by interpolation between the neighbours (slerp); false when t is outside the
+// track by more than tolerance_s.
+bool poseAt(const PoseTrack& track, double t, double tolerance_s, Eigen::Isometry3d* out) {
+  if (track.empty()) return false;
+  auto hi = track.lower_bound(t);
+  if (hi == track.end()) {
+    const auto last = std::prev(track.end());
+    if (t - last->first > tolerance_s) return false;
+    *out = last->second;
+    return true;
+  }
+  if (hi->first == t || hi == track.begin()) {
+    if (hi->first - t > tolerance_s) return false;
+    *out = hi->second;
+    return true;
+  }
+  const auto lo = std::prev(hi);
+  if (hi->first - lo->first > 1.0) return false;  // a gap: no interpolation across it
+  const double a = (t - lo->first) / (hi->first - lo->first);
+  *out = Eigen::Isometry3d::Identity();
+  out->linear() = Eigen::Quaterniond(lo->second.linear())
+                      .slerp(a, Eigen::Quaterniond(hi->second.linear()))
+                      .toRotationMatrix();
+  out->translation() = (1 - a) * lo->second.translation() + a * hi->second.translation();
+  return true;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string bag_path, map_path, out_dir, weighting = "tempered", odometry_mode;
+  std::string depth_topic = "/camera/depth/image_raw", info_topic, cloud_topic;
+  std::string imu_topic = "/imu/data", odom_topic = "/odom", truth_topic = "/ground_truth";
+  std::string odom_frame = "odom", base_frame = "base_link", marker_to_camera;
+  int frames = -1, particles = kDefaultParticleCount, stride = 4;
+  double max_range_m = FrameParams().max_range_m;
+  uint64_t seed = 1;
+  double init_half_extent_m = 2.0, init_yaw_half_range_rad = 0.5 * M_PI;
+  bool quiet = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto next = [&]() -> const char* {
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "missing value after %s\n", a.c_str());
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (a == "--map") map_path = next();
+    else if (a == "--out") out_dir = next();
+    else if (a == "--seed") seed = std::strtoull(next(), nullptr, 10);
+    else if (a == "--frames") frames = std::atoi(next());
+    else if (a == "--particles") particles = std::atoi(next());
+    else if (a == "--stride") stride = std::atoi(next());
+    else if (a == "--max-range") max_range_m = std::atof(next());
+    else if (a == "--weighting") weighting = next();
+    else if (a == "--init-half-extent") init_half_extent_m = std::atof(next());
+    else if (a == "--init-yaw-half-range") init_yaw_half_range_rad = std::atof(next());
+    else if (a == "--depth-topic") depth_topic = next();
+    else if (a == "--info-topic") info_topic = next();
+    else if (a == "--cloud-topic") cloud_topic = next();
+    else if (a == "--imu-topic") imu_topic = next();
+    else if (a == "--odom-topic") odom_topic = next();
+    else if (a == "--truth-topic") truth_topic = next();
+    else if (a == "--odometry") odometry_mode = next();
+    else if (a == "--marker-to-camera") marker_to_camera = next();
+    else if (a == "--odom-frame") odom_frame = next();
+    else if (a == "--base-frame") base_frame = next();
+    else if (a == "--quiet") quiet = true;
+    else if (a == "--cow-and-lady") {
+      cloud_topic = "/camera/depth_registered/points";
+      truth_topic = "/kinect/vrpn_client/estimated_transform";
+      odometry_mode = "truth";
+    } else if (a == "--help" || a == "-h") {
+      usage();
+      return 0;
+    } else if (a[0] != '-' && bag_path.empty()) bag_path = a;
+    else {
+      usage();
+      return 2;
+    }
+  }
+  if (bag_path.empty() || map_path.empty()) {
+    usage();
+    return 2;
+  }
+  if (info_topic.empty()) info_topic = depth_topic.substr(0, depth_topic.rfind('/')) + "/camera_info";
+  Eigen::Isometry3d T_marker_cam = Eigen::Isometry3d::Identity();
+  if (!marker_to_camera.empty() && !ros_bag::parseTransform(marker_to_camera, &T_marker_cam)) {
+    std::fprintf(stderr, "--marker-to-camera '%s' is not x,y,z,qx,qy,qz,qw\n", marker_to_camera.c_str());
+    return 2;
+  }
+  if (!odometry_mode.empty() && odometry_mode != "topic" && odometry_mode != "tf" &&
+      odometry_mode != "truth") {
+    std::fprintf(stderr, "--odometry must be topic, tf or truth\n");
+    return 2;
+  }
+  try {
+    rosbag::Bag bag(bag_path, rosbag::bagmode::Read);
+    // Pass 1: everything but the depth, indexed by header stamp.
+    PoseTrack odom_topic_track, odom_tf_track, truth_track;
+    std::map<double, Eigen::Vector2d> imu_track;
+    std::map<double, sensor_msgs::CameraInfo> infos;
+    Eigen::Isometry3d T_base_cam = opticalToBase();
+    bool have_extrinsics = false;
+    std::string camera_frame;
+    {
+      rosbag::View view(bag, rosbag::TopicQuery(std::vector<std::string>{
+                                 imu_topic, odom_topic, truth_topic, info_topic, "/tf", "/tf_static"}));
+      for (const rosbag::MessageInstance& m : view) {
+        const std::string& topic = m.getTopic();
+        if (topic == imu_topic) {
+          auto imu = m.instantiate<sensor_msgs::Imu>();
+          double r, p;
+          if (imu && ros_conv::attitudeFromImu(*imu, &r, &p)) {
+            imu_track[imu->header.stamp.toSec()] = Eigen::Vector2d(r, p);
+          }
+        } else if (topic == odom_topic) {
+          if (auto od = m.instantiate<nav_msgs::Odometry>()) {
+            odom_topic_track[od->header.stamp.toSec()] = ros_conv::isometryFromPose(od->pose.pose);
+          }
+        } else if (topic == truth_topic) {
+          if (auto ps = m.instantiate<geometry_msgs::PoseStamped>()) {
+            truth_track[ps->header.stamp.toSec()] = ros_conv::isometryFromPose(ps->pose);
+          } else if (auto ts = m.instantiate<geometry_msgs::TransformStamped>()) {
+            // The marker in the world; the base through the calibration (camera = base).
+            truth_track[ts->header.stamp.toSec()] = ros_conv::isometryFromTransform(ts->transform) *
+                                                    T_marker_cam * opticalToBase().inverse();
+          }
+        } else if (topic == info_topic) {
+          if (auto ci = m.instantiate<sensor_msgs::CameraInfo>()) infos[ci->header.stamp.toSec()] = *ci;
+        } else if (auto tf = m.instantiate<tf2_msgs::TFMessage>()) {
+          for (const geometry_msgs::TransformStamped& t : tf->transforms) {
+            if (t.header.frame_id == odom_frame && t.child_frame_id == base_frame) {
+              odom_tf_track[t.header.stamp.toSec()] = ros_conv::isometryFromTransform(t.transform);
+            } else if (topic == "/tf_static" && t.header.frame_id == base_frame) {
+              T_base_cam = ros_conv::isometryFromTransform(t.transform);
+              camera_frame = t.child_frame_id;
+              have_extrinsics = true;
+            }
+          }
+        }
+      }
+    }
+    if (odometry_mode.empty()) {
+      odometry_mode = !odom_topic_track.empty() ? "topic" : !odom_tf_track.empty() ? "tf" : "truth";
+    }
+    const PoseTrack& odom_track = odometry_mode == "topic" ? odom_topic_track : odom_tf_track;
+    if (odometry_mode != "truth" && odom_track.empty()) {
+      throw std::runtime_error(bag_path + ": no odometry on " +
+                               (odometry_mode == "topic" ? odom_topic : "tf " + odom_frame + " -> " + base_frame));
+    }
+    if (odometry_mode == "truth" && truth_track.empty()) {
+      throw std::runtime_error(bag_path + ": no odometry and no ground truth on " + truth_topic +
+                               " to make it from");
+    }
+    const bool synth_attitude = imu_track.empty();
+    if (synth_attitude && truth_track.empty()) {
+      throw std::runtime_error(bag_path + ": no IMU on " + imu_topic + " and no ground truth");
+    }
+
+    const GmmMap map = loadMap(map_path);
+    LocalizerParams lp;
+    lp.filter.num_particles = particles;
+    lp.frame.pixel_stride = stride;
+    lp.frame.max_range_m = static_cast<float>(max_range_m);
+    lp.filter.seed = seed;
+    lp.T_base_cam = T_base_cam;
+    if (!parseWeightingMode(weighting, &lp.filter.weighting)) {
+      std::fprintf(stderr, "unknown weighting '%s'\n", weighting.c_str());
+      return 2;
+    }
+    std::unique_ptr<Localizer> loc;
+    OdometrySynthesizer synth(ProtocolNoise(), seed);
+    TrialResult result;
+    result.seed = seed;
+    const std::string depth_source = cloud_topic.empty() ? depth_topic : cloud_topic;
+    rosbag::View view(bag, rosbag::TopicQuery(std::vector<std::string>{depth_source}));
+    const int total = frames > 0 ? std::min<int>(frames, view.size()) : static_cast<int>(view.size());
+    std::printf("gmm_mcl_replay_bag: %s, %d depth frames on %s, odometry: %s, attitude: %s, "
+                "ground truth: %zu poses on %s, extrinsics: %s; map %s (%zu components), %d "
+                "particles, stride %d, seed %llu\n",
+                bag_path.c_str(), total, depth_source.c_str(), odometry_mode.c_str(),
+                synth_attitude ? "truth + noise" : imu_topic.c_str(), truth_track.size(),
+                truth_topic.c_str(), have_extrinsics ? ("/tf_static " + camera_frame).c_str() : "camera = base",
+                map_path.c_str(), map.size(), particles, stride, static_cast<unsigned long long>(seed));
+    double last_t = -1.0;
+    int skipped = 0;
+    for (const rosbag::MessageInstance& m : view) {
+      if (static_cast<int>(result.frames.size()) + skipped >= total) break;
+      DepthImage depth;
+      Intrinsics K;
+      std::string why;
+      double t = 0.0;
+      bool ok = false;
+      if (auto img = m.instantiate<sensor_msgs::Image>()) {
+        t = img->header.stamp.toSec();
+        const auto ci = infos.find(t);
+        ok = ci != infos.end() && ros_conv::depthImageFromMsg(*img, &depth, &why) &&
+             ros_conv::intrinsicsFromCameraInfo(ci->second, img->width, img->height, &K, &why);
+        if (ci == infos.end()) why = "no CameraInfo with its stamp on " + info_topic;
+      } else if (auto pc = m.instantiate<sensor_msgs::PointCloud2>()) {
+        t = pc->header.stamp.toSec();
+        ok = ros_conv::depthImageFromCloud(*pc, &depth, &K, &why);
+      } else {
+        why = "not an Image or PointCloud2";
+      }
+      Eigen::Isometry3d T_truth = Eigen::Isometry3d::Identity();
+      const bool has_truth = poseAt(truth_track, t, 0.05, &T_truth);
+      StepInput in;
+      in.stamp_s = t;
+      if (odometry_mode == "truth") {
+        in.has_odometry = has_truth;
+        if (has_truth) {
+          in.T_odom_base = synth.next(T_truth, last_t < 0 ? 1.0 : (t - last_t) * 30.0);
+        }
+      } else {
+        in.has_odometry = poseAt(odom_track, t, 0.05, &in.T_odom_base);
+      }
+      if (synth_attitude) {
+        in.has_attitude = has_truth;
+        if (has_truth) synth.attitude(T_truth, &in.roll_rad, &in.pitch_rad);
+      } else {
+        auto a = imu_track.lower_bound(t - 0.05);
+        in.has_attitude = a != imu_track.end() && std::abs(a->first - t) <= 0.05;
+        if (in.has_attitude) {
+          in.roll_rad = a->second.x();
+          in.pitch_rad = a->second.y();
+        }
+      }
+      if (!ok || !in.has_odometry) {
+        if (!quiet) {
+          std::fprintf(stderr, "frame at %.3f s skipped: %s\n", t,
+                       ok ? "no odometry at its stamp" : why.c_str());
+        }
+        ++skipped;
+        continue;
+      }
+      in.depth = &depth;
+      in.intrinsics = K;
+      if (!loc) {
+        if (has_truth) {
+          const Particle start = poseToParticle(T_truth);
+          lp.init.centre_m = Eigen::Vector3d(start.x_m, start.y_m, start.z_m);
+          lp.init.half_extent_m.setConstant(init_half_extent_m);
+          lp.init.yaw_centre_rad = start.yaw_rad;
+          lp.init.yaw_half_range_rad = init_yaw_half_range_rad;
+          loc.reset(new Localizer(lp, map));
+        } else {
+          loc.reset(new Localizer(lp, map));
+          loc->reset(loc->mapBounds());
+        }
+      }
+      const Particle truth = poseToParticle(T_truth);
+      result.frames.push_back(makeReplayFrame(t, loc->step(in), has_truth ? &truth : nullptr));
+      last_t = t;
+      const ReplayFrame& rf = result.frames.back();
+      const int f = static_cast<int>(result.frames.size()) + skipped - 1;
+      if (!quiet && (f % 10 == 0 || f == total - 1)) {
+        const int bar = 30, done = (f + 1) * bar / std::max(total, 1);
+        std::fprintf(stderr, "\r  [%.*s%*s] %4d/%d  error %6.3f m  Neff %5.0f  %5.0f ms  ", done,
+                     "==============================", bar - done, "", f + 1, total,
+                     rf.has_truth ? rf.error.translation_m : NAN, rf.step.neff,
+                     rf.step.timings.total_ms);
+        if (f == total - 1) std::fprintf(stderr, "\n");
+      }
+    }
+    finishTrial(EvaluationParams(), &result);
+    if (result.frames.empty()) throw std::runtime_error(bag_path + ": no usable depth frame");
+    if (!out_dir.empty()) {
+      mkdir(out_dir.c_str(), 0755);
+      writeTum(result, false, out_dir + "/estimate.tum");
+      writeTum(result, true, out_dir + "/truth.tum");
+      writeFrameCsv(result, out_dir + "/frames.csv");
+    }
+    const TrialMetrics& mt = result.metrics;
+    std::printf("%zu frames used, %d skipped; mean step %.0f ms", result.frames.size(), skipped,
+                result.mean_step_ms);
+    if (mt.frames > 0) {
+      std::printf("; %s, converged at %.2f s, ATE %.2f cm / %.2f deg, final error %.2f cm",
+                  mt.success ? "success" : "FAILURE", mt.converged ? mt.converge_time_s : NAN,
+                  100 * mt.ate_translation_m, mt.ate_yaw_rad * 180 / M_PI,
+                  100 * result.frames.back().error.translation_m);
+    }
+    std::printf("\n");
+    if (!out_dir.empty()) {
+      std::printf("wrote %s/{estimate.tum,truth.tum,frames.csv}\n", out_dir.c_str());
+    }
+    return mt.frames == 0 || mt.success ? 0 : 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "gmm_mcl_replay_bag: %s\n", e.what());
+    return 1;
+  }
+}
