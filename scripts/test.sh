@@ -44,17 +44,18 @@ fi
 # the rostests (ROS), the 7-Scenes regression (minutes even without ASan), the map builder's and
 # the replay tools' suites (their libraries would double the build), and one case:
 # LocalizerTest.ConvergesFromAUniformFourMetreCube (200 frames x 1068 particles: over 10 min
-# under ASan; its kernels run under ASan in test_membership and test_likelihood, and the other
-# LocalizerTest cases run the localizer's step, bad frames and resets).
+# under ASan; the CPU backend's OpenMP path runs in test_backend_threads, its kernels in
+# test_membership and test_likelihood, and the other LocalizerTest cases run the localizer's
+# step on bad frames, time and odometry jumps).
 #  - detect_leaks=1: LeakSanitizer at exit (the default on x86-64 Linux, stated).
 #  - halt_on_error/abort_on_error: the first report ends the test with a non-zero status.
-#  - libgomp is not instrumented; the CPU backend's OpenMP loops run under ASan without reports
-#    (its thread pool stays reachable at exit, so LeakSanitizer does not count it), and no
-#    suppression file is needed.
+#  - libgomp is not instrumented; the CPU backend's OpenMP loops (1-3 threads) run under ASan
+#    without reports (its thread pool stays reachable at exit, so LeakSanitizer does not count
+#    it), and no suppression file is needed.
 SAN_BUILD="${GMM_MCL_SANITIZE_BUILD_DIR:-${BUILD}-asan}"
 SANITIZE_TESTS=(test_gmm_map test_depth_frame test_projection test_membership test_likelihood
-  test_params test_resampling test_particle_filter test_localizer test_input_validation
-  fuzz_replay_map_loader fuzz_replay_depth_frame fuzz_replay_compressed_depth)
+  test_params test_resampling test_particle_filter test_localizer test_backend_threads
+  test_input_validation fuzz_replay_map_loader fuzz_replay_depth_frame fuzz_replay_compressed_depth)
 mkdir -p "$SAN_BUILD"
 cmake -S "$GMM_MCL_ROOT" -B "$SAN_BUILD" -DGMM_MCL_BUILD_ROS=OFF -DGMM_MCL_BUILD_TESTS=ON \
   -DGMM_MCL_BUILD_FIT=OFF -DGMM_MCL_SANITIZE=ON -DCMAKE_BUILD_TYPE=Release \
