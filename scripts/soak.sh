@@ -98,7 +98,8 @@ ros_start_master "$OUT/roscore.log"
 # The manager on its own, so that its pid is the process whose memory is sampled.
 rosrun nodelet nodelet manager __name:=soak_manager > "$OUT/manager.log" 2>&1 &
 MANAGER_PID=$!
-roslaunch --wait gmm_mcl soak.launch map:="$OUT/soak.gmm" init:="$OUT/soak_init.yaml" \
+# By path: other copies of the source tree on ROS_PACKAGE_PATH make "gmm_mcl soak.launch" ambiguous.
+roslaunch --wait "$GMM_MCL_ROOT/launch/soak.launch" map:="$OUT/soak.gmm" init:="$OUT/soak_init.yaml" \
   manager:=soak_manager particles:="$PARTICLES" stride:="$STRIDE" > "$OUT/launch.log" 2>&1 &
 LAUNCH_PID=$!
 # rosrun execs the binary: the pid becomes the manager's once rosrun has found it.
@@ -116,7 +117,8 @@ START=$(date +%s)
 PUB_PID=$!
 set +e
 python3 "$GMM_MCL_ROOT/scripts/soak_monitor.py" --pid "$MANAGER_PID" --frames "$FRAMES" \
-  --warmup "$WARMUP" --out "$OUT" "${RSS_CHECK[@]}" --timeout $(( 600 + FRAMES / 2 ))
+  --warmup "$WARMUP" --out "$OUT" "${RSS_CHECK[@]}" --timeout $(( 600 + FRAMES / 2 )) \
+  --publisher-pid "$PUB_PID"
 RC=$?
 wait "$PUB_PID" 2> /dev/null
 PUB_RC=$?

@@ -194,6 +194,13 @@ class Monitor:
                             self.diag_wall > self.done_wall + 2.5 * a.diagnostics_period + 0.2)
             if finished:
                 break
+            if a.publisher_pid and self.done is None and not os.path.exists("/proc/%d" % a.publisher_pid):
+                time.sleep(1.0)  # its last messages
+                if self.done is None:
+                    print("soak_monitor: the publisher (pid %d) exited before /soak/done" %
+                          a.publisher_pid, file=sys.stderr)
+                    self.report(timed_out=True)
+                    return 2
             if now > deadline:
                 print("soak_monitor: timed out after %.0f s (publisher done: %s)" %
                       (a.timeout, self.done is not None), file=sys.stderr)
@@ -353,6 +360,7 @@ def main():
     p.add_argument("--diagnostics-period", type=float, default=0.5)
     p.add_argument("--timeout", type=float, default=7200.0, help="whole run, s")
     p.add_argument("--no-rss-check", dest="check_rss", action="store_false")
+    p.add_argument("--publisher-pid", type=int, default=0, help="stop when it exits early")
     p.add_argument("--nodelet", default="/gmm_mcl")
     p.add_argument("--map-frame", default="map")
     p.add_argument("--odom-frame", default="odom")

@@ -38,24 +38,28 @@ else
   echo "== nvcc not found: CUDA backend not compiled"
 fi
 
-# Sanitizers: the core's unit tests (gtest) and the fuzz corpus replays built with
-# -fsanitize=address,undefined (cmake/sanitize.cmake) in their own folder, ROS off, and run.
-# Not here: the rostests (ROS), the 7-Scenes regression (minutes even without ASan) and the
-# sklearn oracle (Python). A sanitizer report aborts the test, so it fails the stage.
+# Sanitizers: the core's gtest suites (map, camera, measurement, filter), the input-validation
+# cases and the fuzz corpus replays, built with -fsanitize=address,undefined
+# (cmake/sanitize.cmake) in their own folder, ROS and the map builder off, and run. Not here:
+# the rostests (ROS), the 7-Scenes regression (minutes even without ASan), the map builder's and
+# the replay tools' suites (their libraries would double the build), and one case:
+# LocalizerTest.ConvergesFromAUniformFourMetreCube (200 frames x 1068 particles: over 10 min
+# under ASan; the CPU backend's OpenMP path runs in test_backend_threads, its kernels in
+# test_membership and test_likelihood, and the other LocalizerTest cases run the localizer's
+# step on bad frames, time and odometry jumps).
 #  - detect_leaks=1: LeakSanitizer at exit (the default on x86-64 Linux, stated).
 #  - halt_on_error/abort_on_error: the first report ends the test with a non-zero status.
-#  - libgomp is not instrumented; the OpenMP loops of the CPU backend and the map builder run
-#    under ASan without reports (its thread pool is reachable at exit, so not a leak), and no
-#    suppression is needed.
+#  - libgomp is not instrumented; the CPU backend's OpenMP loops (1-3 threads) run under ASan
+#    without reports (its thread pool stays reachable at exit, so LeakSanitizer does not count
+#    it), and no suppression file is needed.
 SAN_BUILD="${GMM_MCL_SANITIZE_BUILD_DIR:-${BUILD}-asan}"
 SANITIZE_TESTS=(test_gmm_map test_depth_frame test_projection test_membership test_likelihood
-  test_params test_resampling test_particle_filter test_localizer test_evaluation
-  test_em_fitter test_point_cloud_io test_map_inspect test_input_validation
-  fuzz_replay_map_loader fuzz_replay_depth_frame fuzz_replay_compressed_depth)
+  test_params test_resampling test_particle_filter test_localizer test_backend_threads
+  test_input_validation fuzz_replay_map_loader fuzz_replay_depth_frame fuzz_replay_compressed_depth)
 mkdir -p "$SAN_BUILD"
 cmake -S "$GMM_MCL_ROOT" -B "$SAN_BUILD" -DGMM_MCL_BUILD_ROS=OFF -DGMM_MCL_BUILD_TESTS=ON \
-  -DGMM_MCL_SANITIZE=ON -DCMAKE_BUILD_TYPE=Release > "$SAN_BUILD/cmake.log" 2>&1 \
-  || { cat "$SAN_BUILD/cmake.log"; exit 1; }
+  -DGMM_MCL_BUILD_FIT=OFF -DGMM_MCL_SANITIZE=ON -DCMAKE_BUILD_TYPE=Release \
+  > "$SAN_BUILD/cmake.log" 2>&1 || { cat "$SAN_BUILD/cmake.log"; exit 1; }
 # Only the listed targets that this tree defines (a part may be configured out).
 targets=$(cmake --build "$SAN_BUILD" --target help | sed -n 's/^\.\.\. \([A-Za-z0-9_]*\).*/\1/p')
 san_targets=()
@@ -70,6 +74,7 @@ regex="^($(IFS='|'; echo "${san_targets[*]}"))\$"
 (cd "$SAN_BUILD" && \
   ASAN_OPTIONS="detect_leaks=1:halt_on_error=1:abort_on_error=1:strict_string_checks=1" \
   UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1" \
+  GTEST_FILTER="-LocalizerTest.ConvergesFromAUniformFourMetreCube" \
   ctest --output-on-failure --timeout 600 -R "$regex") | tee "$SAN_BUILD/ctest.log"
 echo "== sanitizer tests took $(( $(date +%s) - start )) s"
 

@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -34,10 +35,13 @@ void usage() {
       "                      [--depth-scale UNITS_PER_M] [--tolerance S] [--gravity z-up|\n"
       "                      first-camera|gx,gy,gz] [--trajectory FILE.log] [--rate HZ]\n"
       "       gmm_mcl_replay --make-fixture tum|stanford DIR [--frames N] [--width PX] [--seed S]\n"
+      "       gmm_mcl_replay --format F --dataset DIR --convert tum|stanford OUT_DIR [--frames N]\n"
       "DIR defaults to $GMM_MCL_DATASETS/7scenes_redkitchen/data, else\n"
       "../shared/datasets/7scenes_redkitchen/data. Runs trials with seeds S..S+N-1 (1..10).\n"
       "MAP is in the data set's world frame; it is rotated into the gravity-aligned frame.\n"
-      "--make-fixture writes the synthetic scene as a folder of that format and DIR/map.gmm.\n");
+      "--make-fixture writes the synthetic scene as a folder of that format and DIR/map.gmm;\n"
+      "--convert writes the data set in another folder format (with intrinsics.txt and\n"
+      "gravity-direction.txt).\n");
 }
 
 int makeFixture(const std::string& format, const std::string& dir, int frames, int width,
@@ -73,7 +77,7 @@ std::string defaultDataset() {
 int main(int argc, char** argv) {
   std::string dataset, map_path, out_dir, weighting = "tempered", format = "7scenes";
   std::string backend = "cpu";
-  std::string fixture_format, fixture_dir;
+  std::string fixture_format, fixture_dir, convert_format, convert_dir;
   int trials = 10, frames = -1, stride = 4, particles = kDefaultParticleCount, width = 160;
   uint64_t first_seed = 1;
   double temperature = -1.0, neff_floor = -1.0;
@@ -115,7 +119,10 @@ int main(int argc, char** argv) {
     else if (a == "--hold-frames") hold_frames = std::atoi(next());
     else if (a == "--tail-frames") tail_frames = std::atoi(next());
     else if (a == "--seed") first_seed = std::strtoull(next(), nullptr, 10);
-    else if (a == "--make-fixture") {
+    else if (a == "--convert") {
+      convert_format = next();
+      convert_dir = next();
+    } else if (a == "--make-fixture") {
       fixture_format = next();
       fixture_dir = next();
     }
@@ -127,7 +134,7 @@ int main(int argc, char** argv) {
   }
   try {
     if (!fixture_dir.empty()) return makeFixture(fixture_format, fixture_dir, frames, width, first_seed);
-    if (map_path.empty()) {
+    if (map_path.empty() && convert_dir.empty()) {
       usage();
       return 2;
     }
@@ -141,6 +148,14 @@ int main(int argc, char** argv) {
     so.max_frames = frames;
     const std::unique_ptr<Sequence> seq_ptr = openSequence(format, dataset, so);
     const Sequence& seq = *seq_ptr;
+    if (!convert_dir.empty()) {
+      if (convert_format == "tum") writeTumFolder(seq, convert_dir);
+      else if (convert_format == "stanford") writeStanfordFolder(seq, convert_dir);
+      else throw std::runtime_error("--convert: format must be tum or stanford");
+      std::printf("wrote %s (%s) from %s (%s, %d frames)\n", convert_dir.c_str(),
+                  convert_format.c_str(), dataset.c_str(), seq.format(), seq.size());
+      return 0;
+    }
     const GmmMap map_world = loadMap(map_path);
     const GmmMap map = rotateMap(map_world, seq.R_aligned_world(), map_path + " (gravity-aligned)");
     ReplayParams rp;
