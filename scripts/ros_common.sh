@@ -3,9 +3,10 @@
 ROS_PACKAGES=(ros-base-dev catkin libnodeletlib-dev libnodeletlib-tools libtf2-ros-dev
   libtf2-eigen-dev libtf2-msgs-dev libimage-transport-dev librosbag-dev python3-rosbag
   librostest-dev python3-rostest python3-roslaunch rosbash libdiagnostic-updater-dev
-  libdiagnostic-msgs-dev libdynamic-reconfigure-config-init-mutex-dev
+  libdiagnostic-msgs-dev libdynamic-reconfigure-config-init-mutex-dev python3-tf2-msgs
   python3-dynamic-reconfigure libstd-srvs-dev libnav-msgs-dev libvisualization-msgs-dev
-  ros-message-generation python3-gencpp python3-genpy)
+  ros-message-generation python3-gencpp python3-genpy python3-rospy python3-diagnostic-msgs
+  python3-geometry-msgs python3-std-msgs)
 
 ROS_MASTER_PID=""
 # ros_start_master LOG: a roscore on $ROS_MASTER_URI's port, waits until it answers.

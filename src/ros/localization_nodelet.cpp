@@ -364,6 +364,7 @@ void LocalizationNodelet::processFrame(const std_msgs::Header& header, const Dep
   const StepResult r = localizer_->step(in);
   ++frames_;
   reinitialised_total_ += r.reinitialised;
+  if (r.lost) ++lost_events_total_;
   have_last_frame_ = true;
   last_frame_stamp_ = stamp;
   if (r.status == StepStatus::kTimeJumpBack) {
@@ -440,6 +441,11 @@ void LocalizationNodelet::publishOutputs(const std_msgs::Header& header, const S
   s.pixels = r.pixels;
   s.reinitialised = r.reinitialised;
   s.reinitialised_total = reinitialised_total_;
+  s.lost = r.lost;
+  s.lost_reinitialised = r.lost_reinitialised;
+  s.screened_candidates = r.screened_candidates;
+  s.reference_loglik_per_pixel = r.reference_loglik_per_pixel;
+  s.lost_events_total = lost_events_total_;
   s.resets = resets_;
   s.resampled = r.resampled;
   s.odometry_jump = r.odometry_jump;
@@ -652,6 +658,7 @@ void LocalizationNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& 
   stat.add("Neff", last_neff_);
   stat.add("update ms", last_total_ms_);
   stat.add("reinitialised particles (total)", reinitialised_total_);
+  stat.add("lost events (total)", lost_events_total_);
   stat.add("time jumps back", time_jumps_);
   stat.add("odometry gaps", odom_gaps_);
   stat.add("frames without IMU", imu_missing_);

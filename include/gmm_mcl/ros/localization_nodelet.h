@@ -125,7 +125,7 @@ class LocalizationNodelet : public nodelet::Nodelet {
 
   // Diagnostics.
   long long frames_ = 0, frames_rejected_ = 0, time_jumps_ = 0, odom_gaps_ = 0, imu_missing_ = 0,
-            tf_failures_ = 0, reinitialised_total_ = 0;
+            tf_failures_ = 0, reinitialised_total_ = 0, lost_events_total_ = 0;
   // Frame accounting: frames_received_ == frames_ (processed: a core step ran) + the dropped_*
   // counters (frames_rejected_ is their sum). frames_missed_seq_ counts frames that never reached
   // a callback (subscriber queue, image/CameraInfo synchronizer), from gaps in header.seq.
