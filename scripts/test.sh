@@ -57,9 +57,12 @@ SANITIZE_TESTS=(test_gmm_map test_depth_frame test_projection test_membership te
   test_params test_resampling test_particle_filter test_localizer test_backend_threads
   test_input_validation fuzz_replay_map_loader fuzz_replay_depth_frame fuzz_replay_compressed_depth)
 mkdir -p "$SAN_BUILD"
+# -O1 without NDEBUG: a third less compile time than -O3 (most of this stage), and assert()
+# and Eigen's index checks stay on.
 cmake -S "$GMM_MCL_ROOT" -B "$SAN_BUILD" -DGMM_MCL_BUILD_ROS=OFF -DGMM_MCL_BUILD_TESTS=ON \
   -DGMM_MCL_BUILD_FIT=OFF -DGMM_MCL_SANITIZE=ON -DCMAKE_BUILD_TYPE=Release \
-  > "$SAN_BUILD/cmake.log" 2>&1 || { cat "$SAN_BUILD/cmake.log"; exit 1; }
+  -DCMAKE_CXX_FLAGS_RELEASE="-O1" > "$SAN_BUILD/cmake.log" 2>&1 \
+  || { cat "$SAN_BUILD/cmake.log"; exit 1; }
 # Only the listed targets that this tree defines (a part may be configured out).
 targets=$(cmake --build "$SAN_BUILD" --target help | sed -n 's/^\.\.\. \([A-Za-z0-9_]*\).*/\1/p')
 san_targets=()
