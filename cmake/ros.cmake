@@ -85,7 +85,7 @@ if(CATKIN_ENABLE_TESTING AND GMM_MCL_BUILD_TESTS)
   endforeach()
   foreach(launch localization_bag.test looped_bag.test bad_inputs.test bad_config.test)
     add_rostest(test/ros/${launch}
-      ARGS bag:=${GMM_MCL_TEST_BAG} map:=${GMM_MCL_TEST_MAP}
+      ARGS dir:=${CMAKE_CURRENT_BINARY_DIR}/ros_test
       DEPENDENCIES rostest_localization rostest_bad_inputs gmm_mcl_ros)
   endforeach()
 endif()

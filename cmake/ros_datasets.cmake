@@ -62,7 +62,6 @@ if(CATKIN_ENABLE_TESTING AND GMM_MCL_BUILD_TESTS)
   add_dependencies(rostest_ground_truth_odometry gmm_mcl_datasets_test_data
                    gmm_mcl_ground_truth_odometry gmm_mcl_node)
   add_rostest(test/ros/ground_truth_odometry.test
-    ARGS bag:=${GMM_MCL_COW_BAG} map:=${GMM_MCL_COW_DIR}/sim_cow.gmm
-         truth_tum:=${GMM_MCL_COW_DIR}/sim_cow_truth.tum
+    ARGS dir:=${GMM_MCL_COW_DIR}
     DEPENDENCIES rostest_ground_truth_odometry gmm_mcl_ground_truth_odometry gmm_mcl_ros)
 endif()
