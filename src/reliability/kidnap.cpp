@@ -9,14 +9,16 @@
 #include "gmm_mcl/replay/replay.h"
 #include "gmm_mcl/replay/seven_scenes_sequence.h"
 #include "gmm_mcl/sim/box_scene.h"
+#include "gmm_mcl/sim/mesh_renderer.h"
+#include "gmm_mcl/sim/mesh_scene.h"
 
 namespace gmm_mcl {
 namespace reliability {
 namespace {
 
-class SyntheticSource : public FrameSource {
+class BoxSceneSource : public FrameSource {
  public:
-  SyntheticSource(const Intrinsics& K, int frames)
+  BoxSceneSource(const Intrinsics& K, int frames)
       : K_(K),
         scene_(sim::makeDefaultScene()),
         map_(sim::tileScene(scene_, 0.4, 0.015)),
@@ -33,11 +35,41 @@ class SyntheticSource : public FrameSource {
   const Intrinsics& intrinsics() const override { return K_; }
   const Eigen::Isometry3d& baseToCamera() const override { return T_base_cam_; }
   const GmmMap& map() const override { return map_; }
-  std::string name() const override { return "synthetic"; }
+  std::string name() const override { return "box"; }
 
  private:
   Intrinsics K_;
   sim::BoxScene scene_;
+  GmmMap map_;
+  Eigen::Isometry3d T_base_cam_;
+  std::vector<Eigen::Isometry3d> truth_;
+};
+
+// The built-in mesh scene (boxes and cylinders) rendered through the structured-light sensor
+// model (sim::SensorNoiseParams defaults), seeded per frame from the trial's stream.
+class MeshSceneSource : public FrameSource {
+ public:
+  MeshSceneSource(const Intrinsics& K, int frames)
+      : K_(K),
+        scene_(sim::makeDefaultMeshScene()),
+        map_(sim::tileScene(scene_.primitives, 0.4, 0.015)),
+        T_base_cam_(sim::defaultBaseToCamera()),
+        truth_(sim::makeTrajectory(frames)) {}
+  int size() const override { return static_cast<int>(truth_.size()); }
+  const Eigen::Isometry3d& truthBase(int i) const override { return truth_.at(i); }
+  DepthImage depth(int i, std::mt19937_64* rng) const override {
+    const sim::SensorNoiseParams noise;
+    return sim::renderDepth(*scene_.bvh, K_, truth_.at(i) * T_base_cam_,
+                            DepthEncoding::kMono16Millimetres, 9.0, &noise, (*rng)());
+  }
+  const Intrinsics& intrinsics() const override { return K_; }
+  const Eigen::Isometry3d& baseToCamera() const override { return T_base_cam_; }
+  const GmmMap& map() const override { return map_; }
+  std::string name() const override { return "synthetic"; }
+
+ private:
+  Intrinsics K_;
+  sim::MeshScene scene_;
   GmmMap map_;
   Eigen::Isometry3d T_base_cam_;
   std::vector<Eigen::Isometry3d> truth_;
@@ -86,8 +118,12 @@ double distance(const Particle& a, const Particle& b) {
 
 }  // namespace
 
+std::unique_ptr<FrameSource> makeBoxSceneSource(const Intrinsics& K, int frames) {
+  return std::unique_ptr<FrameSource>(new BoxSceneSource(K, frames));
+}
+
 std::unique_ptr<FrameSource> makeSyntheticSource(const Intrinsics& K, int frames) {
-  return std::unique_ptr<FrameSource>(new SyntheticSource(K, frames));
+  return std::unique_ptr<FrameSource>(new MeshSceneSource(K, frames));
 }
 
 std::unique_ptr<FrameSource> makeSevenScenesSource(const std::string& data_dir,
@@ -195,6 +231,8 @@ KidnapResult runKidnapTrial(const FrameSource& src, const KidnapParams& params, 
       r.any_non_finite = true;
     }
     errors[k] = distance(est, poseToParticle(src.truthBase(i)));
+    r.final_best_loglik_px = step.best_loglik_per_pixel;
+    r.final_reference_px = step.reference_loglik_per_pixel;
   }
   r.mean_step_ms = total_ms / total;
   r.error_before_m = params.track_frames > 0 ? errors[params.track_frames - 1] : 0.0;

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "gmm_mcl/reliability/kidnap.h"
+#include "gmm_mcl/sim/mesh_scene.h"
 
 using namespace gmm_mcl;
 using namespace gmm_mcl::reliability;
@@ -16,13 +17,15 @@ namespace {
 
 void usage() {
   std::printf(
-      "usage: gmm_mcl_kidnap [--scene synthetic|7scenes] [--map MAP.gmm] [--dataset DIR]\n"
+      "usage: gmm_mcl_kidnap [--scene synthetic|box|7scenes] [--map MAP.gmm] [--dataset DIR]\n"
       "                      [--trials N] [--first-seed S] [--stride PX] [--particles N]\n"
-      "                      [--track-frames N] [--after-frames N] [--start-frame F]\n"
+      "                      [--width PX] [--track-frames N] [--after-frames N] [--start-frame F]\n"
       "                      [--backend cpu|cuda]\n"
       "                      [--weighting paper|tempered] [--no-lost-detector]\n"
       "                      [--candidates K] [--reinit-fraction F] [--margin NATS]\n"
+      "                      [--grace FRAMES] [--lost-frames FRAMES]\n"
       "--track-frames 0: global localisation trials (uniform start, no kidnap).\n"
+      "--width: the synthetic scenes' camera width (f = 585 px at 640, scaled; default 640).\n"
       "7scenes needs --map (scripts/build_map_7scenes.sh); DIR defaults to\n"
       "$GMM_MCL_DATASETS/7scenes_redkitchen/data, else ../shared/datasets/...\n");
 }
@@ -34,7 +37,7 @@ int main(int argc, char** argv) {
   const char* env = std::getenv("GMM_MCL_DATASETS");
   std::string dataset =
       std::string(env && *env ? env : "../shared/datasets") + "/7scenes_redkitchen/data";
-  int trials = 10, stride = -1, particles = kDefaultParticleCount;
+  int trials = 10, stride = -1, particles = kDefaultParticleCount, width = 640;
   uint64_t first_seed = 1;
   KidnapParams kp;
   bool lost_detector = true;
@@ -53,6 +56,7 @@ int main(int argc, char** argv) {
     else if (a == "--trials") trials = std::atoi(next());
     else if (a == "--first-seed") first_seed = std::strtoull(next(), nullptr, 10);
     else if (a == "--stride") stride = std::atoi(next());
+    else if (a == "--width") width = std::atoi(next());
     else if (a == "--particles") particles = std::atoi(next());
     else if (a == "--track-frames") kp.track_frames = std::atoi(next());
     else if (a == "--after-frames") kp.after_frames = std::atoi(next());
@@ -63,6 +67,8 @@ int main(int argc, char** argv) {
     else if (a == "--candidates") kp.localizer.lost.candidates_per_particle = std::atoi(next());
     else if (a == "--reinit-fraction") kp.localizer.lost.reinit_fraction = std::atof(next());
     else if (a == "--margin") kp.localizer.lost.margin_nats = std::atof(next());
+    else if (a == "--grace") kp.localizer.lost.grace_frames = std::atoi(next());
+    else if (a == "--lost-frames") kp.localizer.lost.frames = std::atoi(next());
     else {
       usage();
       return a == "--help" || a == "-h" ? 0 : 2;
@@ -70,14 +76,9 @@ int main(int argc, char** argv) {
   }
   try {
     std::unique_ptr<FrameSource> src;
-    if (scene == "synthetic") {
-      Intrinsics K;  // 320x240, f = 290 px
-      K.fx_px = K.fy_px = 290.f;
-      K.cx_px = 159.5f;
-      K.cy_px = 119.5f;
-      K.width_px = 320;
-      K.height_px = 240;
-      src = makeSyntheticSource(K, 1500);
+    if (scene == "synthetic" || scene == "box") {
+      const Intrinsics K = sim::defaultCamera(width);  // f = 585 px at 640 px, scaled
+      src = scene == "box" ? makeBoxSceneSource(K, 1500) : makeSyntheticSource(K, 1500);
       kp.localizer.frame.pixel_stride = stride > 0 ? stride : 8;
       kp.localizer.frame.max_range_m = 8.f;
     } else if (scene == "7scenes") {
@@ -106,18 +107,20 @@ int main(int argc, char** argv) {
                 kp.after_frames, kp.localizer.lost.candidates_per_particle,
                 kp.localizer.lost.reinit_fraction, kp.localizer.lost.margin_nats);
     std::printf("| seed | frames | jump (m) | yaw jump (deg) | error before (cm) | recovered in (s) "
-                "| final error (cm) | ATE after (cm) | lost events | success |\n"
-                "|---|---|---|---|---|---|---|---|---|---|\n");
+                "| final error (cm) | ATE after (cm) | lost events | final best / reference (nats/px) "
+                "| success |\n"
+                "|---|---|---|---|---|---|---|---|---|---|---|\n");
     int ok = 0;
     double sum_s = 0.0, worst_s = 0.0, step_ms = 0.0;
     for (int t = 0; t < trials; ++t) {
       const KidnapResult r = runKidnapTrial(*src, kp, first_seed + t);
-      std::printf("| %llu | %d..%d -> %d | %.2f | %.0f | %.1f | %s | %.1f | %.1f | %d | %s |\n",
+      std::printf("| %llu | %d..%d -> %d | %.2f | %.0f | %.1f | %s | %.1f | %.1f | %d "
+                  "| %.2f / %.2f | %s |\n",
                   static_cast<unsigned long long>(r.seed), r.start_frame, r.from_frame - 1,
                   r.to_frame, r.jump_m, r.jump_yaw_rad * 180.0 / M_PI, 100.0 * r.error_before_m,
                   r.recovery_s >= 0.0 ? std::to_string(r.recovery_s).substr(0, 5).c_str() : "never",
                   100.0 * r.final_error_m, 100.0 * r.ate_after_m, r.lost_events,
-                  r.recovered ? "yes" : "no");
+                  r.final_best_loglik_px, r.final_reference_px, r.recovered ? "yes" : "no");
       std::fflush(stdout);
       if (r.recovered) {
         ++ok;

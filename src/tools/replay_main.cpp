@@ -29,6 +29,7 @@ void usage() {
       "                      [--particles N] [--weighting paper|tempered] [--temperature T]\n"
       "                      [--backend cpu|cuda]\n"
       "                      [--neff-floor F] [--init-half-extent M] [--init-yaw-half-range RAD]\n"
+      "                      [--lost-margin NATS] [--lost-grace FRAMES] [--candidates K]\n"
       "                      [--hold-frames N (30)] [--tail-frames N (100)]\n"
       "                      [--out DIR] [--quiet]\n"
       "       folder options: [--intrinsics fr1|fr2|fr3|icl|kinect|fx,fy,cx,cy|FILE]\n"
@@ -81,6 +82,7 @@ int main(int argc, char** argv) {
   int trials = 10, frames = -1, stride = 4, particles = kDefaultParticleCount, width = 160;
   uint64_t first_seed = 1;
   double temperature = -1.0, neff_floor = -1.0;
+  LostDetectionParams lost;
   double init_half_extent_m = 2.0, init_yaw_half_range_rad = 0.5 * M_PI;
   SequenceOptions so;
   int hold_frames = -1, tail_frames = -1;
@@ -105,6 +107,9 @@ int main(int argc, char** argv) {
     else if (a == "--backend") backend = next();
     else if (a == "--temperature") temperature = std::atof(next());
     else if (a == "--neff-floor") neff_floor = std::atof(next());
+    else if (a == "--lost-margin") lost.margin_nats = std::atof(next());
+    else if (a == "--lost-grace") lost.grace_frames = std::atoi(next());
+    else if (a == "--candidates") lost.candidates_per_particle = std::atoi(next());
     else if (a == "--out") out_dir = next();
     else if (a == "--format") format = next();
     else if (a == "--intrinsics") so.intrinsics = next();
@@ -173,6 +178,7 @@ int main(int argc, char** argv) {
     }
     if (temperature > 0.0) rp.localizer.filter.temperature = temperature;
     if (neff_floor >= 0.0) rp.localizer.filter.neff_floor_fraction = neff_floor;
+    rp.localizer.lost = lost;
     if (!out_dir.empty()) mkdir(out_dir.c_str(), 0755);
 
     const Intrinsics& K = seq.intrinsics();

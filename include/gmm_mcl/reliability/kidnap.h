@@ -29,9 +29,11 @@ class FrameSource {
   virtual std::string name() const = 0;
 };
 
-// The built-in synthetic scene (tiled GMM, 0.4 m, 1.5 cm) along its 6-DoF trajectory, rendered
-// with axial noise and dropout.
+// The built-in synthetic scene (the mesh scene: room, boxes, cylinders; tiled GMM, 0.4 m,
+// 1.5 cm) along its 6-DoF trajectory, rendered through the structured-light sensor model.
 std::unique_ptr<FrameSource> makeSyntheticSource(const Intrinsics& K, int frames);
+// The older box scene (room and blocks only) with axial noise and 2% dropout.
+std::unique_ptr<FrameSource> makeBoxSceneSource(const Intrinsics& K, int frames);
 // 7-Scenes redkitchen (gravity-aligned, like gmm_mcl_replay) against a map file.
 std::unique_ptr<FrameSource> makeSevenScenesSource(const std::string& data_dir,
                                                    const std::string& map_path);
@@ -68,6 +70,10 @@ struct KidnapResult {
   int augmented_reinitialised = 0;
   bool any_non_finite = false;   // a NaN/inf in any estimate or covariance
   double mean_step_ms = 0.0;
+  // At the last frame: the best particle's per-pixel log-likelihood and the LostDetector's
+  // reference (a settled wrong mode shows as a best score within the margin of the reference).
+  double final_best_loglik_px = 0.0;
+  double final_reference_px = 0.0;
 };
 
 // Picks, for `seed`, a start frame, the kidnap frame (start + track_frames) and a destination
