@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <memory>
 #include <stdexcept>
+#include <utility>
 
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/map/gmm_map_io.h"
@@ -16,61 +19,33 @@ namespace gmm_mcl {
 namespace reliability {
 namespace {
 
-class BoxSceneSource : public FrameSource {
+// A built-in scene along sim::makeTrajectory, seen from sim::defaultBaseToCamera; `render`
+// draws one depth image of the camera pose from the trial's random stream.
+class SimSceneSource : public FrameSource {
  public:
-  BoxSceneSource(const Intrinsics& K, int frames)
-      : K_(K),
-        scene_(sim::makeDefaultScene()),
-        map_(sim::tileScene(scene_, 0.4, 0.015)),
+  using Render = std::function<DepthImage(const Eigen::Isometry3d&, std::mt19937_64*)>;
+  SimSceneSource(std::string name, const Intrinsics& K, int frames, GmmMap map, Render render)
+      : name_(std::move(name)),
+        K_(K),
+        map_(std::move(map)),
+        render_(std::move(render)),
         T_base_cam_(sim::defaultBaseToCamera()),
         truth_(sim::makeTrajectory(frames)) {}
   int size() const override { return static_cast<int>(truth_.size()); }
   const Eigen::Isometry3d& truthBase(int i) const override { return truth_.at(i); }
   DepthImage depth(int i, std::mt19937_64* rng) const override {
-    // Kinect-like axial noise (1.5 mm at 1 m, growing with z^2) and 2% dropout.
-    return sim::renderDepth(scene_, K_, truth_.at(i) * T_base_cam_,
-                            DepthEncoding::kMono16Millimetres, 9.0, sim::DepthNoise{0.0015, 0.02},
-                            rng);
+    return render_(truth_.at(i) * T_base_cam_, rng);
   }
   const Intrinsics& intrinsics() const override { return K_; }
   const Eigen::Isometry3d& baseToCamera() const override { return T_base_cam_; }
   const GmmMap& map() const override { return map_; }
-  std::string name() const override { return "box"; }
+  std::string name() const override { return name_; }
 
  private:
+  std::string name_;
   Intrinsics K_;
-  sim::BoxScene scene_;
   GmmMap map_;
-  Eigen::Isometry3d T_base_cam_;
-  std::vector<Eigen::Isometry3d> truth_;
-};
-
-// The built-in mesh scene (boxes and cylinders) rendered through the structured-light sensor
-// model (sim::SensorNoiseParams defaults), seeded per frame from the trial's stream.
-class MeshSceneSource : public FrameSource {
- public:
-  MeshSceneSource(const Intrinsics& K, int frames)
-      : K_(K),
-        scene_(sim::makeDefaultMeshScene()),
-        map_(sim::tileScene(scene_.primitives, 0.4, 0.015)),
-        T_base_cam_(sim::defaultBaseToCamera()),
-        truth_(sim::makeTrajectory(frames)) {}
-  int size() const override { return static_cast<int>(truth_.size()); }
-  const Eigen::Isometry3d& truthBase(int i) const override { return truth_.at(i); }
-  DepthImage depth(int i, std::mt19937_64* rng) const override {
-    const sim::SensorNoiseParams noise;
-    return sim::renderDepth(*scene_.bvh, K_, truth_.at(i) * T_base_cam_,
-                            DepthEncoding::kMono16Millimetres, 9.0, &noise, (*rng)());
-  }
-  const Intrinsics& intrinsics() const override { return K_; }
-  const Eigen::Isometry3d& baseToCamera() const override { return T_base_cam_; }
-  const GmmMap& map() const override { return map_; }
-  std::string name() const override { return "synthetic"; }
-
- private:
-  Intrinsics K_;
-  sim::MeshScene scene_;
-  GmmMap map_;
+  Render render_;
   Eigen::Isometry3d T_base_cam_;
   std::vector<Eigen::Isometry3d> truth_;
 };
@@ -119,11 +94,27 @@ double distance(const Particle& a, const Particle& b) {
 }  // namespace
 
 std::unique_ptr<FrameSource> makeBoxSceneSource(const Intrinsics& K, int frames) {
-  return std::unique_ptr<FrameSource>(new BoxSceneSource(K, frames));
+  auto scene = std::make_shared<const sim::BoxScene>(sim::makeDefaultScene());
+  auto render = [scene, K](const Eigen::Isometry3d& T_map_cam, std::mt19937_64* rng) {
+    // Kinect-like axial noise (1.5 mm at 1 m, growing with z^2) and 2% dropout.
+    return sim::renderDepth(*scene, K, T_map_cam, DepthEncoding::kMono16Millimetres, 9.0,
+                            sim::DepthNoise{0.0015, 0.02}, rng);
+  };
+  return std::unique_ptr<FrameSource>(
+      new SimSceneSource("box", K, frames, sim::tileScene(*scene, 0.4, 0.015), render));
 }
 
+// The built-in mesh scene (boxes and cylinders) rendered through the structured-light sensor
+// model (sim::SensorNoiseParams defaults), seeded per frame from the trial's stream.
 std::unique_ptr<FrameSource> makeSyntheticSource(const Intrinsics& K, int frames) {
-  return std::unique_ptr<FrameSource>(new MeshSceneSource(K, frames));
+  auto scene = std::make_shared<const sim::MeshScene>(sim::makeDefaultMeshScene());
+  auto render = [scene, K](const Eigen::Isometry3d& T_map_cam, std::mt19937_64* rng) {
+    const sim::SensorNoiseParams noise;
+    return sim::renderDepth(*scene->bvh, K, T_map_cam, DepthEncoding::kMono16Millimetres, 9.0,
+                            &noise, (*rng)());
+  };
+  return std::unique_ptr<FrameSource>(new SimSceneSource(
+      "synthetic", K, frames, sim::tileScene(scene->primitives, 0.4, 0.015), render));
 }
 
 std::unique_ptr<FrameSource> makeSevenScenesSource(const std::string& data_dir,
