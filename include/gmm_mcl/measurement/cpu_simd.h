@@ -7,6 +7,10 @@
 #include <stdint.h>
 #include <string.h>
 
+#if defined(__AVX__)
+#include <immintrin.h>
+#endif
+
 namespace gmm_mcl {
 namespace simd {
 
@@ -76,6 +80,18 @@ GMM_MCL_SIMD_INLINE v8f logPositive8(v8f x) {
   y += -2.12194440e-4f * fe;
   y += -0.5f * z;
   return (m + y) + 0.693359375f * fe;
+}
+
+// True when some lane of the mask is set.
+GMM_MCL_SIMD_INLINE bool any(v8i mask) {
+#if defined(__AVX__)
+  return _mm256_movemask_ps(reinterpret_cast<__m256>(mask)) != 0;
+#else
+  v8i m = mask;
+  int r = 0;
+  for (int i = 0; i < 8; ++i) r |= m[i];
+  return r != 0;
+#endif
 }
 
 // The two halves of v as doubles.
