@@ -6,6 +6,10 @@
 
 #include "gmm_mcl/common/fast_math.h"
 
+#if defined(__AVX2__) && defined(__FMA__)
+#include <immintrin.h>
+#endif
+
 namespace gmm_mcl {
 namespace {
 
@@ -169,8 +173,9 @@ __attribute__((noinline)) void projectAll(const float* __restrict in, int m,
 }
 
 // The patches of one component's box whose centre lies in its ellipse: ellipseContains with its
-// contraction written out (the same bits as the compiled ellipseContains: fma(du, q_uu du,
-// 2 q_uv du dv), then fma(dv, q_vv dv, .)), without a branch per test (the outcome is hard to
+// contraction written out (the same bits as the compiled ellipseContains: with FMA,
+// fma(du, q_uu du, 2 q_uv du dv), then fma(dv, q_vv dv, .); without, as written), without a
+// branch per test (the outcome is hard to
 // predict): every tested patch is written at hp[hits], hits advances by the outcome and
 // count[patch] by the same. Returns true when some centre's form is within `margin` of 1 (or
 // not a number): then the outcome may depend on the last bits of the projection. margin < 0:
@@ -193,7 +198,11 @@ inline bool testBox(const PatchGrid& grid, int col0, int col1, int row0, int row
     int patch = r * grid.cols + col0;
     for (int c = col0; c <= col1; ++c, u += ps, ++patch) {
       const float du = u - pu;
+#if defined(__FMA__)
       const float s = fmaf(dv, dvv, fmaf(du, quu * du, q2uv * du * dv));
+#else  // no FMA: ellipseContains as written
+      const float s = (du * (quu * du) + q2uv * du * dv) + dv * dvv;
+#endif
       const int in_ellipse = s <= 1.f ? 1 : 0;
       near |= !(std::fabs(s - 1.f) > margin);
       hp[hits] = patch;
@@ -204,6 +213,69 @@ inline bool testBox(const PatchGrid& grid, int col0, int col1, int row0, int row
   *hits_io = hits;
   return near;
 }
+
+#if defined(__AVX2__) && defined(__FMA__)
+// testBox (with the margin check) 8 patch centres of a row at a time, AVX2: the same form and
+// FMA arithmetic per centre, lane by lane. The centres inside form a run of the row's patches
+// (the ellipse is convex; a mask that is not one run, only conceivable through rounding, takes
+// the per-bit path): one store of 8 patch indices at hp[hits] and one masked add to count
+// (hp needs 8 entries of slack past the box's cells, count 8 past the last patch).
+inline bool testBoxVec(const PatchGrid& grid, int col0, int col1, int row0, int row1, float pu,
+                       float pv, float quu, float quv, float qvv, float margin,
+                       int* __restrict hp, size_t* hits_io, int* __restrict count) {
+  const float ps = static_cast<float>(grid.patch_size_px);
+  const __m256 lane = _mm256_setr_ps(0.f, 1.f, 2.f, 3.f, 4.f, 5.f, 6.f, 7.f);
+  const __m256i lane_i = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256 vps = _mm256_set1_ps(ps);
+  const __m256 vquu = _mm256_set1_ps(quu), vq2uv = _mm256_set1_ps(2.f * quv);
+  const __m256 one = _mm256_set1_ps(1.f), vmargin = _mm256_set1_ps(margin);
+  const __m256 abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
+  size_t hits = *hits_io;
+  __m256 near = _mm256_setzero_ps();
+  float v = grid.centreV(row0);
+  for (int r = row0; r <= row1; ++r, v += ps) {
+    const float dv = v - pv;
+    const __m256 vdv = _mm256_set1_ps(dv), vdvv = _mm256_set1_ps(qvv * dv);
+    const int row_base = r * grid.cols;
+    for (int c = col0; c <= col1; c += 8) {
+      const int ncols = col1 - c + 1 < 8 ? col1 - c + 1 : 8;
+      const __m256i live_i = _mm256_cmpgt_epi32(_mm256_set1_epi32(ncols), lane_i);
+      const __m256 live = _mm256_castsi256_ps(live_i);
+      // Centres c, c + 1, ...: integers + 0.5 (or integers), exact.
+      const __m256 u = _mm256_fmadd_ps(lane, vps, _mm256_set1_ps(grid.centreU(c)));
+      const __m256 du = _mm256_sub_ps(u, _mm256_set1_ps(pu));
+      const __m256 t = _mm256_mul_ps(_mm256_mul_ps(vq2uv, du), vdv);
+      const __m256 s = _mm256_fmadd_ps(vdv, vdvv, _mm256_fmadd_ps(du, _mm256_mul_ps(vquu, du), t));
+      const __m256 in = _mm256_and_ps(_mm256_cmp_ps(s, one, _CMP_LE_OQ), live);
+      const __m256 dist = _mm256_and_ps(_mm256_sub_ps(s, one), abs_mask);
+      near = _mm256_or_ps(near, _mm256_and_ps(_mm256_cmp_ps(dist, vmargin, _CMP_NGT_UQ), live));
+      unsigned bits = static_cast<unsigned>(_mm256_movemask_ps(in));
+      if (bits == 0) continue;
+      const int first = __builtin_ctz(bits);
+      const unsigned run = bits >> first;
+      const int patch0 = row_base + c + first;
+      if ((run & (run + 1)) == 0) {  // one run of len patches from patch0
+        const int len = __builtin_popcount(run);
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(hp + hits),
+                            _mm256_add_epi32(_mm256_set1_epi32(patch0), lane_i));
+        __m256i* cp = reinterpret_cast<__m256i*>(count + patch0);
+        const __m256i add = _mm256_srli_epi32(
+            _mm256_cmpgt_epi32(_mm256_set1_epi32(len), lane_i), 31);  // 1 in the first len lanes
+        _mm256_storeu_si256(cp, _mm256_add_epi32(_mm256_loadu_si256(cp), add));
+        hits += static_cast<size_t>(len);
+      } else {
+        for (unsigned b = bits; b != 0; b &= b - 1) {
+          const int patch = row_base + c + __builtin_ctz(b);
+          hp[hits++] = patch;
+          ++count[patch];
+        }
+      }
+    }
+  }
+  *hits_io = hits;
+  return _mm256_movemask_ps(near) != 0;
+}
+#endif
 
 }  // namespace
 
@@ -265,7 +337,10 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
   // from the vectorised projection; where that could decide differently from projectComponent
   // (P.exact, or a centre within P.margin of the ellipse), the component is redone with
   // projectComponent, so that the table is the brute-force reference's exactly.
-  int* count = out->begin.data() + 1;
+  // Patches per patch, 8 entries of slack for testBoxVec's masked add.
+  static thread_local std::vector<int> counts;
+  counts.assign(static_cast<size_t>(num_patches) + 8, 0);
+  int* count = counts.data();
   size_t hits = 0;
   for (int i = 0; i < m; ++i) {
     run_begin[i] = static_cast<int>(hits);
@@ -275,10 +350,15 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
     const size_t first = hits;
     bool redo = exact;
     if (!exact) {
-      const size_t cells = static_cast<size_t>(row1 - row0 + 1) * (col1 - col0 + 1);
+      const size_t cells = static_cast<size_t>(row1 - row0 + 1) * (col1 - col0 + 1) + 8;
       if (hit_patch.size() < hits + cells) hit_patch.resize(2 * (hits + cells));
+#if defined(__AVX2__) && defined(__FMA__)
+      redo = testBoxVec(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i], P.quv[i],
+                        P.qvv[i], P.margin[i], hit_patch.data(), &hits, count);
+#else
       redo = testBox(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i], P.quv[i], P.qvv[i],
                      P.margin[i], hit_patch.data(), &hits, count);
+#endif
       if (redo) {  // undo this component's hits
         for (size_t k = first; k < hits; ++k) --count[hit_patch[k]];
         hits = first;
@@ -322,7 +402,7 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
     (*valid)[i] = 1;
   }
   run_begin[m] = static_cast<int>(hits);
-  for (int p = 0; p < num_patches; ++p) out->begin[p + 1] += out->begin[p];
+  for (int p = 0; p < num_patches; ++p) out->begin[p + 1] = out->begin[p] + count[p];
   out->comps.resize(out->begin[num_patches]);
   // Pass 2: scatter the runs of pass 1 (components ascending within each patch).
   cursor.assign(out->begin.begin(), out->begin.end() - 1);

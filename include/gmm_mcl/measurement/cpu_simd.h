@@ -11,6 +11,11 @@
 #include <immintrin.h>
 #endif
 
+// Without AVX, GCC warns that these 32-byte vector types change the ABI of the (always inlined)
+// helpers below.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wpsabi"
+
 namespace gmm_mcl {
 namespace simd {
 
@@ -108,3 +113,5 @@ GMM_MCL_SIMD_INLINE v4d highToDouble(v8f v) {
 
 }  // namespace simd
 }  // namespace gmm_mcl
+
+#pragma GCC diagnostic pop
