@@ -7,43 +7,84 @@
 #include <Eigen/LU>
 
 #include "gmm_mcl/common/fast_math.h"
+#include "gmm_mcl/measurement/cpu_simd.h"
+
+// 32-byte vector locals (cpu_simd.h): without AVX, GCC warns about an ABI change that does not
+// concern these file-local functions.
+#pragma GCC diagnostic ignored "-Wpsabi"
 
 namespace gmm_mcl {
 namespace {
 
-// sum[i] = sum over the k members of exp(ln(lambda_j N_j(p_i)) - shift) for the n points
-// (n a multiple of B, B pixels per block). The pixel loop of one block has a compile-time trip
-// count (B / 8 AVX2 vectors), inside the member loop: each member's 10 constants are loaded
-// once per block. Every exponent is <= 0 (shift >= every member's log_norm).
-template <int B>
+using simd::v4d;
+using simd::v8f;
+using simd::v8i;
+
+// Exponents more than this far below the floor's (ln(exp(floor) / exp(shift))) are left out of
+// a pixel's sum: each such term is below e^-25 = 1.4e-11 times the floor term that the sum is
+// added to, so ln(floor term + sum) moves by less than 1e-9 nats per pixel with 70 of them.
+constexpr float kNegligibleBelowFloor = 25.f;
+
+// acc[v] = sum over the k members j of exp(base_j - shift - |U_j p + c_j|^2) for the 8V points
+// p of x[v], y[v], z[v] (shift >= every member's base, so every exponent is <= 0), leaving out
+// the vectors whose used lanes (used[v]) all have exponents below `negligible`. Two passes: the
+// exponents of all members (9 FMA per vector, each member's 10 constants broadcast once for all
+// V vectors), with the indices of the non-negligible vectors; then exp and the sum over those
+// only, in member order (no branch per member: on the bench, ~70% of (member, patch) pairs are
+// negligible, in an unpredictable pattern).
+template <int V>
 __attribute__((noinline)) void patchMixture(const EvalComponentF* __restrict comps,
                                             const int* __restrict members, int k, float shift,
-                                            const float* __restrict wx,
-                                            const float* __restrict wy,
-                                            const float* __restrict wz, int n,
-                                            float* __restrict sum) {
-  for (int i0 = 0; i0 < n; i0 += B) {
-    alignas(32) float acc[B];
-    for (int i = 0; i < B; ++i) acc[i] = 0.f;
-    const float* __restrict x = wx + i0;
-    const float* __restrict y = wy + i0;
-    const float* __restrict z = wz + i0;
-    for (int j = 0; j < k; ++j) {
-      const EvalComponentF& e = comps[members[j]];
-      const float b = e.base - shift;
-      const float c0 = e.c[0], c1 = e.c[1], c2 = e.c[2];
-      const float u00 = e.u00, u01 = e.u01, u02 = e.u02, u11 = e.u11, u12 = e.u12, u22 = e.u22;
-#pragma omp simd
-      for (int i = 0; i < B; ++i) {
-        const float y0 = u00 * x[i] + (u01 * y[i] + (u02 * z[i] + c0));
-        const float y1 = u11 * y[i] + (u12 * z[i] + c1);
-        const float y2 = u22 * z[i] + c2;
-        acc[i] += expNonPositive(b - y0 * y0 - y1 * y1 - y2 * y2);
-      }
+                                            float negligible, const v8f* __restrict x,
+                                            const v8f* __restrict y, const v8f* __restrict z,
+                                            const v8i* __restrict used, v8f* __restrict acc) {
+  static thread_local std::vector<float> exponents;  // [k][V][8]
+  static thread_local std::vector<int> keep;         // [V][k]: members with a used lane kept
+  if (exponents.size() < static_cast<size_t>(k) * V * 8) {
+    exponents.resize(static_cast<size_t>(k) * V * 8);
+    keep.resize(static_cast<size_t>(k) * V);
+  }
+  float* __restrict t_out = exponents.data();
+  int* __restrict kept = keep.data();
+  v8f px[V], py[V], pz[V];
+  v8i use[V];
+  int n[V];
+  for (int v = 0; v < V; ++v) {
+    px[v] = x[v];
+    py[v] = y[v];
+    pz[v] = z[v];
+    use[v] = used[v];
+    n[v] = 0;
+  }
+  const v8f low = simd::splat(negligible);
+  for (int j = 0; j < k; ++j) {
+    const EvalComponentF& e = comps[members[j]];
+    const v8f b = simd::splat(e.base - shift);
+    const v8f c0 = simd::splat(e.c[0]), c1 = simd::splat(e.c[1]), c2 = simd::splat(e.c[2]);
+    const v8f u00 = simd::splat(e.u00), u01 = simd::splat(e.u01), u02 = simd::splat(e.u02);
+    const v8f u11 = simd::splat(e.u11), u12 = simd::splat(e.u12), u22 = simd::splat(e.u22);
+    for (int v = 0; v < V; ++v) {
+      const v8f y0 = u00 * px[v] + (u01 * py[v] + (u02 * pz[v] + c0));
+      const v8f y1 = u11 * py[v] + (u12 * pz[v] + c1);
+      const v8f y2 = u22 * pz[v] + c2;
+      const v8f t = b - y0 * y0 - y1 * y1 - y2 * y2;
+      simd::store(t_out + (j * V + v) * 8, t);
+      kept[v * k + n[v]] = j;
+      n[v] += simd::any(use[v] & (t >= low)) ? 1 : 0;
     }
-    for (int i = 0; i < B; ++i) sum[i0 + i] = acc[i];
+  }
+  for (int v = 0; v < V; ++v) {
+    v8f a = simd::splat(0.f);
+    const int* __restrict kv = kept + v * k;
+    for (int m = 0; m < n[v]; ++m) {
+      a += simd::expNonPositive8(simd::load(t_out + (kv[m] * V + v) * 8));
+    }
+    acc[v] = a;
   }
 }
+
+// Points per kernel call: two vectors (a 4x4 patch at stride 8 is one call).
+constexpr int kKernelPoints = 16;
 
 }  // namespace
 
@@ -59,67 +100,89 @@ FrameLikelihood frameLogLikelihood(const EvalComponentF* eval, const DepthFrame&
                                    const RigidTransformF& T_map_cam,
                                    const PatchMembership& membership, float floor_log_density) {
   FrameLikelihood out;
-  out.pixels = static_cast<int>(frame.size());
+  const int total = static_cast<int>(frame.size());
+  out.pixels = total;
+  if (total == 0) return out;
   const int num_patches = frame.grid.count();
-  alignas(32) float wx[kPixelChunk], wy[kPixelChunk], wz[kPixelChunk], sum[kPixelChunk];
-  const float* R = T_map_cam.R;
-  const float* t = T_map_cam.t;
-  double total = 0.0;
+  // All points into the map frame at once (one vectorised loop), padded by a kernel call's
+  // points so that a call may read past the last patch (the padding lanes are masked out).
+  static thread_local std::vector<float> buf;
+  const size_t stride = static_cast<size_t>(total) + kKernelPoints;
+  buf.resize(3 * stride);
+  float* __restrict wx = buf.data();
+  float* __restrict wy = wx + stride;
+  float* __restrict wz = wy + stride;
+  {
+    const float* __restrict x = frame.x_m.data();
+    const float* __restrict y = frame.y_m.data();
+    const float* __restrict z = frame.z_m.data();
+    const float* R = T_map_cam.R;
+    const float* t = T_map_cam.t;
+    const float r0 = R[0], r1 = R[1], r2 = R[2], r3 = R[3], r4 = R[4], r5 = R[5];
+    const float r6 = R[6], r7 = R[7], r8 = R[8], t0 = t[0], t1 = t[1], t2 = t[2];
+#pragma omp simd
+    for (int i = 0; i < total; ++i) {
+      wx[i] = r0 * x[i] + r1 * y[i] + r2 * z[i] + t0;
+      wy[i] = r3 * x[i] + r4 * y[i] + r5 * z[i] + t1;
+      wz[i] = r6 * x[i] + r7 * y[i] + r8 * z[i] + t2;
+    }
+    for (int i = total; i < total + kKernelPoints; ++i) {
+      wx[i] = wx[0];
+      wy[i] = wy[0];
+      wz[i] = wz[0];
+    }
+  }
+  const v8i lane = {0, 1, 2, 3, 4, 5, 6, 7};
+  v4d lsum = {0.0, 0.0, 0.0, 0.0};  // sum of ln(floor_term + mixture) over pixels
+  v8i hits = simd::splati(0);       // minus the floor hits per lane
+  double shifts = 0.0;              // sum of the patches' shifts over their pixels
+  double floors = 0.0;              // pixels of patches without components: floor each
   for (int p = 0; p < num_patches; ++p) {
     const int b = frame.patch_begin[p];
     const int e = frame.patch_begin[p + 1];
     if (b == e) continue;
     const int k = membership.countFor(p);
     if (k == 0) {
-      total += static_cast<double>(floor_log_density) * (e - b);
+      floors += static_cast<double>(floor_log_density) * (e - b);
       out.floor_hits += e - b;
       continue;
     }
     const int* members = membership.comps.data() + membership.begin[p];
     float shift = floor_log_density;
     for (int j = 0; j < k; ++j) shift = maxf(shift, eval[members[j]].log_norm);
-    const float floor_term = expNonPositive(floor_log_density - shift);
-    for (int c = b; c < e; c += kPixelChunk) {
-      const int n = std::min(kPixelChunk, e - c);
-      const float* x = frame.x_m.data() + c;
-      const float* y = frame.y_m.data() + c;
-      const float* z = frame.z_m.data() + c;
-      // Blocks of 8, 16 or 32 pixels; the padding repeats the chunk's first point.
-      const int B = n > 16 ? 32 : (n > 8 ? 16 : 8);
-      const int padded = (n + B - 1) / B * B;
-#pragma omp simd
-      for (int i = 0; i < n; ++i) {
-        wx[i] = R[0] * x[i] + R[1] * y[i] + R[2] * z[i] + t[0];
-        wy[i] = R[3] * x[i] + R[4] * y[i] + R[5] * z[i] + t[1];
-        wz[i] = R[6] * x[i] + R[7] * y[i] + R[8] * z[i] + t[2];
+    const v8f floor_term = simd::splat(expNonPositive(floor_log_density - shift));
+    const float negligible = floor_log_density - shift - kNegligibleBelowFloor;
+    shifts += static_cast<double>(shift) * (e - b);
+    out.evaluations += static_cast<long long>(k) * (e - b);
+    for (int c = b; c < e; c += kKernelPoints) {
+      const int n = std::min(kKernelPoints, e - c);
+      v8f x[2], y[2], z[2], acc[2];
+      const int vectors = n > 8 ? 2 : 1;
+      for (int v = 0; v < vectors; ++v) {
+        x[v] = simd::load(wx + c + 8 * v);
+        y[v] = simd::load(wy + c + 8 * v);
+        z[v] = simd::load(wz + c + 8 * v);
       }
-      for (int i = n; i < padded; ++i) {
-        wx[i] = wx[0];
-        wy[i] = wy[0];
-        wz[i] = wz[0];
-      }
-      if (B == 32) {
-        patchMixture<32>(eval, members, k, shift, wx, wy, wz, padded, sum);
-      } else if (B == 16) {
-        patchMixture<16>(eval, members, k, shift, wx, wy, wz, padded, sum);
+      v8i used[2];  // lanes holding this patch's pixels
+      for (int v = 0; v < vectors; ++v) used[v] = lane < simd::splati(n - 8 * v);
+      if (vectors == 2) {
+        patchMixture<2>(eval, members, k, shift, negligible, x, y, z, used, acc);
       } else {
-        patchMixture<8>(eval, members, k, shift, wx, wy, wz, padded, sum);
+        patchMixture<1>(eval, members, k, shift, negligible, x, y, z, used, acc);
       }
-      alignas(32) float lv[kPixelChunk];
-#pragma omp simd
-      for (int i = 0; i < n; ++i) lv[i] = logPositive(floor_term + sum[i]);
-      double acc = 0.0;
-      int hits = 0;
-      for (int i = 0; i < n; ++i) {
-        acc += static_cast<double>(shift + lv[i]);
-        hits += sum[i] < floor_term ? 1 : 0;  // mixture density below exp(floor)
+      for (int v = 0; v < vectors; ++v) {
+        const v8f lv =
+            simd::select(used[v], simd::logPositive8(floor_term + acc[v]), simd::splat(0.f));
+        lsum += simd::lowToDouble(lv) + simd::highToDouble(lv);
+        hits += used[v] & (acc[v] < floor_term);  // mixture density below exp(floor): -1
       }
-      total += acc;
-      out.floor_hits += hits;
-      out.evaluations += static_cast<long long>(k) * n;
     }
   }
-  out.log_likelihood = total;
+  double l = lsum[0] + lsum[1] + lsum[2] + lsum[3];
+  int h = 0;
+  for (int i = 0; i < 8; ++i) h -= hits[i];
+  out.floor_hits += h;
+  out.log_likelihood = floors + (shifts + l);
   return out;
 }
 

@@ -4,50 +4,278 @@
 #include <cmath>
 #include <sstream>
 
+#include "gmm_mcl/common/fast_math.h"
+
+#if defined(__AVX2__) && defined(__FMA__)
+#include <immintrin.h>
+#endif
+
 namespace gmm_mcl {
 namespace {
 
-// componentMayTouchGrid for m components at once, over structure-of-arrays inputs (mean x, y,
-// z and covariance trace), written as one branch-free loop that the compiler vectorises (8
-// components per AVX2 instruction). The same arithmetic as componentMayTouchGrid; the result
-// only has to be conservative (a kept component that touches no patch is dropped later).
-__attribute__((noinline)) void cullComponents(const float* __restrict mx,
-                                              const float* __restrict my,
-                                              const float* __restrict mz,
-                                              const float* __restrict trace, int m,
-                                              const RigidTransformF& T, const Intrinsics& K,
-                                              const PatchGrid& grid, float min_depth_m,
-                                              float sigma_bound, float inflate_px,
-                                              int* __restrict keep) {
-  const float r0 = T.R[0], r1 = T.R[1], r2 = T.R[2], r3 = T.R[3], r4 = T.R[4], r5 = T.R[5];
-  const float r6 = T.R[6], r7 = T.R[7], r8 = T.R[8], t0 = T.t[0], t1 = T.t[1], t2 = T.t[2];
+// projectAll is written without selects that have a constant arm or guard a computation: GCC
+// specialises such a select into a branch with the computation under one arm, cannot
+// if-convert that (a floating-point operation may trap), and leaves the whole loop scalar. Its
+// helpers (sqrtVec, maxZero, ceilInt, floorInt) are in fast_math.h.
+
+// Output of projectAll: projectComponent's results for m components, structure of arrays, plus
+// each component's clamped patch bounding box (the box computeMembership tests).
+struct ProjectedSoA {
+  float *u, *v, *cuu, *cuv, *cvv, *quu, *quv, *qvv, *hw, *hh, *depth, *margin;
+  int *ok, *col0, *col1, *row0, *row1, *exact;
+};
+
+// projectComponent for m components at once over structure-of-arrays inputs (mean x, y, z and
+// the 6 covariance entries), one branch-free loop that the compiler vectorises (8 components
+// per AVX2 instruction). The expressions are projectComponent's, in the same order, but the
+// compiler contracts multiply-adds into FMA differently in this loop than in the scalar
+// function, so the results can differ from projectComponent's in the last bits (measured: a few
+// ulp). computeMembership therefore only trusts a result far from every decision boundary:
+// exact[i] = 1 where projectComponent's outcome could differ (the mean within 1e-4 m of the near
+// limit, a bounding-box edge within tolerance of a patch-centre row or column, anything not
+// finite), and margin[i] bounds how far a patch centre's quadratic form may be from 1 before its
+// ellipse test needs projectComponent (1e-4 times a bound on the form's terms over the box).
+// ok[i] = 0 where the mean is nearer than min_depth_m (the other outputs are then meaningless).
+__attribute__((noinline)) void projectAll(const float* __restrict in, int m,
+                                          const RigidTransformF& T, const Intrinsics& K,
+                                          const PatchGrid& grid, float min_depth_m,
+                                          float sigma_bound, float inflate_px,
+                                          const ProjectedSoA& o) {
+  const float* __restrict mx = in;
+  const float* __restrict my = in + m;
+  const float* __restrict mz = in + 2 * m;
+  const float* __restrict s0 = in + 3 * m;
+  const float* __restrict s1 = in + 4 * m;
+  const float* __restrict s2 = in + 5 * m;
+  const float* __restrict s3 = in + 6 * m;
+  const float* __restrict s4 = in + 7 * m;
+  const float* __restrict s5 = in + 8 * m;
+  float* __restrict ou = o.u;
+  float* __restrict ov = o.v;
+  float* __restrict ocuu = o.cuu;
+  float* __restrict ocuv = o.cuv;
+  float* __restrict ocvv = o.cvv;
+  float* __restrict oquu = o.quu;
+  float* __restrict oquv = o.quv;
+  float* __restrict oqvv = o.qvv;
+  float* __restrict ohw = o.hw;
+  float* __restrict ohh = o.hh;
+  float* __restrict odepth = o.depth;
+  float* __restrict omargin = o.margin;
+  int* __restrict oexact = o.exact;
+  int* __restrict ook = o.ok;
+  int* __restrict oc0 = o.col0;
+  int* __restrict oc1 = o.col1;
+  int* __restrict or0 = o.row0;
+  int* __restrict or1 = o.row1;
+  float R[9], t[3];
+  for (int k = 0; k < 9; ++k) R[k] = T.R[k];
+  for (int k = 0; k < 3; ++k) t[k] = T.t[k];
   const float fx = K.fx_px, fy = K.fy_px, cx = K.cx_px, cy = K.cy_px;
-  const float near = min_depth_m - 1e-4f;
-  const float ips = 1.f / static_cast<float>(grid.patch_size_px);
-  const float c0 = 0.5f * (static_cast<float>(grid.patch_size_px) - 1.f);
-  const float last_col = static_cast<float>(grid.cols - 1);
-  const float last_row = static_cast<float>(grid.rows - 1);
+  const float ps = static_cast<float>(grid.patch_size_px);
+  const float c0 = 0.5f * (ps - 1.f);
+  const int last_col = grid.cols - 1, last_row = grid.rows - 1;
+  const float col_hi = static_cast<float>(grid.cols) + 1.f;
+  const float row_hi = static_cast<float>(grid.rows) + 1.f;
 #pragma omp simd
   for (int i = 0; i < m; ++i) {
-    const float x = r0 * mx[i] + r1 * my[i] + r2 * mz[i] + t0;
-    const float y = r3 * mx[i] + r4 * my[i] + r5 * mz[i] + t1;
-    const float z = r6 * mx[i] + r7 * my[i] + r8 * mz[i] + t2;
-    const bool in_front = z >= near;
-    const float zs = in_front ? z : 1.f;  // no division by zero or a negative depth
-    const float iz = 1.f / zs;
-    const float iz2 = iz * iz;
-    const float jf2 = fx * fx * iz2 * (1.f + x * x * iz2) + fy * fy * iz2 * (1.f + y * y * iz2);
-    const float r = (sigma_bound * std::sqrt(jf2 * trace[i]) + inflate_px) * 1.01f + 1.f;
-    const float u = cx + fx * x * iz;
-    const float v = cy + fy * y * iz;
-    const float col0 = std::ceil((u - r - c0) * ips), col1 = std::floor((u + r - c0) * ips);
-    const float row0 = std::ceil((v - r - c0) * ips), row1 = std::floor((v + r - c0) * ips);
-    keep[i] = (in_front && col0 <= col1 && col0 <= last_col && col1 >= 0.f && row0 <= row1 &&
-               row0 <= last_row && row1 >= 0.f)
-                  ? 1
-                  : 0;
+    const float p[3] = {mx[i], my[i], mz[i]};
+    const float S[6] = {s0[i], s1[i], s2[i], s3[i], s4[i], s5[i]};
+    float mm[3];
+    mm[0] = R[0] * p[0] + R[1] * p[1] + R[2] * p[2] + t[0];
+    mm[1] = R[3] * p[0] + R[4] * p[1] + R[5] * p[2] + t[1];
+    mm[2] = R[6] * p[0] + R[7] * p[1] + R[8] * p[2] + t[2];
+    const float z_raw = mm[2];
+    const bool ok = mm[2] >= min_depth_m;  // else the results are not used
+    float A[9];
+    for (int r = 0; r < 3; ++r) {
+      const float r0 = R[r * 3 + 0], r1 = R[r * 3 + 1], r2 = R[r * 3 + 2];
+      A[r * 3 + 0] = r0 * S[0] + r1 * S[1] + r2 * S[2];
+      A[r * 3 + 1] = r0 * S[1] + r1 * S[3] + r2 * S[4];
+      A[r * 3 + 2] = r0 * S[2] + r1 * S[4] + r2 * S[5];
+    }
+    float C[6];
+    C[0] = A[0] * R[0] + A[1] * R[1] + A[2] * R[2];
+    C[1] = A[0] * R[3] + A[1] * R[4] + A[2] * R[5];
+    C[2] = A[0] * R[6] + A[1] * R[7] + A[2] * R[8];
+    C[3] = A[3] * R[3] + A[4] * R[4] + A[5] * R[5];
+    C[4] = A[3] * R[6] + A[4] * R[7] + A[5] * R[8];
+    C[5] = A[6] * R[6] + A[7] * R[7] + A[8] * R[8];
+    const float iz = 1.f / mm[2];
+    const float j00 = fx * iz, j02 = -fx * mm[0] * iz * iz;
+    const float j11 = fy * iz, j12 = -fy * mm[1] * iz * iz;
+    const float suu = j00 * j00 * C[0] + 2.f * j00 * j02 * C[2] + j02 * j02 * C[5];
+    const float suv = j00 * j11 * C[1] + j00 * j12 * C[2] + j02 * j11 * C[4] + j02 * j12 * C[5];
+    const float svv = j11 * j11 * C[3] + 2.f * j11 * j12 * C[4] + j12 * j12 * C[5];
+    const float u = cx + fx * mm[0] * iz;
+    const float v = cy + fy * mm[1] * iz;
+    const float half_tr = 0.5f * (suu + svv);
+    const float diff = 0.5f * (suu - svv);
+    const float rad = sqrtVec(diff * diff + suv * suv);
+    const float l1p = half_tr + rad, l2p = half_tr - rad;
+    const float l1 = maxZero(l1p);
+    const float l2 = maxZero(l2p);
+    // projectComponent's rad > 0 branch; rad <= 1e-20 (or NaN) is flagged for it below.
+    const float h = 0.5f / rad;
+    const float cu2 = (rad + diff) * h;
+    const float cv2 = (rad - diff) * h;
+    const float cuv = suv * h;
+    const float a = sigma_bound * sqrtVec(l1) + inflate_px;
+    const float b = sigma_bound * sqrtVec(l2) + inflate_px;
+    const float ia2 = 1.f / (a * a), ib2 = 1.f / (b * b);
+    const float hw = sqrtVec(a * a * cu2 + b * b * cv2);
+    const float hh = sqrtVec(a * a * cv2 + b * b * cu2);
+    ou[i] = u;
+    ov[i] = v;
+    ocuu[i] = suu;
+    ocuv[i] = suv;
+    ocvv[i] = svv;
+    odepth[i] = mm[2];
+    const float quu = cu2 * ia2 + cv2 * ib2;
+    const float qvv = cv2 * ia2 + cu2 * ib2;
+    oquu[i] = quu;
+    oquv[i] = cuv * (ia2 - ib2);
+    oqvv[i] = qvv;
+    ohw[i] = hw;
+    ohh[i] = hh;
+    ook[i] = ok ? 1 : 0;
+    const float x0 = (u - hw - c0) / ps, x1 = (u + hw - c0) / ps;
+    const float y0 = (v - hh - c0) / ps, y1 = (v + hh - c0) / ps;
+    const int col0 = ceilInt(x0);
+    const int col1 = floorInt(x1);
+    const int row0 = ceilInt(y0);
+    const int row1 = floorInt(y1);
+    // A box edge decides differently from projectComponent's only if a patch-centre index lies
+    // between the two results; outside [-2, cols + 1] the clamping makes both boxes the same.
+    const float tol_u = 1e-4f + 1e-5f * (std::fabs(u) + hw) / ps;
+    const float tol_v = 1e-4f + 1e-5f * (std::fabs(v) + hh) / ps;
+    // (Bitwise & and | instead of && and ||: no control flow, which blocks vectorisation.)
+    const int near_x0 = (!(std::fabs(x0 - rintf(x0)) > tol_u)) & (x0 >= -2.f) & (x0 <= col_hi);
+    const int near_x1 = (!(std::fabs(x1 - rintf(x1)) > tol_u)) & (x1 >= -2.f) & (x1 <= col_hi);
+    const int near_y0 = (!(std::fabs(y0 - rintf(y0)) > tol_v)) & (y0 >= -2.f) & (y0 <= row_hi);
+    const int near_y1 = (!(std::fabs(y1 - rintf(y1)) > tol_v)) & (y1 >= -2.f) & (y1 <= row_hi);
+    const int near_z = !(std::fabs(z_raw - min_depth_m) > 1e-4f);
+    const int finite = (std::fabs(u) < 1e30f) & (std::fabs(v) < 1e30f) & (hw < 1e30f) &
+                       (hh < 1e30f);  // 0 for NaN
+    const int round = !(rad > 1e-20f);
+    oexact[i] = (static_cast<int>(ok) & (near_x0 | near_x1 | near_y0 | near_y1 | round |
+                                          (finite ^ 1))) |
+                near_z;
+    // |form - projectComponent's form| <= few ulp * (q_uu + q_vv)(du^2 + dv^2) for every patch
+    // centre of the box (|du| <= hw + ps, |dv| <= hh + ps).
+    const float ew = hw + ps, eh = hh + ps;
+    omargin[i] = 1e-4f * (1.f + (quu + qvv) * (ew * ew + eh * eh));
+    oc0[i] = col0 > 0 ? col0 : 0;
+    oc1[i] = col1 < last_col ? col1 : last_col;
+    or0[i] = row0 > 0 ? row0 : 0;
+    or1[i] = row1 < last_row ? row1 : last_row;
   }
 }
+
+// The patches of one component's box whose centre lies in its ellipse: ellipseContains with its
+// contraction written out (the same bits as the compiled ellipseContains: with FMA,
+// fma(du, q_uu du, 2 q_uv du dv), then fma(dv, q_vv dv, .); without, as written), without a
+// branch per test (the outcome is hard to
+// predict): every tested patch is written at hp[hits], hits advances by the outcome and
+// count[patch] by the same. Returns true when some centre's form is within `margin` of 1 (or
+// not a number): then the outcome may depend on the last bits of the projection. margin < 0:
+// no check.
+inline bool testBox(const PatchGrid& grid, int col0, int col1, int row0, int row1, float pu,
+                    float pv, float quu, float quv, float qvv, float margin, int* __restrict hp,
+                    size_t* hits_io, int* __restrict count) {
+  const float ps = static_cast<float>(grid.patch_size_px);
+  const float q2uv = 2.f * quv;
+  size_t hits = *hits_io;
+  bool near = false;
+  // Patch centres are integers + 0.5 (or integers): exact in float, so stepping by the patch
+  // size gives the same values as centreU(c) / centreV(r).
+  float v = grid.centreV(row0);
+  const float u0 = grid.centreU(col0);
+  for (int r = row0; r <= row1; ++r, v += ps) {
+    const float dv = v - pv;
+    const float dvv = qvv * dv;
+    float u = u0;
+    int patch = r * grid.cols + col0;
+    for (int c = col0; c <= col1; ++c, u += ps, ++patch) {
+      const float du = u - pu;
+#if defined(__FMA__)
+      const float s = fmaf(dv, dvv, fmaf(du, quu * du, q2uv * du * dv));
+#else  // no FMA: ellipseContains as written
+      const float s = (du * (quu * du) + q2uv * du * dv) + dv * dvv;
+#endif
+      const int in_ellipse = s <= 1.f ? 1 : 0;
+      near |= !(std::fabs(s - 1.f) > margin);
+      hp[hits] = patch;
+      count[patch] += in_ellipse;
+      hits += static_cast<size_t>(in_ellipse);
+    }
+  }
+  *hits_io = hits;
+  return near;
+}
+
+#if defined(__AVX2__) && defined(__FMA__)
+// testBox (with the margin check) 8 patch centres of a row at a time, AVX2: the same form and
+// FMA arithmetic per centre, lane by lane. The centres inside form a run of the row's patches
+// (the ellipse is convex; a mask that is not one run, only conceivable through rounding, takes
+// the per-bit path): one store of 8 patch indices at hp[hits] and one masked add to count
+// (hp needs 8 entries of slack past the box's cells, count 8 past the last patch).
+inline bool testBoxVec(const PatchGrid& grid, int col0, int col1, int row0, int row1, float pu,
+                       float pv, float quu, float quv, float qvv, float margin,
+                       int* __restrict hp, size_t* hits_io, int* __restrict count) {
+  const float ps = static_cast<float>(grid.patch_size_px);
+  const __m256 lane = _mm256_setr_ps(0.f, 1.f, 2.f, 3.f, 4.f, 5.f, 6.f, 7.f);
+  const __m256i lane_i = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256 vps = _mm256_set1_ps(ps);
+  const __m256 vquu = _mm256_set1_ps(quu), vq2uv = _mm256_set1_ps(2.f * quv);
+  const __m256 one = _mm256_set1_ps(1.f), vmargin = _mm256_set1_ps(margin);
+  const __m256 abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
+  size_t hits = *hits_io;
+  __m256 near = _mm256_setzero_ps();
+  float v = grid.centreV(row0);
+  for (int r = row0; r <= row1; ++r, v += ps) {
+    const float dv = v - pv;
+    const __m256 vdv = _mm256_set1_ps(dv), vdvv = _mm256_set1_ps(qvv * dv);
+    const int row_base = r * grid.cols;
+    for (int c = col0; c <= col1; c += 8) {
+      const int ncols = col1 - c + 1 < 8 ? col1 - c + 1 : 8;
+      const __m256i live_i = _mm256_cmpgt_epi32(_mm256_set1_epi32(ncols), lane_i);
+      const __m256 live = _mm256_castsi256_ps(live_i);
+      // Centres c, c + 1, ...: integers + 0.5 (or integers), exact.
+      const __m256 u = _mm256_fmadd_ps(lane, vps, _mm256_set1_ps(grid.centreU(c)));
+      const __m256 du = _mm256_sub_ps(u, _mm256_set1_ps(pu));
+      const __m256 t = _mm256_mul_ps(_mm256_mul_ps(vq2uv, du), vdv);
+      const __m256 s = _mm256_fmadd_ps(vdv, vdvv, _mm256_fmadd_ps(du, _mm256_mul_ps(vquu, du), t));
+      const __m256 in = _mm256_and_ps(_mm256_cmp_ps(s, one, _CMP_LE_OQ), live);
+      const __m256 dist = _mm256_and_ps(_mm256_sub_ps(s, one), abs_mask);
+      near = _mm256_or_ps(near, _mm256_and_ps(_mm256_cmp_ps(dist, vmargin, _CMP_NGT_UQ), live));
+      unsigned bits = static_cast<unsigned>(_mm256_movemask_ps(in));
+      if (bits == 0) continue;
+      const int first = __builtin_ctz(bits);
+      const unsigned run = bits >> first;
+      const int patch0 = row_base + c + first;
+      if ((run & (run + 1)) == 0) {  // one run of len patches from patch0
+        const int len = __builtin_popcount(run);
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(hp + hits),
+                            _mm256_add_epi32(_mm256_set1_epi32(patch0), lane_i));
+        __m256i* cp = reinterpret_cast<__m256i*>(count + patch0);
+        const __m256i add = _mm256_srli_epi32(
+            _mm256_cmpgt_epi32(_mm256_set1_epi32(len), lane_i), 31);  // 1 in the first len lanes
+        _mm256_storeu_si256(cp, _mm256_add_epi32(_mm256_loadu_si256(cp), add));
+        hits += static_cast<size_t>(len);
+      } else {
+        for (unsigned b = bits; b != 0; b &= b - 1) {
+          const int patch = row_base + c + __builtin_ctz(b);
+          hp[hits++] = patch;
+          ++count[patch];
+        }
+      }
+    }
+  }
+  *hits_io = hits;
+  return _mm256_movemask_ps(near) != 0;
+}
+#endif
 
 }  // namespace
 
@@ -75,67 +303,117 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
   const float ps = static_cast<float>(grid.patch_size_px);
   const float c0 = 0.5f * (ps - 1.f);  // centre of patch 0
   projected->resize(m);
-  valid->resize(m);
+  valid->assign(m, 0);
   out->begin.assign(num_patches + 1, 0);
-  // Pass 1: project, and count candidates per patch. Components that cannot touch any patch
-  // (cullComponents, the vectorised componentMayTouchGrid, conservative: the same table as
-  // without it) skip the projection.
-  // (patch, component) pairs found in pass 1, in component order, so pass 2 need not test again.
-  static thread_local std::vector<int> pairs;
+  // Per-thread buffers, reused across calls (no allocation once warm).
+  static thread_local std::vector<float> soa_in;   // mean x, y, z, covariance 0..5: [9][m]
+  static thread_local std::vector<float> soa_f;    // ProjectedSoA floats: [12][m]
+  static thread_local std::vector<int> soa_i;      // ProjectedSoA ints: [6][m]
+  static thread_local std::vector<int> hit_patch;  // pass 1's patches, in component order
+  static thread_local std::vector<int> run_begin;  // [m + 1]: component i's run in hit_patch
   static thread_local std::vector<int> cursor;
-  pairs.clear();
-  static thread_local std::vector<float> soa;  // mean x, y, z, trace: [4][m]
-  static thread_local std::vector<int> keep;
-  soa.resize(4 * static_cast<size_t>(m));
-  keep.resize(m);
+  const size_t ms = static_cast<size_t>(m);
+  soa_in.resize(9 * ms);
+  soa_f.resize(12 * ms);
+  soa_i.resize(6 * ms);
+  run_begin.resize(ms + 1);
+  float* in = soa_in.data();
   for (int i = 0; i < m; ++i) {
     const ComponentF& c = components[i];
-    soa[i] = c.mean_m[0];
-    soa[m + i] = c.mean_m[1];
-    soa[2 * m + i] = c.mean_m[2];
-    soa[3 * m + i] = c.cov_m2[0] + c.cov_m2[3] + c.cov_m2[5];
+    in[i] = c.mean_m[0];
+    in[m + i] = c.mean_m[1];
+    in[2 * m + i] = c.mean_m[2];
+    for (int k = 0; k < 6; ++k) in[(3 + k) * ms + i] = c.cov_m2[k];
   }
-  cullComponents(soa.data(), soa.data() + m, soa.data() + 2 * m, soa.data() + 3 * m, m,
-                 T_cam_map, K, grid, params.min_component_depth_m, params.sigma_bound, inflate,
-                 keep.data());
+  float* f = soa_f.data();
+  int* n = soa_i.data();
+  const ProjectedSoA P = {f,           f + ms,      f + 2 * ms, f + 3 * ms, f + 4 * ms,
+                          f + 5 * ms,  f + 6 * ms,  f + 7 * ms, f + 8 * ms, f + 9 * ms,
+                          f + 10 * ms, f + 11 * ms, n,          n + ms,     n + 2 * ms,
+                          n + 3 * ms,  n + 4 * ms,  n + 5 * ms};
+  projectAll(in, m, T_cam_map, K, grid, params.min_component_depth_m, params.sigma_bound, inflate,
+             P);
+  // Pass 1: per component (ascending), the patches whose centre lies in its inflated ellipse,
+  // from the vectorised projection; where that could decide differently from projectComponent
+  // (P.exact, or a centre within P.margin of the ellipse), the component is redone with
+  // projectComponent, so that the table is the brute-force reference's exactly.
+  // Patches per patch, 8 entries of slack for testBoxVec's masked add.
+  static thread_local std::vector<int> counts;
+  counts.assign(static_cast<size_t>(num_patches) + 8, 0);
+  int* count = counts.data();
+  size_t hits = 0;
   for (int i = 0; i < m; ++i) {
-    ProjectedComponent& p = (*projected)[i];
-    if (!keep[i]) {
-      (*valid)[i] = 0;
-      continue;
-    }
-    (*valid)[i] = projectComponent(components[i], T_cam_map, K, params.min_component_depth_m,
-                                   params.sigma_bound, inflate, &p);
-    if (!(*valid)[i]) continue;
-    const int col0 = std::max(0, static_cast<int>(std::ceil((p.u_px - p.half_w_px - c0) / ps)));
-    const int col1 = std::min(grid.cols - 1,
-                              static_cast<int>(std::floor((p.u_px + p.half_w_px - c0) / ps)));
-    const int row0 = std::max(0, static_cast<int>(std::ceil((p.v_px - p.half_h_px - c0) / ps)));
-    const int row1 = std::min(grid.rows - 1,
-                              static_cast<int>(std::floor((p.v_px + p.half_h_px - c0) / ps)));
-    bool any = false;
-    // Patch centres are integers + 0.5 (or integers): exact in float, so stepping by the patch
-    // size gives the same values as centreU(c) / centreV(r) without a conversion per test.
-    float v = grid.centreV(row0);
-    for (int r = row0; r <= row1; ++r, v += ps) {
-      float u = grid.centreU(col0);
-      for (int c = col0; c <= col1; ++c, u += ps) {
-        if (ellipseContains(p, u, v)) {
-          const int patch = r * grid.cols + c;
-          ++out->begin[patch + 1];
-          pairs.push_back(patch);
-          pairs.push_back(i);
-          any = true;
-        }
+    run_begin[i] = static_cast<int>(hits);
+    const bool exact = P.exact[i] != 0;
+    const int col0 = P.col0[i], col1 = P.col1[i], row0 = P.row0[i], row1 = P.row1[i];
+    if (!exact && (!P.ok[i] || col0 > col1 || row0 > row1)) continue;
+    const size_t first = hits;
+    bool redo = exact;
+    if (!exact) {
+      const size_t cells = static_cast<size_t>(row1 - row0 + 1) * (col1 - col0 + 1) + 8;
+      if (hit_patch.size() < hits + cells) hit_patch.resize(2 * (hits + cells));
+#if defined(__AVX2__) && defined(__FMA__)
+      redo = testBoxVec(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i], P.quv[i],
+                        P.qvv[i], P.margin[i], hit_patch.data(), &hits, count);
+#else
+      redo = testBox(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i], P.quv[i], P.qvv[i],
+                     P.margin[i], hit_patch.data(), &hits, count);
+#endif
+      if (redo) {  // undo this component's hits
+        for (size_t k = first; k < hits; ++k) --count[hit_patch[k]];
+        hits = first;
       }
     }
-    if (!any) (*valid)[i] = 0;
+    ProjectedComponent& p = (*projected)[i];
+    if (redo) {
+      if (!projectComponent(components[i], T_cam_map, K, params.min_component_depth_m,
+                            params.sigma_bound, inflate, &p)) {
+        continue;
+      }
+      const int e_col0 =
+          std::max(0, static_cast<int>(std::ceil((p.u_px - p.half_w_px - c0) / ps)));
+      const int e_col1 = std::min(grid.cols - 1,
+                                  static_cast<int>(std::floor((p.u_px + p.half_w_px - c0) / ps)));
+      const int e_row0 =
+          std::max(0, static_cast<int>(std::ceil((p.v_px - p.half_h_px - c0) / ps)));
+      const int e_row1 = std::min(grid.rows - 1,
+                                  static_cast<int>(std::floor((p.v_px + p.half_h_px - c0) / ps)));
+      if (e_col0 > e_col1 || e_row0 > e_row1) continue;
+      const size_t cells = static_cast<size_t>(e_row1 - e_row0 + 1) * (e_col1 - e_col0 + 1);
+      if (hit_patch.size() < hits + cells) hit_patch.resize(2 * (hits + cells));
+      testBox(grid, e_col0, e_col1, e_row0, e_row1, p.u_px, p.v_px, p.q_uu, p.q_uv, p.q_vv, -1.f,
+              hit_patch.data(), &hits, count);
+      if (hits == first) continue;
+    } else {
+      if (hits == first) continue;
+      // projectComponent's result to within float rounding (scratch output).
+      p.u_px = P.u[i];
+      p.v_px = P.v[i];
+      p.cov_uu = P.cuu[i];
+      p.cov_uv = P.cuv[i];
+      p.cov_vv = P.cvv[i];
+      p.q_uu = P.quu[i];
+      p.q_uv = P.quv[i];
+      p.q_vv = P.qvv[i];
+      p.half_w_px = P.hw[i];
+      p.half_h_px = P.hh[i];
+      p.depth_m = P.depth[i];
+    }
+    (*valid)[i] = 1;
   }
-  for (int p = 0; p < num_patches; ++p) out->begin[p + 1] += out->begin[p];
+  run_begin[m] = static_cast<int>(hits);
+  for (int p = 0; p < num_patches; ++p) out->begin[p + 1] = out->begin[p] + count[p];
   out->comps.resize(out->begin[num_patches]);
-  // Pass 2: scatter the pairs of pass 1 (components ascending within each patch).
+  // Pass 2: scatter the runs of pass 1 (components ascending within each patch).
   cursor.assign(out->begin.begin(), out->begin.end() - 1);
-  for (size_t k = 0; k < pairs.size(); k += 2) out->comps[cursor[pairs[k]]++] = pairs[k + 1];
+  int* __restrict cur = cursor.data();
+  int* __restrict dst = out->comps.data();
+  const int* __restrict hp = hit_patch.data();
+  const int* __restrict rb = run_begin.data();
+  for (int i = 0; i < m; ++i) {
+    const int end = rb[i + 1];
+    for (int k = rb[i]; k < end; ++k) dst[cur[hp[k]]++] = i;
+  }
 }
 
 void computeMembershipBruteForce(const std::vector<ComponentF>& components,

@@ -8,6 +8,7 @@
 
 #include "gmm_mcl/common/fast_math.h"
 #include "gmm_mcl/filter/pose.h"
+#include "gmm_mcl/measurement/cpu_simd.h"
 #include "gmm_mcl/measurement/likelihood.h"
 #include "test_utils/synthetic_fixtures.h"
 
@@ -132,6 +133,41 @@ TEST(LikelihoodTest, FastExpIsAccurate) {
   EXPECT_LT(worst, 3e-7);
   EXPECT_GT(expNonPositive(-1000.f), 0.f);
   EXPECT_EQ(expNonPositive(0.f), 1.f);
+}
+
+// The CPU kernel's 8-lane exp and ln (cpu_simd.h).
+TEST(LikelihoodTest, VectorExpAndLogAreAccurate) {
+  double worst_exp = 0.0;
+  for (float x0 = -87.f; x0 <= 0.f; x0 += 8 * 0.00137f) {
+    alignas(32) float in[8], out[8];
+    for (int i = 0; i < 8; ++i) in[i] = std::min(0.f, x0 + i * 0.00137f);
+    simd::store(out, simd::expNonPositive8(simd::load(in)));
+    for (int i = 0; i < 8; ++i) {
+      const double ref = std::exp(static_cast<double>(in[i]));
+      worst_exp = std::max(worst_exp, std::abs(out[i] - ref) / ref);
+    }
+  }
+  double worst_log = 0.0;
+  int differ = 0;
+  for (double lx = -85.0; lx <= 85.0; lx += 8 * 0.00037) {
+    alignas(32) float in[8], out[8];
+    for (int i = 0; i < 8; ++i) in[i] = static_cast<float>(std::exp(lx + i * 0.00037));
+    simd::store(out, simd::logPositive8(simd::load(in)));
+    for (int i = 0; i < 8; ++i) {
+      const double ref = std::log(static_cast<double>(in[i]));
+      worst_log = std::max(worst_log, std::abs(out[i] - ref) / std::max(1.0, std::abs(ref)));
+      differ += out[i] != logPositive(in[i]) ? 1 : 0;
+    }
+  }
+  std::printf("[ measured ] expNonPositive8: worst relative error %.2e on [-87, 0]; logPositive8: "
+              "worst error / max(1, |ln x|) %.2e, %d values differ from logPositive\n",
+              worst_exp, worst_log, differ);
+  EXPECT_LT(worst_exp, 3e-7);
+  EXPECT_LT(worst_log, 1e-7);
+  alignas(32) float big[8] = {-1000.f, -88.f, -87.f, 0.f, -1e30f, -0.f, -1e-30f, -50.f}, e[8];
+  simd::store(e, simd::expNonPositive8(simd::load(big)));
+  for (int i = 0; i < 8; ++i) EXPECT_GT(e[i], 0.f) << big[i];
+  EXPECT_EQ(e[3], 1.f);
 }
 
 }  // namespace

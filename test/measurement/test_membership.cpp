@@ -1,5 +1,10 @@
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+#include "gmm_mcl/common/fast_math.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/measurement/likelihood.h"
 #include "test_utils/synthetic_fixtures.h"
@@ -27,6 +32,57 @@ TEST(MembershipTest, FastTableEqualsBruteForce) {
       EXPECT_EQ(fast.begin, brute.begin);
       EXPECT_EQ(fast.comps, brute.comps);
       EXPECT_GT(fast.comps.size(), 0u);
+    }
+  }
+}
+
+// Many random poses (positions and all three angles), so that some patch centres fall within
+// float rounding of an ellipse or a box edge: computeMembership's vectorised projection then
+// defers to projectComponent, and the table must still be the brute-force one exactly.
+TEST(MembershipTest, FastTableEqualsBruteForceAtRandomPoses) {
+  const auto& w = test::world();
+  FrameParams fp;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> pos(-1.0, 1.0), ang(-3.14159, 3.14159);
+  const Intrinsics K = test::vgaCamera();
+  const PatchGrid grid = PatchGrid::forImage(K.width_px, K.height_px, fp.patch_size_px);
+  size_t pairs = 0;
+  for (int k = 0; k < 100; ++k) {
+    Eigen::Isometry3d T = test::referenceBasePose();
+    T.linear() = rotationFromRpy(0.3 * ang(rng), 0.3 * ang(rng), ang(rng));
+    T.translation() += Eigen::Vector3d(pos(rng), pos(rng), 0.3 * pos(rng));
+    const RigidTransformF T_cam_map = toRigidF((T * w.T_base_cam).inverse());
+    PatchMembership fast, brute;
+    std::vector<ProjectedComponent> proj;
+    std::vector<char> valid;
+    computeMembership(w.map.packed(), T_cam_map, K, grid, MeasurementParams(), &proj, &valid, &fast);
+    computeMembershipBruteForce(w.map.packed(), T_cam_map, K, grid, MeasurementParams(), &brute);
+    ASSERT_EQ(fast.begin, brute.begin) << k;
+    ASSERT_EQ(fast.comps, brute.comps) << k;
+    pairs += fast.comps.size();
+  }
+  std::printf("[ measured ] 100 random poses: %zu (patch, component) pairs, all as brute force\n",
+              pairs);
+}
+
+// The vectorisable helpers of the membership projection (fast_math.h).
+TEST(MembershipTest, VectorisableHelpersMatchLibm) {
+  int worst_ulp = 0;
+  for (double lx = -20.0; lx <= 30.0; lx += 0.0007) {
+    const float x = static_cast<float>(std::pow(10.0, lx));
+    worst_ulp = std::max(worst_ulp, std::abs(floatToBits(sqrtVec(x)) - floatToBits(sqrtf(x))));
+  }
+  std::printf("[ measured ] sqrtVec: worst %d ulp from sqrtf on [1e-20, 1e30]\n", worst_ulp);
+  EXPECT_LE(worst_ulp, 4);
+  EXPECT_EQ(sqrtVec(0.f), 0.f);
+  EXPECT_TRUE(std::isnan(sqrtVec(std::nanf(""))));
+  EXPECT_EQ(maxZero(-3.f), 0.f);
+  EXPECT_EQ(maxZero(2.5f), 2.5f);
+  for (float x = -70.f; x <= 70.f; x += 0.125f) {
+    for (float d : {0.f, 1e-6f, -1e-6f}) {
+      const float y = x + d;
+      EXPECT_EQ(ceilInt(y), static_cast<int>(std::ceil(y))) << y;
+      EXPECT_EQ(floorInt(y), static_cast<int>(std::floor(y))) << y;
     }
   }
 }

@@ -95,4 +95,39 @@ GMM_MCL_HD float logPositive(float x) {
   return (m + y) + 0.693359375f * fe;
 }
 
+// Helpers for loops that GCC must vectorise (membership.cpp's projectAll): plain arithmetic,
+// no select that guards a computation.
+
+// sqrt(x) for x >= 0 (or NaN) in plain arithmetic that the compiler vectorises (sqrtf does not:
+// it may set errno): the bit-trick reciprocal square root of x + 1e-30, three Newton steps,
+// then one Newton correction of x * rsqrt. Within a few ulp of sqrtf for x >= 1e-20
+// (test_membership checks it), 0 for 0, NaN for NaN.
+GMM_MCL_HD float sqrtVec(float x) {
+  const float xs = x + 1e-30f;
+  float y = bitsToFloat(0x5f375a86 - (floatToBits(xs) >> 1));
+  y = y * (1.5f - 0.5f * xs * y * y);
+  y = y * (1.5f - 0.5f * xs * y * y);
+  y = y * (1.5f - 0.5f * xs * y * y);
+  const float r = x * y;
+  return r + 0.5f * y * (x - r * r);
+}
+
+// max(x, 0) by the sign bit (+0 for -0; NaN stays NaN, where fmaxf(NaN, 0) gives 0: projectAll
+// flags non-finite results for projectComponent).
+GMM_MCL_HD float maxZero(float x) {
+  const int32_t b = floatToBits(x);
+  return bitsToFloat(b & ~(b >> 31));
+}
+
+// (int)ceil(x) and (int)floor(x) through rint (ceilf and floorf do not vectorise without
+// -fno-trapping-math), the correction in integers: the same values for every float.
+GMM_MCL_HD int ceilInt(float x) {
+  const float r = rintf(x);
+  return static_cast<int>(r) + (r < x ? 1 : 0);
+}
+GMM_MCL_HD int floorInt(float x) {
+  const float r = rintf(x);
+  return static_cast<int>(r) - (r > x ? 1 : 0);
+}
+
 }  // namespace gmm_mcl

@@ -28,9 +28,6 @@ struct LikelihoodScratch {
   std::vector<EvalComponentF> eval;  // evaluation form of the components (nats)
 };
 
-// Pixels evaluated together in the CPU kernel (one chunk of a patch).
-constexpr int kPixelChunk = 64;
-
 // The components in the CPU kernel's evaluation form (nats); `out` is resized.
 void makeEvalComponents(const std::vector<ComponentF>& components,
                         std::vector<EvalComponentF>* out);
