@@ -141,10 +141,13 @@ __attribute__((noinline)) void projectAll(const float* __restrict in, int m,
     ook[i] = ok ? 1 : 0;
     const float x0 = (u - hw - c0) / ps, x1 = (u + hw - c0) / ps;
     const float y0 = (v - hh - c0) / ps, y1 = (v + hh - c0) / ps;
-    const int col0 = ceilInt(x0);
-    const int col1 = floorInt(x1);
-    const int row0 = ceilInt(y0);
-    const int row1 = floorInt(y1);
+    // The indices only matter inside [-2, cols + 1] (they are clamped to the grid below): bound
+    // them first, NaN included, so that no float outside int's range is converted (undefined
+    // behaviour, UBSan). Both bounds give the same clamped box as the unbounded values would.
+    const int col0 = ceilInt(clampTo(x0, -4.f, col_hi + 2.f));
+    const int col1 = floorInt(clampTo(x1, -4.f, col_hi + 2.f));
+    const int row0 = ceilInt(clampTo(y0, -4.f, row_hi + 2.f));
+    const int row1 = floorInt(clampTo(y1, -4.f, row_hi + 2.f));
     // A box edge decides differently from projectComponent's only if a patch-centre index lies
     // between the two results; outside [-2, cols + 1] the clamping makes both boxes the same.
     const float tol_u = 1e-4f + 1e-5f * (std::fabs(u) + hw) / ps;

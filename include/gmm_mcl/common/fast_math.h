@@ -119,6 +119,12 @@ GMM_MCL_HD float maxZero(float x) {
   return bitsToFloat(b & ~(b >> 31));
 }
 
+// x limited to [lo, hi], NaN to lo (comparisons, no call: vectorises).
+GMM_MCL_HD float clampTo(float x, float lo, float hi) {
+  const float a = x > lo ? x : lo;  // false for NaN
+  return a < hi ? a : hi;
+}
+
 // (int)ceil(x) and (int)floor(x) through rint (ceilf and floorf do not vectorise without
 // -fno-trapping-math), the correction in integers: the same values for every float.
 GMM_MCL_HD int ceilInt(float x) {
