@@ -201,9 +201,9 @@ inline bool testBox(const PatchGrid& grid, int col0, int col1, int row0, int row
     int patch = r * grid.cols + col0;
     for (int c = col0; c <= col1; ++c, u += ps, ++patch) {
       const float du = u - pu;
-#if defined(__FMA__)
+#if defined(GMM_MCL_EXPLICIT_FMA)  // ellipseContains' order, bit for bit
       const float s = fmaf(dv, dvv, fmaf(du, quu * du, q2uv * du * dv));
-#else  // no FMA: ellipseContains as written
+#else  // no FMA: ellipseContains' order without fusing
       const float s = (du * (quu * du) + q2uv * du * dv) + dv * dvv;
 #endif
       const int in_ellipse = s <= 1.f ? 1 : 0;

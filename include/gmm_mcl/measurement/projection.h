@@ -4,6 +4,7 @@
 
 #include <math.h>
 
+#include "gmm_mcl/common/host_device.h"
 #include "gmm_mcl/common/types.h"
 
 namespace gmm_mcl {
@@ -117,11 +118,20 @@ GMM_MCL_HD bool componentMayTouchGrid(const ComponentF& c, const RigidTransformF
          row0 <= static_cast<float>(rows - 1) && row1 >= 0.f;
 }
 
-// True when pixel point (u, v) lies within or on the inflated ellipse.
+// True when pixel point (u, v) lies within or on the inflated ellipse. The quadratic form is
+// evaluated in one fixed order (explicit FMAs where they are single instructions, none
+// elsewhere), so that the result does not depend on how a compiler contracts it: the CPU
+// membership's vectorised tests (membership.cpp) reproduce it bit for bit.
 GMM_MCL_HD bool ellipseContains(const ProjectedComponent& p, float u, float v) {
   const float du = u - p.u_px;
   const float dv = v - p.v_px;
-  return p.q_uu * du * du + 2.f * p.q_uv * du * dv + p.q_vv * dv * dv <= 1.f;
+  const float cross = 2.f * p.q_uv * du * dv;
+#if defined(GMM_MCL_EXPLICIT_FMA)
+  const float s = fmaf(dv, p.q_vv * dv, fmaf(du, p.q_uu * du, cross));
+#else
+  const float s = (du * (p.q_uu * du) + cross) + dv * (p.q_vv * dv);
+#endif
+  return s <= 1.f;
 }
 
 }  // namespace gmm_mcl
