@@ -67,6 +67,25 @@ GMM_MCL_HD float expNonPositive(float x) {
   return y * bitsToFloat((static_cast<int32_t>(n) + 127) << 23);
 }
 
+// ln(2^fe (1 + m)) for m in [-0.29, 0.41): the polynomial and assembly of logPositive, for a
+// float or an 8-lane vector (cpu_simd.h's logPositive8: the same arithmetic, lane by lane).
+template <typename T>
+GMM_MCL_HD T logFromReduced(T m, T fe) {
+  const T z = m * m;
+  T y = m * 7.0376836292e-2f - 1.1514610310e-1f;
+  y = y * m + 1.1676998740e-1f;
+  y = y * m - 1.2420140846e-1f;
+  y = y * m + 1.4249322787e-1f;
+  y = y * m - 1.6668057665e-1f;
+  y = y * m + 2.0000714765e-1f;
+  y = y * m - 2.4999993993e-1f;
+  y = y * m + 3.3333331174e-1f;
+  y = y * m * z;
+  y += -2.12194440e-4f * fe;
+  y += -0.5f * z;
+  return (m + y) + 0.693359375f * fe;
+}
+
 // ln(x) for positive normal finite x, as plain arithmetic that the compiler vectorises (the CPU
 // kernel's per-pixel log). Cephes-style: x = m 2^e with m in [sqrt(1/2), sqrt(2)), a degree-9
 // polynomial in m - 1, ln 2 split in two parts; error below 1e-7 max(1, |ln x|) for x in
@@ -78,21 +97,7 @@ GMM_MCL_HD float logPositive(float x) {
   const bool low = m < 0.70710678118654752f;
   e -= low ? 1 : 0;
   m = low ? (m + m - 1.0f) : (m - 1.0f);                       // m - 1 in [-0.29, 0.41)
-  const float z = m * m;
-  float y = 7.0376836292e-2f;
-  y = y * m - 1.1514610310e-1f;
-  y = y * m + 1.1676998740e-1f;
-  y = y * m - 1.2420140846e-1f;
-  y = y * m + 1.4249322787e-1f;
-  y = y * m - 1.6668057665e-1f;
-  y = y * m + 2.0000714765e-1f;
-  y = y * m - 2.4999993993e-1f;
-  y = y * m + 3.3333331174e-1f;
-  y = y * m * z;
-  const float fe = static_cast<float>(e);
-  y += -2.12194440e-4f * fe;
-  y += -0.5f * z;
-  return (m + y) + 0.693359375f * fe;
+  return logFromReduced(m, static_cast<float>(e));
 }
 
 // Helpers for loops that GCC must vectorise (membership.cpp's projectAll): plain arithmetic,

@@ -7,6 +7,8 @@
 #include <stdint.h>
 #include <string.h>
 
+#include "gmm_mcl/common/fast_math.h"
+
 #if defined(__AVX__)
 #include <immintrin.h>
 #endif
@@ -70,21 +72,7 @@ GMM_MCL_SIMD_INLINE v8f logPositive8(v8f x) {
   const v8i low = m < splat(0.70710678118654752f);  // all ones where m < sqrt(1/2)
   e = e + low;                                      // e - 1 there
   m = (m + asFloat(asInt(m) & low)) - 1.0f;         // 2m - 1 there, else m - 1
-  const v8f z = m * m;
-  v8f y = splat(7.0376836292e-2f);
-  y = y * m - 1.1514610310e-1f;
-  y = y * m + 1.1676998740e-1f;
-  y = y * m - 1.2420140846e-1f;
-  y = y * m + 1.4249322787e-1f;
-  y = y * m - 1.6668057665e-1f;
-  y = y * m + 2.0000714765e-1f;
-  y = y * m - 2.4999993993e-1f;
-  y = y * m + 3.3333331174e-1f;
-  y = y * m * z;
-  const v8f fe = __builtin_convertvector(e, v8f);
-  y += -2.12194440e-4f * fe;
-  y += -0.5f * z;
-  return (m + y) + 0.693359375f * fe;
+  return logFromReduced(m, __builtin_convertvector(e, v8f));
 }
 
 // True when some lane of the mask is set.
