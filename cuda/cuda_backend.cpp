@@ -70,6 +70,7 @@ struct CudaBackend::Impl {
   // Per-batch scratch and per-particle outputs.
   cuda::DeviceBuffer<uint32_t> mask;
   cuda::DeviceBuffer<float> shift;
+  cuda::DeviceBuffer<EvalComponentF> noisy_eval;  // [batch][M] with the depth-noise model on
   cuda::DeviceBuffer<double> item_ll;
   cuda::DeviceBuffer<int> item_hits, item_evals, item_relevant;
   // Per-particle results (and the frame's patch starts when the GPU prepared it) in one block,
@@ -238,14 +239,18 @@ void CudaBackend::Impl::run(const DeviceFrameView& f, int n, const MeasurementPa
     GMM_MCL_CUDA_CHECK(cuda::setMembershipSharedLimit(smem));
     shared_limit_set = smem;
   }
-  // Particles in batches whose masks fit the budget.
-  const size_t mask_bytes_per_particle = sizeof(uint32_t) * size_t(patches) * std::max(words, 1);
+  // Particles in batches whose masks (and per-particle evaluation forms) fit the budget.
+  const bool noise = params.depth_noise.enabled();
+  const size_t bytes_per_particle =
+      sizeof(uint32_t) * size_t(patches) * std::max(words, 1) +
+      (noise ? sizeof(EvalComponentF) * size_t(num_components) : 0);
   const size_t max_by_threads = size_t(0x7fffffff) / (size_t(patches) * 32);  // int indices
   const int batch = static_cast<int>(
       std::max<size_t>(1, std::min<size_t>(std::min<size_t>(n, max_by_threads),
-                                           kMaskBudgetBytes / mask_bytes_per_particle)));
+                                           kMaskBudgetBytes / bytes_per_particle)));
   mask.reserve(size_t(batch) * patches * std::max(words, 1));
   shift.reserve(size_t(batch) * patches);
+  if (noise) noisy_eval.reserve(size_t(batch) * num_components);
   const OutputLayout O(n, patches);  // reserved by the caller
   double* ll = reinterpret_cast<double*>(results.data() + O.ll);
   long long* evals = reinterpret_cast<long long*>(results.data() + O.evals);
@@ -261,6 +266,7 @@ void CudaBackend::Impl::run(const DeviceFrameView& f, int n, const MeasurementPa
   cfg.sigma_bound = params.sigma_bound;
   cfg.inflate_px = patchInflation(f.grid.patch_size_px);
   cfg.floor_log_density = params.floor_log_density;
+  cfg.depth_noise = params.depth_noise;
   cuda::LikelihoodShape shape = cuda::chooseLikelihoodShape(max_patch_pixels);
   if (const char* env = std::getenv("GMM_MCL_CUDA_SHAPE")) {  // tuning: GROUPSxPX, e.g. 16x4
     int lanes = 0, px = 0;
@@ -290,13 +296,14 @@ void CudaBackend::Impl::run(const DeviceFrameView& f, int n, const MeasurementPa
     const int first = bi * batch;
     const int count = std::min(batch, n - first);
     events[3 * bi].record(s);
-    GMM_MCL_CUDA_CHECK(cuda::launchMembership(count, num_components, words, cfg, components.data(),
-                                              f.T_cam_map + first, mask.data(), shift.data(), s));
+    GMM_MCL_CUDA_CHECK(cuda::launchMembership(
+        count, num_components, words, cfg, components.data(), eval_components.data(),
+        f.T_cam_map + first, mask.data(), shift.data(), noise ? noisy_eval.data() : nullptr, s));
     events[3 * bi + 1].record(s);
-    GMM_MCL_CUDA_CHECK(
-        cuda::launchLikelihood(count, patches, words, shape, params.floor_log_density, f.x, f.y,
-                               f.z, f.patch_begin, eval_components.data(), f.T_map_cam + first,
-                               mask.data(), shift.data(), partials, s));
+    GMM_MCL_CUDA_CHECK(cuda::launchLikelihood(
+        count, patches, words, shape, params.floor_log_density, f.x, f.y, f.z, f.patch_begin,
+        noise ? noisy_eval.data() : eval_components.data(), noise ? num_components : 0,
+        f.T_map_cam + first, mask.data(), shift.data(), partials, s));
     GMM_MCL_CUDA_CHECK(cuda::launchReduce(count, items, partials, ll + first, hits + first,
                                           evals + first, pairs + first, s));
     events[3 * bi + 2].record(s);
@@ -491,8 +498,11 @@ void CudaBackend::membership(const DepthFrame& frame, const RigidTransformF& T_m
   cfg.sigma_bound = params.sigma_bound;
   cfg.inflate_px = patchInflation(frame.grid.patch_size_px);
   cfg.floor_log_density = params.floor_log_density;
+  cfg.depth_noise = params.depth_noise;
+  cuda::DeviceBuffer<EvalComponentF> noisy(params.depth_noise.enabled() ? d.num_components : 1);
   GMM_MCL_CUDA_CHECK(cuda::launchMembership(1, d.num_components, words, cfg, d.components.data(),
-                                            pose.data(), mask.data(), shift.data(), s));
+                                            d.eval_components.data(), pose.data(), mask.data(),
+                                            shift.data(), noisy.data(), s));
   std::vector<uint32_t> h(size_t(patches) * words);
   GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(h.data(), mask.data(), h.size() * sizeof(uint32_t),
                                      cudaMemcpyDeviceToHost, s));

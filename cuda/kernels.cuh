@@ -7,6 +7,7 @@
 
 #include "gmm_mcl/common/types.h"
 #include "gmm_mcl/measurement/eval_component.h"
+#include "gmm_mcl/measurement/measurement_params.h"
 
 namespace gmm_mcl {
 namespace cuda {
@@ -21,6 +22,7 @@ struct MembershipConfig {
   float sigma_bound;
   float inflate_px;
   float floor_log_density;
+  DepthNoiseModel depth_noise;  // off (a = b = 0): no per-particle evaluation forms
 };
 
 // Shared memory the membership kernel needs for a grid of `patches` and `words` bitmask words
@@ -35,9 +37,14 @@ cudaError_t preferSharedMemoryForMembership();
 // mask_out: [num_particles][patches][words] bit i%32 of word i/32 set when component i is
 // relevant; shift_out: [num_particles][patches] max(floor, max log_norm of the members) (nats);
 // Components that componentMayTouchGrid rules out are not projected (same sets).
+// With cfg.depth_noise on, eval_out: [num_particles][num_components] each projected component's
+// log2 evaluation form convolved with the depth noise for that pose (depth_noise.h; where that
+// fails, the noise-free form from `eval`), and the shift uses those forms' log_norm; with it off,
+// eval and eval_out are not used (may be null).
 cudaError_t launchMembership(int num_particles, int num_components, int words,
                              const MembershipConfig& cfg, const ComponentF* components,
-                             const RigidTransformF* T_cam_map, uint32_t* mask_out, float* shift_out,
+                             const EvalComponentF* eval, const RigidTransformF* T_cam_map,
+                             uint32_t* mask_out, float* shift_out, EvalComponentF* eval_out,
                              cudaStream_t stream);
 
 // How the likelihood kernel maps work onto a warp: one warp per item (a band of
@@ -66,12 +73,15 @@ struct ItemPartials {
 };
 
 // Per-pixel log-sum over the relevant components for every (particle, band) item.
-// components: the log2 evaluation form (makeEvalComponentF with kEvalScaleLog2).
+// components: the log2 evaluation form (makeEvalComponentF with kEvalScaleLog2), one table for
+// all particles (components_per_particle 0) or one of that many entries per particle
+// (launchMembership's eval_out).
 cudaError_t launchLikelihood(int num_particles, int num_patches, int words,
                              const LikelihoodShape& shape, float floor_log_density,
                              const float* x_m, const float* y_m, const float* z_m,
                              const int* patch_begin, const EvalComponentF* components,
-                             const RigidTransformF* T_map_cam, const uint32_t* mask,
+                             int components_per_particle, const RigidTransformF* T_map_cam,
+                             const uint32_t* mask,
                              const float* shift, const ItemPartials& partials,
                              cudaStream_t stream);
 

@@ -145,7 +145,8 @@ __global__ void __launch_bounds__(kThreads, LikelihoodMinBlocks<PX>::value)
                      const float* __restrict__ y_m,                  // [pixels]
                      const float* __restrict__ z_m,                  // [pixels]
                      const int* __restrict__ patch_begin,            // [patches + 1]
-                     const EvalComponentF* __restrict__ comps,       // [M], log2 form
+                     const EvalComponentF* __restrict__ all_comps,   // [M] or [N][M], log2 form
+                     int comps_per_particle,                         // 0 or M
                      const RigidTransformF* __restrict__ T_map_cam,  // [N]
                      const uint32_t* __restrict__ mask,              // [N][patches][words]
                      const float* __restrict__ shift,                // [N][patches], nats
@@ -165,8 +166,10 @@ __global__ void __launch_bounds__(kThreads, LikelihoodMinBlocks<PX>::value)
   float4* rec = s_rec + warp * (3 * kStage);  // only when STAGE
   uint16_t* list = reinterpret_cast<uint16_t*>(s_rec + (STAGE ? kWarps * 3 * kStage : 0)) +
                    warp * list_cap;
-  const float4* comps4 = reinterpret_cast<const float4*>(comps);
   const int particle = item / bands;
+  const EvalComponentF* __restrict__ comps =
+      all_comps + static_cast<size_t>(particle) * comps_per_particle;
+  const float4* comps4 = reinterpret_cast<const float4*>(comps);
   const int p0 = (item - particle * bands) * band_patches;
   const int p1 = min(p0 + band_patches, num_patches);
   const int g = lane % PXG;  // pixel group
@@ -337,7 +340,8 @@ cudaError_t launchLikelihood(int num_particles, int num_patches, int words,
                              const LikelihoodShape& shape, float floor_log_density,
                              const float* x_m, const float* y_m, const float* z_m,
                              const int* patch_begin, const EvalComponentF* components,
-                             const RigidTransformF* T_map_cam, const uint32_t* mask,
+                             int components_per_particle, const RigidTransformF* T_map_cam,
+                             const uint32_t* mask,
                              const float* shift, const ItemPartials& partials,
                              cudaStream_t stream) {
   const int bands = likelihoodItemsPerParticle(shape, num_patches);
@@ -349,13 +353,15 @@ cudaError_t launchLikelihood(int num_particles, int num_patches, int words,
 #define GMM_MCL_LAUNCH(PXG, PX)                                                                 \
   likelihoodKernel<PXG, PX, false><<<grid, block, smem, stream>>>(                              \
       static_cast<int>(items), bands, band, num_patches, words, floor_log_density, x_m, y_m, z_m, \
-      patch_begin, components, T_map_cam, mask, shift, partials.log_likelihood,                 \
+      patch_begin, components, components_per_particle, T_map_cam, mask, shift,                \
+      partials.log_likelihood,                                                                  \
       partials.floor_hits, partials.evaluations, partials.relevant)
   if (shape.stage_members) {
     if (shape.lanes != 32 || shape.pixels_per_lane != 4) return cudaErrorInvalidValue;
     likelihoodKernel<32, 4, true><<<grid, block, smem, stream>>>(
         static_cast<int>(items), bands, band, num_patches, words, floor_log_density, x_m, y_m, z_m,
-        patch_begin, components, T_map_cam, mask, shift, partials.log_likelihood,
+        patch_begin, components, components_per_particle, T_map_cam, mask, shift,
+        partials.log_likelihood,
         partials.floor_hits, partials.evaluations, partials.relevant);
     return cudaGetLastError();
   }

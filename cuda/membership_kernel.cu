@@ -4,6 +4,7 @@
 #include <math.h>
 
 #include "cuda/kernels.cuh"
+#include "gmm_mcl/measurement/depth_noise.h"
 #include "gmm_mcl/measurement/projection.h"
 
 namespace gmm_mcl {
@@ -33,9 +34,11 @@ __device__ __forceinline__ float orderedIntToFloat(int k) {
 __global__ void __launch_bounds__(kMembershipThreads, kMembershipMinBlocks)
     membershipKernel(int num_particles, int num_components, int words, MembershipConfig cfg,
                      const ComponentF* __restrict__ components,      // [M], map frame, metres
+                     const EvalComponentF* __restrict__ eval,        // [M], log2 form
                      const RigidTransformF* __restrict__ T_cam_map,  // [N]
                      uint32_t* __restrict__ mask_out,                // [N][patches][words]
-                     float* __restrict__ shift_out) {                // [N][patches], nats
+                     float* __restrict__ shift_out,                  // [N][patches], nats
+                     EvalComponentF* __restrict__ eval_out) {        // [N][M] (depth noise on)
   extern __shared__ uint32_t smem[];
   const int particle = blockIdx.x;
   if (particle >= num_particles) return;
@@ -90,7 +93,15 @@ __global__ void __launch_bounds__(kMembershipThreads, kMembershipMinBlocks)
           min(cfg.patch_rows - 1, static_cast<int>(floorf((p.v_px + p.half_h_px - c0) / ps)));
       const uint32_t bit = 1u << (j & 31);
       const int word = j >> 5;
-      const int key = floatToOrderedInt(c.log_norm);
+      float log_norm = c.log_norm;
+      if (eval_out) {
+        // The depth noise convolved into this pose's evaluation form (as the CPU backend).
+        EvalComponentF e;
+        if (!makeNoisyEvalComponent(c, T, cfg.depth_noise, kEvalScaleLog2, &e)) e = eval[j];
+        eval_out[static_cast<size_t>(particle) * num_components + j] = e;
+        log_norm = e.log_norm;
+      }
+      const int key = floatToOrderedInt(log_norm);
       for (int r = row0; r <= row1; ++r) {
         const float v = static_cast<float>(r * cfg.patch_size_px) + c0;
         for (int col = col0; col <= col1; ++col) {
@@ -133,13 +144,17 @@ cudaError_t preferSharedMemoryForMembership() {
 
 cudaError_t launchMembership(int num_particles, int num_components, int words,
                              const MembershipConfig& cfg, const ComponentF* components,
-                             const RigidTransformF* T_cam_map, uint32_t* mask_out, float* shift_out,
+                             const EvalComponentF* eval, const RigidTransformF* T_cam_map,
+                             uint32_t* mask_out, float* shift_out, EvalComponentF* eval_out,
                              cudaStream_t stream) {
   const int patches = cfg.patch_cols * cfg.patch_rows;
   if (num_particles <= 0 || patches <= 0) return cudaSuccess;
+  const bool noise = cfg.depth_noise.a_m > 0.f || cfg.depth_noise.b_per_m > 0.f;
+  if (noise && (eval == nullptr || eval_out == nullptr)) return cudaErrorInvalidValue;
   const size_t smem = membershipSharedBytes(patches, words);
   membershipKernel<<<num_particles, kMembershipThreads, smem, stream>>>(
-      num_particles, num_components, words, cfg, components, T_cam_map, mask_out, shift_out);
+      num_particles, num_components, words, cfg, components, eval, T_cam_map, mask_out,
+      shift_out, noise ? eval_out : nullptr);
   return cudaGetLastError();
 }
 

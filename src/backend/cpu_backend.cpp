@@ -25,11 +25,14 @@ void CpuBackend::evaluate(const DepthFrame& frame, const std::vector<RigidTransf
 #pragma omp for schedule(dynamic, 8)
     for (int i = 0; i < n; ++i) {
       const double t0 = omp_get_wtime();
-      computeMembership(components_, invertRigid(T_map_cam[i]), frame.intrinsics, frame.grid,
-                        params, &s.projected, &s.valid, &s.membership);
+      const RigidTransformF T_cam_map = invertRigid(T_map_cam[i]);
+      computeMembership(components_, T_cam_map, frame.intrinsics, frame.grid, params,
+                        &s.projected, &s.valid, &s.membership);
+      const EvalComponentF* eval = noisyEvalComponents(components_, eval_, s.valid, T_cam_map,
+                                                       params.depth_noise, &s.noisy);
       const double t1 = omp_get_wtime();
-      const FrameLikelihood fl = frameLogLikelihood(eval_.data(), frame, T_map_cam[i],
-                                                    s.membership, params.floor_log_density);
+      const FrameLikelihood fl =
+          frameLogLikelihood(eval, frame, T_map_cam[i], s.membership, params.floor_log_density);
       likelihood_s[tid] += omp_get_wtime() - t1;
       membership_s[tid] += t1 - t0;
       out->log_likelihood[i] = fl.log_likelihood;

@@ -94,7 +94,7 @@ std::vector<NllSweepRow> nllSweep(const GmmMap& map, const DepthFrame& frame,
     }
     // Parallel over pixels inside.
     const FrameLikelihood e =
-        exactFrameLogLikelihood(map, frame, poses[i], params.measurement.floor_log_density);
+        exactFrameLogLikelihood(map, frame, poses[i], params.measurement);
     rows[i].exact_nll = -e.log_likelihood;
     rows[i].exact_floor_hits = e.floor_hits;
     rows[i].exact_evaluations = e.evaluations;

@@ -78,6 +78,7 @@ GmmMap::GmmMap(std::vector<GaussianComponent> components, const std::string& sou
     // Symmetrise the inverse: float evaluation relies on an exactly symmetric precision.
     const Eigen::Matrix3d precision = c.cov_m2.inverse();
     packSymmetric(0.5 * (precision + precision.transpose()), p.precision);
+    p.log_weight = static_cast<float>(std::log(c.weight) - 1.5 * kLog2Pi);
     p.log_norm = static_cast<float>(std::log(c.weight) - 1.5 * kLog2Pi -
                                     0.5 * std::log(c.cov_m2.determinant()));
     half_extent_m_[i] = 3.0 * c.cov_m2.diagonal().cwiseSqrt();

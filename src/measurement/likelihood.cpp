@@ -7,6 +7,7 @@
 #include <Eigen/LU>
 
 #include "gmm_mcl/common/fast_math.h"
+#include "gmm_mcl/measurement/depth_noise.h"
 #include "gmm_mcl/measurement/cpu_simd.h"
 
 // 32-byte vector locals (cpu_simd.h): without AVX, GCC warns about an ABI change that does not
@@ -94,6 +95,23 @@ void makeEvalComponents(const std::vector<ComponentF>& components,
   for (size_t i = 0; i < components.size(); ++i) {
     (*out)[i] = makeEvalComponentF(components[i], kEvalScaleNats);
   }
+}
+
+const EvalComponentF* noisyEvalComponents(const std::vector<ComponentF>& components,
+                                          const std::vector<EvalComponentF>& base,
+                                          const std::vector<char>& valid,
+                                          const RigidTransformF& T_cam_map,
+                                          const DepthNoiseModel& noise,
+                                          std::vector<EvalComponentF>* out) {
+  if (!noise.enabled()) return base.data();
+  out->resize(components.size());
+  for (size_t i = 0; i < components.size(); ++i) {
+    if (!valid[i] ||
+        !makeNoisyEvalComponent(components[i], T_cam_map, noise, kEvalScaleNats, &(*out)[i])) {
+      (*out)[i] = base[i];
+    }
+  }
+  return out->data();
 }
 
 FrameLikelihood frameLogLikelihood(const EvalComponentF* eval, const DepthFrame& frame,
@@ -198,25 +216,48 @@ FrameLikelihood frameLogLikelihood(const std::vector<ComponentF>& components,
 FrameLikelihood poseLogLikelihood(const std::vector<ComponentF>& components,
                                   const DepthFrame& frame, const RigidTransformF& T_map_cam,
                                   const MeasurementParams& params, LikelihoodScratch* scratch) {
-  computeMembership(components, invertRigid(T_map_cam), frame.intrinsics, frame.grid, params,
+  const RigidTransformF T_cam_map = invertRigid(T_map_cam);
+  computeMembership(components, T_cam_map, frame.intrinsics, frame.grid, params,
                     &scratch->projected, &scratch->valid, &scratch->membership);
   makeEvalComponents(components, &scratch->eval);
-  return frameLogLikelihood(scratch->eval.data(), frame, T_map_cam, scratch->membership,
+  const EvalComponentF* eval =
+      noisyEvalComponents(components, scratch->eval, scratch->valid, T_cam_map,
+                          params.depth_noise, &scratch->noisy);
+  return frameLogLikelihood(eval, frame, T_map_cam, scratch->membership,
                             params.floor_log_density);
 }
 
 FrameLikelihood exactFrameLogLikelihood(const GmmMap& map, const DepthFrame& frame,
                                         const Eigen::Isometry3d& T_map_cam,
                                         float floor_log_density) {
+  MeasurementParams params;
+  params.floor_log_density = floor_log_density;
+  params.depth_noise.a_m = params.depth_noise.b_per_m = 0.f;
+  return exactFrameLogLikelihood(map, frame, T_map_cam, params);
+}
+
+FrameLikelihood exactFrameLogLikelihood(const GmmMap& map, const DepthFrame& frame,
+                                        const Eigen::Isometry3d& T_map_cam,
+                                        const MeasurementParams& params) {
   constexpr double kLog2Pi = 1.8378770664093453;
+  const double floor_log_density = params.floor_log_density;
+  const DepthNoiseModel& noise = params.depth_noise;
+  const Eigen::Isometry3d T_cam_map = T_map_cam.inverse();
   const auto& comps = map.components();
   const size_t m = comps.size();
   std::vector<Eigen::Matrix3d> precision(m);
   std::vector<double> log_norm(m);
   for (size_t j = 0; j < m; ++j) {
-    precision[j] = comps[j].cov_m2.inverse();
-    log_norm[j] = std::log(comps[j].weight) - 1.5 * kLog2Pi -
-                  0.5 * std::log(comps[j].cov_m2.determinant());
+    Eigen::Matrix3d cov = comps[j].cov_m2;
+    const Eigen::Vector3d mean_cam = T_cam_map * comps[j].mean_m;
+    if (noise.enabled() && mean_cam.z() > 0.0) {
+      const double z = mean_cam.z(), d = z - noise.z0_m;
+      const double sigma = (noise.a_m + noise.b_per_m * d * d) * mean_cam.norm() / z;
+      const Eigen::Vector3d ray = (comps[j].mean_m - T_map_cam.translation()).normalized();
+      cov += sigma * sigma * ray * ray.transpose();
+    }
+    precision[j] = cov.inverse();
+    log_norm[j] = std::log(comps[j].weight) - 1.5 * kLog2Pi - 0.5 * std::log(cov.determinant());
   }
   FrameLikelihood out;
   out.pixels = static_cast<int>(frame.size());

@@ -293,6 +293,12 @@ std::string MeasurementParams::validate() const {
   if (!std::isfinite(floor_log_density) || floor_log_density < -80.f) {
     err << "floor_log_density must be finite and >= -80 nats (got " << floor_log_density << "); ";
   }
+  const DepthNoiseModel& n = depth_noise;
+  if (!(n.a_m >= 0.f) || !(n.b_per_m >= 0.f) || !std::isfinite(n.a_m) ||
+      !std::isfinite(n.b_per_m) || !std::isfinite(n.z0_m) || !(n.z0_m >= 0.f)) {
+    err << "depth_noise needs finite a >= 0, b >= 0 and z0 >= 0 (got a " << n.a_m << " m, b "
+        << n.b_per_m << " 1/m, z0 " << n.z0_m << " m); ";
+  }
   return err.str();
 }
 

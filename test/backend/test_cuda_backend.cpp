@@ -104,8 +104,8 @@ void expectSameMembership(const GmmMap& map, const DepthFrame& frame,
 
 void expectSameLikelihood(const GmmMap& map, const DepthFrame& frame,
                           const std::vector<RigidTransformF>& poses, CpuBackend* cpu,
-                          CudaBackend* gpu, const char* label) {
-  const MeasurementParams mp;
+                          CudaBackend* gpu, const char* label,
+                          const MeasurementParams& mp = MeasurementParams()) {
   BackendOutput a, b;
   cpu->evaluate(frame, poses, mp, &a);
   gpu->evaluate(frame, poses, mp, &b);
@@ -154,6 +154,11 @@ TEST(CudaBackendTest, SyntheticSceneMatchesCpu) {
     const std::string label = "synthetic stride " + std::to_string(stride);
     expectSameLikelihood(w.map, frame, poses, &cpu, &gpu, label.c_str());
     if (stride == 4) {
+      // The paper's model (no depth noise): one evaluation form for every particle.
+      MeasurementParams noise_off;
+      noise_off.depth_noise.a_m = noise_off.depth_noise.b_per_m = 0.f;
+      expectSameLikelihood(w.map, frame, poses, &cpu, &gpu, (label + ", no depth noise").c_str(),
+                           noise_off);
       const std::vector<RigidTransformF> some(poses.begin(), poses.begin() + 32);
       expectSameMembership(w.map, frame, some, &cpu, &gpu, label.c_str());
     }

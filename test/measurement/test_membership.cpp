@@ -88,28 +88,33 @@ TEST(MembershipTest, VectorisableHelpersMatchLibm) {
 }
 
 TEST(MembershipTest, ApproximateLikelihoodWithinOnePercentOfExact) {
+  // With and without the depth-noise model: the approximation (membership + float kernel) against
+  // the double-precision sum over every component of the same model.
   const auto& w = test::world();
   FrameParams fp;
   fp.pixel_stride = 4;
   fp.max_range_m = 8.f;
-  for (const Intrinsics& K : {test::smallCamera(), test::vgaCamera()}) {
-    const Eigen::Isometry3d T_map_base = test::referenceBasePose();
-    const DepthFrame frame = test::renderFrame(T_map_base, K, fp);
-    const Eigen::Isometry3d T_map_cam = T_map_base * w.T_base_cam;
-    LikelihoodScratch scratch;
-    const FrameLikelihood approx = poseLogLikelihood(w.map.packed(), frame, toRigidF(T_map_cam),
-                                                     MeasurementParams(), &scratch);
-    const FrameLikelihood exact =
-        exactFrameLogLikelihood(w.map, frame, T_map_cam, kDefaultFloorLogDensity);
-    const double rel = std::abs(approx.log_likelihood - exact.log_likelihood) /
-                       std::abs(exact.log_likelihood);
-    std::printf("[ measured ] %dx%d: approx %.2f exact %.2f nats over %d px, relative error %.2e, "
-                "evaluations %lld vs %lld, floor hits %d vs %d\n",
-                K.width_px, K.height_px, approx.log_likelihood, exact.log_likelihood,
-                approx.pixels, rel, approx.evaluations, exact.evaluations, approx.floor_hits,
-                exact.floor_hits);
-    EXPECT_LT(rel, kApproxRelTol);
-    EXPECT_LT(approx.evaluations, exact.evaluations / 10);  // the point of the approximation
+  MeasurementParams noise_off;
+  noise_off.depth_noise.a_m = noise_off.depth_noise.b_per_m = 0.f;
+  for (const MeasurementParams& mp : {noise_off, MeasurementParams()}) {
+    for (const Intrinsics& K : {test::smallCamera(), test::vgaCamera()}) {
+      const Eigen::Isometry3d T_map_base = test::referenceBasePose();
+      const DepthFrame frame = test::renderFrame(T_map_base, K, fp);
+      const Eigen::Isometry3d T_map_cam = T_map_base * w.T_base_cam;
+      LikelihoodScratch scratch;
+      const FrameLikelihood approx =
+          poseLogLikelihood(w.map.packed(), frame, toRigidF(T_map_cam), mp, &scratch);
+      const FrameLikelihood exact = exactFrameLogLikelihood(w.map, frame, T_map_cam, mp);
+      const double rel = std::abs(approx.log_likelihood - exact.log_likelihood) /
+                         std::abs(exact.log_likelihood);
+      std::printf("[ measured ] %dx%d, depth noise %s: approx %.2f exact %.2f nats over %d px, "
+                  "relative error %.2e, evaluations %lld vs %lld, floor hits %d vs %d\n",
+                  K.width_px, K.height_px, mp.depth_noise.enabled() ? "on" : "off",
+                  approx.log_likelihood, exact.log_likelihood, approx.pixels, rel,
+                  approx.evaluations, exact.evaluations, approx.floor_hits, exact.floor_hits);
+      EXPECT_LT(rel, kApproxRelTol);
+      EXPECT_LT(approx.evaluations, exact.evaluations / 10);  // the point of the approximation
+    }
   }
 }
 

@@ -48,6 +48,7 @@ struct ComponentF {
   float cov_m2[6];        // covariance Sigma
   float precision[6];     // Sigma^-1
   float log_norm;         // ln(lambda) - 1.5 ln(2 pi) - 0.5 ln det(Sigma): ln of the peak of lambda*N
+  float log_weight;       // ln(lambda) - 1.5 ln(2 pi) (the normaliser without the covariance)
 };
 
 // Log of lambda * N(p; mu, Sigma) for a point p in the map frame (nats, density per m^3).

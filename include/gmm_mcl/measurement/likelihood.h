@@ -26,11 +26,23 @@ struct LikelihoodScratch {
   PatchMembership membership;
   std::vector<float> values;  // unused (kept for source compatibility)
   std::vector<EvalComponentF> eval;  // evaluation form of the components (nats)
+  std::vector<EvalComponentF> noisy;  // the same convolved with the depth noise, per pose
 };
 
 // The components in the CPU kernel's evaluation form (nats); `out` is resized.
 void makeEvalComponents(const std::vector<ComponentF>& components,
                         std::vector<EvalComponentF>* out);
+
+// The evaluation form (nats) of every component that `valid` marks (computeMembership's member
+// flags) convolved with the depth noise seen from T_cam_map (depth_noise.h); the others are
+// copied from `base`. `out` is resized. Returns the evaluation form the kernel should use: `out`
+// when the noise model is on, else `base` (nothing computed).
+const EvalComponentF* noisyEvalComponents(const std::vector<ComponentF>& components,
+                                          const std::vector<EvalComponentF>& base,
+                                          const std::vector<char>& valid,
+                                          const RigidTransformF& T_cam_map,
+                                          const DepthNoiseModel& noise,
+                                          std::vector<EvalComponentF>* out);
 
 // The CPU kernel. Per patch, the log-sum-exp is shifted by
 // S = max(floor, max over the patch's members of log_norm) (>= every member's log-density, so one
@@ -54,9 +66,15 @@ FrameLikelihood poseLogLikelihood(const std::vector<ComponentF>& components,
                                   const DepthFrame& frame, const RigidTransformF& T_map_cam,
                                   const MeasurementParams& params, LikelihoodScratch* scratch);
 
-// Exact reference: every pixel against every component, in double precision.
+// Exact reference: every pixel against every component, in double precision, without the depth
+// noise (the paper's model).
 FrameLikelihood exactFrameLogLikelihood(const GmmMap& map, const DepthFrame& frame,
                                         const Eigen::Isometry3d& T_map_cam,
                                         float floor_log_density);
+// The same with params' floor and depth noise: every component in front of the camera convolved
+// with the noise at its range (depth_noise.h), in double precision.
+FrameLikelihood exactFrameLogLikelihood(const GmmMap& map, const DepthFrame& frame,
+                                        const Eigen::Isometry3d& T_map_cam,
+                                        const MeasurementParams& params);
 
 }  // namespace gmm_mcl

@@ -8,6 +8,18 @@ namespace gmm_mcl {
 // Default per-pixel floor, nats with densities per cubic metre (DESIGN.md).
 constexpr float kDefaultFloorLogDensity = -10.0f;
 
+// Axial depth noise of the camera, sigma(z) = a + b (z - z0)^2 in metres (DESIGN.md "Sensor
+// noise"; gmm_mcl/measurement/depth_noise.h says how it enters the likelihood). The defaults are
+// Nguyen, Izadi and Lovell's fit for a Kinect v1 (structured light, 0.5-4 m); a = b = 0 turns
+// the model off (the paper's model: the map alone).
+struct DepthNoiseModel {
+  float a_m = 0.0012f;
+  float b_per_m = 0.0019f;  // per m^2 of (z - z0)^2: metres of sigma per square metre
+  float z0_m = 0.4f;
+
+  bool enabled() const { return a_m > 0.f || b_per_m > 0.f; }
+};
+
 struct MeasurementParams {
   float min_component_depth_m = 0.1f;  // components whose mean is nearer (or behind) are dropped
   float sigma_bound = 3.0f;            // membership ellipse radius in standard deviations
@@ -15,6 +27,7 @@ struct MeasurementParams {
   // that bounds it below by the floor; a pixel whose mixture density is below exp(floor) counts
   // as a floor hit.
   float floor_log_density = kDefaultFloorLogDensity;
+  DepthNoiseModel depth_noise;
 
   std::string validate() const;
 };
