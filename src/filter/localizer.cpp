@@ -174,7 +174,9 @@ StepResult Localizer::step(const StepInput& in) {
     if (!why.empty()) res.message += (res.message.empty() ? "" : "; ") + why;
     t0 = Clock::now();
     res.estimate = filter_.estimate();
+    res.refinement.pose = res.estimate.mean;
     res.neff = filter_.effectiveSampleSize();
+    res.particles = filter_.size();
     res.timings.estimate_ms = msSince(t0);
     res.timings.total_ms = msSince(t_start);
     return res;
@@ -243,11 +245,27 @@ StepResult Localizer::step(const StepInput& in) {
   }
   res.timings.weights_ms = msSince(t0);
 
-  // Estimate from the updated weights, then resample and recover.
+  // Estimate from the updated weights (refined when the filter has converged), then resample
+  // and recover.
   t0 = Clock::now();
   res.estimate = filter_.estimate();
   res.neff = filter_.effectiveSampleSize();
+  res.particles = filter_.size();
   res.timings.estimate_ms = msSince(t0);
+  res.refinement.pose = res.estimate.mean;
+  if (params_.refinement.enabled) {
+    const Eigen::Matrix<double, 6, 6>& C = res.estimate.covariance;
+    const double position_sigma = std::sqrt(std::max({C(0, 0), C(1, 1), C(2, 2)}));
+    const double yaw_sigma = std::sqrt(C(5, 5));
+    if (position_sigma <= params_.refinement.max_position_sigma_m &&
+        yaw_sigma <= params_.refinement.max_yaw_sigma_rad) {
+      res.refinement = refinePose(map_.packed(), frame, res.estimate.mean, roll_rad_, pitch_rad_,
+                                  params_.T_base_cam, params_.measurement, params_.refinement);
+      res.timings.refine_ms = res.refinement.ms;
+    } else {
+      res.refinement.why = "not converged";
+    }
+  }
   t0 = Clock::now();
   res.resampled = filter_.resampleIfNeeded();
   res.reinitialised = filter_.recover(output_.log_likelihood, res.pixels, region_);

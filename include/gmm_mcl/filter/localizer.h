@@ -36,7 +36,7 @@ struct StepInput {
 
 struct StepTimings {
   double predict_ms = 0, frame_prep_ms = 0, projection_membership_ms = 0, likelihood_ms = 0,
-         weights_ms = 0, resample_ms = 0, estimate_ms = 0, total_ms = 0;
+         weights_ms = 0, resample_ms = 0, estimate_ms = 0, refine_ms = 0, total_ms = 0;
 };
 
 struct StepResult {
@@ -50,7 +50,11 @@ struct StepResult {
   int screened_candidates = 0;  // uniform candidates scored on this frame (redraws, start)
   double reference_loglik_per_pixel = 0.0;  // the LostDetector's reference level
   PoseEstimate estimate;
+  // The estimate refined by local maximisation of the likelihood (pose_refinement.h), when the
+  // filter has converged and refinement is on; refinement.refined says whether it is usable.
+  RefinementResult refinement;
   double neff = 0.0;          // effective sample size after the update (before resampling)
+  int particles = 0;          // particle count of this step
   int pixels = 0;             // used pixels
   double best_loglik_per_pixel = 0.0;
   double mean_loglik_per_pixel = 0.0;  // weighted mean over particles

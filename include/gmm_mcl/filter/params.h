@@ -8,6 +8,7 @@
 #include <Eigen/Geometry>
 
 #include "gmm_mcl/camera/depth_frame.h"
+#include "gmm_mcl/filter/pose_refinement.h"
 #include "gmm_mcl/measurement/measurement_params.h"
 
 namespace gmm_mcl {
@@ -88,6 +89,7 @@ struct LocalizerParams {
   LostDetectionParams lost;
   FrameParams frame;
   MeasurementParams measurement;
+  RefinementParams refinement;
   InitRegion init;
   Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();  // camera optical frame in base
   // An odometry step longer than this (per update) is treated as a jump: not applied, reported.

@@ -1,0 +1,57 @@
+// Refinement of the converged estimate below the particle spacing: a continuous local
+// maximisation of the same GMM likelihood as the particle weights (with the patch membership,
+// the depth-noise model and the floor) over the 4-DoF pose x, y, z, yaw (roll and pitch fixed
+// to the attitude input), by expectation-maximisation: each iteration weighs every (pixel,
+// relevant component) pair by its responsibility at the current pose (the floor takes the
+// pixels no component explains), then takes one damped Gauss-Newton step on the weighted
+// Mahalanobis residuals; a step is kept only when the likelihood rises. The particle set is not
+// changed: the refined pose is reported beside the particle mean (docs/unseen_scenes.md).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "gmm_mcl/camera/depth_frame.h"
+#include "gmm_mcl/filter/pose.h"
+#include "gmm_mcl/measurement/measurement_params.h"
+
+namespace gmm_mcl {
+
+struct RefinementParams {
+  bool enabled = true;
+  int max_iterations = 15;
+  // Only a converged filter is refined: the particles' position and yaw spread (one standard
+  // deviation) must be below these.
+  double max_position_sigma_m = 0.10;
+  double max_yaw_sigma_rad = 0.10;
+  // A refined pose farther than this from the particle mean is rejected (a local optimum of the
+  // likelihood that the particles do not support).
+  double max_correction_m = 0.15;
+  double max_correction_rad = 0.10;
+  // Iterations stop when a step moves less than both of these.
+  double tolerance_m = 2e-4;
+  double tolerance_rad = 2e-4;
+
+  std::string validate() const;
+};
+
+struct RefinementResult {
+  bool refined = false;   // false: not converged, no pixels, or no improving step (see why)
+  std::string why;        // set when not refined
+  Particle pose;          // the refined pose (the start when not refined)
+  int iterations = 0;
+  double loglik_start = 0.0;  // nats per pixel at the start and the refined pose
+  double loglik_refined = 0.0;
+  double ms = 0.0;
+};
+
+// Maximises the frame's log-likelihood around `start` (a base pose; roll and pitch shared as in
+// the filter). `components`: the map's packed components.
+RefinementResult refinePose(const std::vector<ComponentF>& components, const DepthFrame& frame,
+                            const Particle& start, double roll_rad, double pitch_rad,
+                            const Eigen::Isometry3d& T_base_cam, const MeasurementParams& params,
+                            const RefinementParams& refinement);
+
+}  // namespace gmm_mcl
