@@ -52,12 +52,18 @@ ReplayFrame makeReplayFrame(double stamp_s, const StepResult& step, const Partic
   rf.estimate = step.estimate.mean;
   rf.error.stamp_s = stamp_s;
   rf.has_truth = truth != nullptr;
+  rf.refined = step.refinement.refined ? step.refinement.pose : rf.estimate;
   if (truth) {
     rf.truth = *truth;
-    rf.error.translation_m = std::sqrt(std::pow(rf.estimate.x_m - truth->x_m, 2) +
-                                       std::pow(rf.estimate.y_m - truth->y_m, 2) +
-                                       std::pow(rf.estimate.z_m - truth->z_m, 2));
+    auto distance = [truth](const Particle& p) {
+      return std::sqrt(std::pow(p.x_m - truth->x_m, 2) + std::pow(p.y_m - truth->y_m, 2) +
+                       std::pow(p.z_m - truth->z_m, 2));
+    };
+    rf.error.translation_m = distance(rf.estimate);
     rf.error.yaw_rad = std::abs(wrapAngle(rf.estimate.yaw_rad - truth->yaw_rad));
+    rf.error.refined_translation_m = distance(rf.refined);
+    rf.error.refined_yaw_rad = std::abs(wrapAngle(rf.refined.yaw_rad - truth->yaw_rad));
+    rf.error.refined = step.refinement.refined;
   }
   return rf;
 }
@@ -87,6 +93,7 @@ TrialResult runTrial(const Sequence& seq, const DepthProvider& depth, const GmmM
   lp.init.yaw_centre_rad = start.yaw_rad;
   lp.init.yaw_half_range_rad = params.init_yaw_half_range_rad;
   Localizer loc(lp, map_aligned);
+  if (params.whole_map_start) loc.reset(loc.mapBounds());
 
   OdometrySynthesizer odometry(params.noise, seed);  // apart from the filter's generator
   TrialResult out;
@@ -128,8 +135,9 @@ void writeFrameCsv(const TrialResult& r, const std::string& path) {
   if (!out) throw std::runtime_error(path + ": cannot open for writing");
   out << "stamp_s,error_m,error_yaw_deg,est_x,est_y,est_z,est_yaw,true_x,true_y,true_z,true_yaw,"
          "neff,loglik_best_per_px,loglik_mean_per_px,floor_hit_fraction,relevant_per_patch,"
-         "beta_fraction,reinitialised,status,pixels,frame_prep_ms,membership_ms,likelihood_ms,"
-         "resample_ms,total_ms\n";
+         "beta_fraction,reinitialised,lost_redrawn,status,pixels,frame_prep_ms,membership_ms,"
+         "likelihood_ms,resample_ms,refined,refined_error_m,refined_error_yaw_deg,refine_ms,"
+         "particles,total_ms\n";
   out.precision(7);
   for (const ReplayFrame& f : r.frames) {
     const StepResult& s = f.step;
@@ -145,10 +153,16 @@ void writeFrameCsv(const TrialResult& r, const std::string& path) {
     }
     out << ',' << s.neff << ',' << s.best_loglik_per_pixel << ','
         << s.mean_loglik_per_pixel << ',' << s.floor_hit_fraction << ',' << s.relevant_per_patch
-        << ',' << s.beta_fraction << ',' << s.reinitialised << ',' << stepStatusName(s.status)
-        << ',' << s.pixels << ',' << s.timings.frame_prep_ms << ','
+        << ',' << s.beta_fraction << ',' << s.reinitialised << ',' << s.lost_reinitialised << ','
+        << stepStatusName(s.status) << ',' << s.pixels << ',' << s.timings.frame_prep_ms << ','
         << s.timings.projection_membership_ms << ',' << s.timings.likelihood_ms << ','
-        << s.timings.resample_ms << ',' << s.timings.total_ms << '\n';
+        << s.timings.resample_ms << ',' << (s.refinement.refined ? 1 : 0) << ',';
+    if (f.has_truth) {
+      out << f.error.refined_translation_m << ',' << f.error.refined_yaw_rad * 180.0 / M_PI;
+    } else {
+      out << ',';
+    }
+    out << ',' << s.timings.refine_ms << ',' << s.particles << ',' << s.timings.total_ms << '\n';
   }
 }
 

@@ -29,18 +29,21 @@ namespace {
 void usage() {
   std::printf(
       "usage: gmm_mcl_render --out DIR [--mesh FILE.ply] [--trajectory FILE] [--camera SPEC]\n"
-      "                      [--frames N] [--stride K] [--rate HZ] [--start-time S] [--seed S]\n"
-      "                      [--no-noise] [--max-range M] [--down GX,GY,GZ] [--width PX]\n"
+      "                      [--first I] [--frames N] [--stride K] [--rate HZ] [--start-time S]\n"
+      "                      [--seed S] [--no-noise] [--dropout P] [--max-range M]\n"
+      "                      [--down GX,GY,GZ] [--width PX]\n"
       "                      [--save-map FILE.gmm] [--save-mesh FILE.ply] [--quiet]\n"
       "  --mesh        a PLY mesh (default: the built-in room with boxes and cylinders)\n"
       "  --trajectory  camera-to-world poses: 16 numbers a line (row-major 4x4, Replica traj.txt)\n"
       "                or TUM 't tx ty tz qx qy qz qw' (default: the built-in drone trajectory)\n"
       "  --camera      cam_params.json (Replica) or fx,fy,cx,cy,width,height (default: f = 585 px\n"
       "                at 640x480 scaled to --width)\n"
+      "  --first I     start at pose I of the trajectory (default 0; stamps keep their place)\n"
       "  --frames N    at most N frames (default: all of a file, 300 of the built-in)\n"
       "  --stride K    every K-th pose of the trajectory (default 1)\n"
       "  --rate HZ     frame rate for trajectories without stamps (default 30)\n"
       "  --no-noise    ideal depth (only the range window of --max-range)\n"
+      "  --dropout P   probability that a pixel is missing at random (default 0.005)\n"
       "  --down        gravity direction in world coordinates (default 0,0,-1: z up)\n"
       "  --save-map    the built-in scene's tiled GMM (0.4 m tiles, 1.5 cm normal sigma)\n");
 }
@@ -83,10 +86,11 @@ class RenderedSequence : public Sequence {
   RenderedSequence(std::shared_ptr<const sim::MeshBvh> bvh, const Intrinsics& K,
                    std::vector<double> stamps, std::vector<Eigen::Isometry3d> poses,
                    const Eigen::Matrix3d& R_aligned_world, double max_range_m, bool noise,
-                   uint64_t seed, std::string source, bool quiet)
+                   const sim::SensorNoiseParams& sensor, uint64_t seed, std::string source,
+                   bool quiet)
       : bvh_(std::move(bvh)), K_(K), stamps_(std::move(stamps)), poses_(std::move(poses)),
         R_aligned_world_(R_aligned_world), max_range_m_(max_range_m), noise_(noise), seed_(seed),
-        source_(std::move(source)), quiet_(quiet) {}
+        source_(std::move(source)), quiet_(quiet), sensor_(sensor) {}
 
   const char* format() const override { return "render"; }
   const std::string& source() const override { return source_; }
@@ -124,14 +128,15 @@ class RenderedSequence : public Sequence {
   uint64_t seed_;
   std::string source_;
   bool quiet_;
-  sim::SensorNoiseParams sensor_;  // Kinect v1 class defaults (docs/sim.md)
+  sim::SensorNoiseParams sensor_;
   mutable double total_ms_ = 0.0;
   mutable int rendered_ = 0;
 };
 
 int run(int argc, char** argv) {
   std::string out, mesh_path, traj_path, camera, save_map, save_mesh, down = "0,0,-1";
-  int frames = -1, stride = 1, width_px = 640;
+  int first = 0, frames = -1, stride = 1, width_px = 640;
+  sim::SensorNoiseParams sensor;  // Kinect v1 class defaults (docs/sim.md)
   double rate_hz = 30.0, start_s = 0.0, max_range_m = 10.0;
   uint64_t seed = 1;
   bool noise = true, quiet = false;
@@ -145,12 +150,14 @@ int run(int argc, char** argv) {
     else if (a == "--mesh") mesh_path = next();
     else if (a == "--trajectory") traj_path = next();
     else if (a == "--camera") camera = next();
+    else if (a == "--first") first = std::atoi(next().c_str());
     else if (a == "--frames") frames = std::atoi(next().c_str());
     else if (a == "--stride") stride = std::atoi(next().c_str());
     else if (a == "--rate") rate_hz = std::atof(next().c_str());
     else if (a == "--start-time") start_s = std::atof(next().c_str());
     else if (a == "--seed") seed = std::strtoull(next().c_str(), nullptr, 10);
     else if (a == "--no-noise") noise = false;
+    else if (a == "--dropout") sensor.random_dropout = std::atof(next().c_str());
     else if (a == "--max-range") max_range_m = std::atof(next().c_str());
     else if (a == "--down") down = next();
     else if (a == "--width") width_px = std::atoi(next().c_str());
@@ -165,7 +172,10 @@ int run(int argc, char** argv) {
       return 2;
     }
   }
-  if (out.empty() || stride < 1 || !(rate_hz > 0.0) || !(max_range_m > 0.0) || width_px < 16) {
+  const std::string sensor_err = sensor.validate();
+  if (!sensor_err.empty()) throw std::runtime_error("sensor model: " + sensor_err);
+  if (out.empty() || stride < 1 || first < 0 || !(rate_hz > 0.0) || !(max_range_m > 0.0) ||
+      width_px < 16) {
     usage();
     return 2;
   }
@@ -230,7 +240,7 @@ int run(int argc, char** argv) {
   }
   std::vector<Eigen::Isometry3d> kept_poses;
   std::vector<double> kept_stamps;
-  for (size_t i = 0; i < poses.size(); i += stride) {
+  for (size_t i = first; i < poses.size(); i += stride) {
     if (frames > 0 && static_cast<int>(kept_poses.size()) >= frames) break;
     kept_poses.push_back(poses[i]);
     kept_stamps.push_back(stamps.empty() ? start_s + i / rate_hz : stamps[i]);
@@ -247,8 +257,11 @@ int run(int argc, char** argv) {
   }
   const Eigen::Matrix3d R_aligned_world = gravityAlignment(Eigen::Vector3d(g[0], g[1], g[2]));
 
-  RenderedSequence seq(bvh, K, kept_stamps, kept_poses, R_aligned_world, max_range_m, noise, seed,
-                       source, quiet);
+  if (kept_poses.empty()) {
+    throw std::runtime_error("no poses from --first " + std::to_string(first) + " on");
+  }
+  RenderedSequence seq(bvh, K, kept_stamps, kept_poses, R_aligned_world, max_range_m, noise,
+                       sensor, seed, source, quiet);
   TumWriteOptions options;
   options.truth_offset_s = 0.0;  // rendered: ground truth at exactly the depth stamps
   options.truth_per_frame = 1;

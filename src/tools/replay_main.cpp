@@ -29,6 +29,8 @@ void usage() {
       "                      [--particles N] [--weighting paper|tempered] [--temperature T]\n"
       "                      [--backend cpu|cuda]\n"
       "                      [--neff-floor F] [--init-half-extent M] [--init-yaw-half-range RAD]\n"
+      "                      [--init cube|map] [--depth-noise A,B,Z0] [--min-range M]\n"
+      "                      [--max-range M] [--floor NATS]\n"
       "                      [--lost-margin NATS] [--lost-grace FRAMES] [--candidates K]\n"
       "                      [--hold-frames N (30)] [--tail-frames N (100)]\n"
       "                      [--out DIR] [--quiet]\n"
@@ -40,6 +42,9 @@ void usage() {
       "DIR defaults to $GMM_MCL_DATASETS/7scenes_redkitchen/data, else\n"
       "../shared/datasets/7scenes_redkitchen/data. Runs trials with seeds S..S+N-1 (1..10).\n"
       "MAP is in the data set's world frame; it is rotated into the gravity-aligned frame.\n"
+      "--init map starts uniform over the whole map (its bounds, full yaw) instead of the cube\n"
+      "around the true start. --depth-noise: the camera's depth noise sigma(z) = A + B (z - Z0)^2\n"
+      "in metres (default 0.0012,0.0019,0.4, a Kinect v1; 0,0,0 turns it off).\n"
       "--make-fixture writes the synthetic scene as a folder of that format and DIR/map.gmm;\n"
       "--convert writes the data set in another folder format (with intrinsics.txt and\n"
       "gravity-direction.txt).\n");
@@ -87,6 +92,9 @@ int main(int argc, char** argv) {
   SequenceOptions so;
   int hold_frames = -1, tail_frames = -1;
   bool quiet = false;
+  std::string init = "cube";
+  MeasurementParams measurement;
+  FrameParams frame_params;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> const char* {
@@ -119,6 +127,18 @@ int main(int argc, char** argv) {
     else if (a == "--trajectory") so.trajectory = next();
     else if (a == "--rate") so.frame_rate_hz = std::atof(next());
     else if (a == "--init-half-extent") init_half_extent_m = std::atof(next());
+    else if (a == "--init") init = next();
+    else if (a == "--depth-noise") {
+      const std::string v = next();
+      if (std::sscanf(v.c_str(), "%f,%f,%f", &measurement.depth_noise.a_m,
+                      &measurement.depth_noise.b_per_m, &measurement.depth_noise.z0_m) != 3) {
+        std::fprintf(stderr, "--depth-noise: expected A,B,Z0 (got '%s')\n", v.c_str());
+        return 2;
+      }
+    }
+    else if (a == "--min-range") frame_params.min_range_m = static_cast<float>(std::atof(next()));
+    else if (a == "--max-range") frame_params.max_range_m = static_cast<float>(std::atof(next()));
+    else if (a == "--floor") measurement.floor_log_density = static_cast<float>(std::atof(next()));
     else if (a == "--init-yaw-half-range") init_yaw_half_range_rad = std::atof(next());
     else if (a == "--width") width = std::atoi(next());
     else if (a == "--hold-frames") hold_frames = std::atoi(next());
@@ -169,8 +189,15 @@ int main(int argc, char** argv) {
     rp.init_yaw_half_range_rad = init_yaw_half_range_rad;
     if (hold_frames > 0) rp.evaluation.hold_frames = hold_frames;
     if (tail_frames > 0) rp.evaluation.tail_frames = tail_frames;
+    if (init != "cube" && init != "map") {
+      std::fprintf(stderr, "--init: cube or map (got '%s')\n", init.c_str());
+      return 2;
+    }
+    rp.whole_map_start = init == "map";
     rp.localizer.filter.num_particles = particles;
     rp.localizer.backend = backend;
+    rp.localizer.measurement = measurement;
+    rp.localizer.frame = frame_params;
     rp.localizer.frame.pixel_stride = stride;
     if (!parseWeightingMode(weighting, &rp.localizer.filter.weighting)) {
       std::fprintf(stderr, "unknown weighting '%s' (paper, tempered)\n", weighting.c_str());
@@ -221,11 +248,15 @@ int main(int argc, char** argv) {
       results.push_back(runTrial(seq, provider, map, rp, seed, progress));
       const TrialResult& r = results.back();
       const TrialMetrics& m = r.metrics;
-      std::printf("trial seed %2llu: %s, converged at %.2f s, ATE %.2f cm / %.2f deg, "
-                  "mean step %.0f ms\n",
+      int lost_events = 0;
+      for (const ReplayFrame& rf : r.frames) lost_events += rf.step.lost ? 1 : 0;
+      std::printf("trial seed %2llu: %s, converged at %.2f s, ATE %.2f cm / %.2f deg, refined "
+                  "%.2f cm / %.2f deg (%.0f%% of frames), %d lost events, mean step %.0f ms\n",
                   static_cast<unsigned long long>(seed), m.success ? "success" : "FAILURE",
                   m.converged ? m.converge_time_s : NAN, 100.0 * m.ate_translation_m,
-                  m.ate_yaw_rad * 180.0 / M_PI, r.mean_step_ms);
+                  m.ate_yaw_rad * 180.0 / M_PI, 100.0 * m.refined_ate_translation_m,
+                  m.refined_ate_yaw_rad * 180.0 / M_PI, 100.0 * m.refined_fraction, lost_events,
+                  r.mean_step_ms);
       std::fflush(stdout);
       if (!out_dir.empty()) {
         const std::string base = out_dir + "/trial_" + std::to_string(seed);
@@ -236,41 +267,55 @@ int main(int argc, char** argv) {
     }
 
     // Summary: per trial and overall (ATE pooled over the converged frames of all trials).
-    int successes = 0, converged = 0;
-    double sum_sq_t = 0.0, sum_sq_y = 0.0, sum_conv = 0.0;
+    int successes = 0, converged = 0, within5 = 0;
+    double sum_sq_t = 0.0, sum_sq_y = 0.0, sum_sq_rt = 0.0, sum_sq_ry = 0.0, sum_conv = 0.0;
     long long pooled = 0;
-    std::string md = "| seed | converged at (s) | ATE (cm) | yaw ATE (deg) | success |\n|---|---|---|---|---|\n";
-    std::string csv = "seed,converged,converge_time_s,ate_cm,ate_yaw_deg,success\n";
+    std::string md =
+        "| seed | converged at (s) | ATE (cm) | yaw ATE (deg) | refined ATE (cm) | refined yaw "
+        "(deg) | refined frames | lost events | success |\n|---|---|---|---|---|---|---|---|---|\n";
+    std::string csv =
+        "seed,converged,converge_time_s,ate_cm,ate_yaw_deg,refined_ate_cm,refined_ate_yaw_deg,"
+        "refined_fraction,lost_events,success\n";
     for (const TrialResult& r : results) {
       const TrialMetrics& m = r.metrics;
-      char row[256];
-      std::snprintf(row, sizeof(row), "| %llu | %s | %.2f | %.2f | %s |\n",
+      int lost_events = 0;
+      for (const ReplayFrame& rf : r.frames) lost_events += rf.step.lost ? 1 : 0;
+      char row[320];
+      std::snprintf(row, sizeof(row), "| %llu | %s | %.2f | %.2f | %.2f | %.2f | %.0f%% | %d | %s |\n",
                     static_cast<unsigned long long>(r.seed),
                     m.converged ? std::to_string(m.converge_time_s).substr(0, 5).c_str() : "never",
                     100.0 * m.ate_translation_m, m.ate_yaw_rad * 180.0 / M_PI,
-                    m.success ? "yes" : "no");
+                    100.0 * m.refined_ate_translation_m, m.refined_ate_yaw_rad * 180.0 / M_PI,
+                    100.0 * m.refined_fraction, lost_events, m.success ? "yes" : "no");
       md += row;
-      std::snprintf(row, sizeof(row), "%llu,%d,%.3f,%.3f,%.3f,%d\n",
+      std::snprintf(row, sizeof(row), "%llu,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%d\n",
                     static_cast<unsigned long long>(r.seed), m.converged ? 1 : 0,
                     m.converge_time_s, 100.0 * m.ate_translation_m, m.ate_yaw_rad * 180 / M_PI,
-                    m.success ? 1 : 0);
+                    100.0 * m.refined_ate_translation_m, m.refined_ate_yaw_rad * 180 / M_PI,
+                    m.refined_fraction, lost_events, m.success ? 1 : 0);
       csv += row;
       successes += m.success ? 1 : 0;
       if (m.converged) {
         ++converged;
+        within5 += m.converge_time_s <= 5.0 ? 1 : 0;
         sum_conv += m.converge_time_s;
         const int count = m.frames - m.converge_frame;
         sum_sq_t += m.ate_translation_m * m.ate_translation_m * count;
         sum_sq_y += m.ate_yaw_rad * m.ate_yaw_rad * count;
+        sum_sq_rt += m.refined_ate_translation_m * m.refined_ate_translation_m * count;
+        sum_sq_ry += m.refined_ate_yaw_rad * m.refined_ate_yaw_rad * count;
         pooled += count;
       }
     }
-    char overall[256];
+    char overall[320];
     std::snprintf(overall, sizeof(overall),
-                  "| all | mean %.2f | %.2f | %.2f | %d/%d |\n",
-                  converged ? sum_conv / converged : NAN,
+                  "| all | mean %.2f, %d/%d within 5 s | %.2f | %.2f | %.2f | %.2f | | | %d/%d |\n",
+                  converged ? sum_conv / converged : NAN, within5,
+                  static_cast<int>(results.size()),
                   pooled ? 100.0 * std::sqrt(sum_sq_t / pooled) : NAN,
-                  pooled ? std::sqrt(sum_sq_y / pooled) * 180.0 / M_PI : NAN, successes,
+                  pooled ? std::sqrt(sum_sq_y / pooled) * 180.0 / M_PI : NAN,
+                  pooled ? 100.0 * std::sqrt(sum_sq_rt / pooled) : NAN,
+                  pooled ? std::sqrt(sum_sq_ry / pooled) * 180.0 / M_PI : NAN, successes,
                   static_cast<int>(results.size()));
     md += overall;
     std::printf("\n%s", md.c_str());

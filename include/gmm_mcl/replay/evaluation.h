@@ -10,6 +10,10 @@ struct FrameError {
   double stamp_s = 0.0;
   double translation_m = 0.0;  // |estimated - true| base position
   double yaw_rad = 0.0;        // |wrapped yaw difference|
+  // The same for the refined pose (the particle mean where the frame was not refined).
+  double refined_translation_m = 0.0;
+  double refined_yaw_rad = 0.0;
+  bool refined = false;
 };
 
 struct EvaluationParams {
@@ -26,6 +30,10 @@ struct TrialMetrics {
   double ate_translation_m = 0.0;  // RMSE over frames from converge_frame on
   double ate_yaw_rad = 0.0;
   bool success = false;
+  // ATE of the refined pose over the same frames, and the fraction of them that were refined.
+  double refined_ate_translation_m = 0.0;
+  double refined_ate_yaw_rad = 0.0;
+  double refined_fraction = 0.0;
 };
 
 TrialMetrics evaluateTrial(const std::vector<FrameError>& errors, const EvaluationParams& params);

@@ -20,12 +20,16 @@ struct ReplayParams {
   ProtocolNoise noise;               // odometry and attitude noise (DESIGN.md protocol)
   double init_half_extent_m = 2.0;   // 4 m cube
   double init_yaw_half_range_rad = 0.5 * M_PI;  // yaw range pi
+  // Global localisation: start uniform over the whole map's bounds (Localizer::mapBounds(), the
+  // full yaw circle) instead of the cube around the true start.
+  bool whole_map_start = false;
   EvaluationParams evaluation;
 };
 
 struct ReplayFrame {
   double stamp_s = 0.0;
   Particle estimate;
+  Particle refined;  // the refined pose, or the estimate where the frame was not refined
   bool has_truth = true;  // false: truth and error are unknown (a bag without ground truth)
   Particle truth;
   FrameError error;
