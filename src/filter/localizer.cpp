@@ -273,14 +273,18 @@ StepResult Localizer::step(const StepInput& in) {
   // resampling, each particle carries its source's likelihood) are redrawn.
   if (lost_.update(res.best_loglik_per_pixel)) {
     ll_scratch_ = output_.log_likelihood;
-    if (res.resampled) {
+    if (res.resampled) {  // the count may have changed
       const std::vector<int>& src = filter_.lastResampleIndices();
+      ll_scratch_.resize(src.size());
       for (size_t i = 0; i < src.size(); ++i) ll_scratch_[i] = output_.log_likelihood[src[i]];
     }
     res.lost = true;
-    const int count = static_cast<int>(std::floor(params_.lost.reinit_fraction * filter_.size()));
+    // The worst fraction is redrawn; with an adaptive count the set grows back to its largest.
+    const int n = filter_.size();
+    const int keep = n - static_cast<int>(std::floor(params_.lost.reinit_fraction * n));
+    const int count = params_.filter.adaptive() ? params_.filter.num_particles - keep : n - keep;
     try {
-      filter_.replaceWorst(ll_scratch_, screenCandidates(frame, count));
+      filter_.replaceWorst(ll_scratch_, screenCandidates(frame, count), keep);
       res.lost_reinitialised = count;
       res.screened_candidates += count * params_.lost.candidates_per_particle;
     } catch (const std::exception& e) {

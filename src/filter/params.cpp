@@ -43,6 +43,13 @@ std::string ParticleFilterParams::validate() const {
     if (!(v >= 0.0) || !std::isfinite(v)) err << name << " must be >= 0 (got " << v << "); ";
   };
   if (num_particles < 1) err << "num_particles must be >= 1 (got " << num_particles << "); ";
+  if (min_particles < 0 || min_particles > num_particles) {
+    err << "min_particles must be in [0, num_particles] (got " << min_particles << "); ";
+  }
+  positive("kld_epsilon", kld_epsilon);
+  positive("kld_z", kld_z);
+  positive("kld_bin_m", kld_bin_m);
+  positive("kld_bin_rad", kld_bin_rad);
   non_negative("sigma_translation_m", sigma_translation_m);
   non_negative("sigma_yaw_rad", sigma_yaw_rad);
   non_negative("alpha_slow", alpha_slow);
@@ -60,7 +67,7 @@ std::string ParticleFilterParams::validate() const {
     err << "neff_floor_fraction must be in [0, 1) (got " << neff_floor_fraction << "); ";
   }
   non_negative("paper_min_nll_per_pixel", paper_min_nll_per_pixel);
-  if (resample_groups < 1 || resample_groups > num_particles) {
+  if (resample_groups < 1 || resample_groups > (adaptive() ? min_particles : num_particles)) {
     err << "resample_groups must be in [1, num_particles] (got " << resample_groups << "); ";
   }
   if (!(resample_neff_fraction >= 0.0 && resample_neff_fraction <= 1.0)) {
@@ -68,6 +75,13 @@ std::string ParticleFilterParams::validate() const {
   }
   non_negative("attitude_sigma_rad", attitude_sigma_rad);
   return err.str();
+}
+
+int kldParticleBound(int k, double epsilon, double z) {
+  if (k <= 1) return 1;
+  const double a = 2.0 / (9.0 * (k - 1));
+  const double b = 1.0 - a + std::sqrt(a) * z;
+  return static_cast<int>(std::ceil((k - 1) / (2.0 * epsilon) * b * b * b));
 }
 
 std::string LostDetectionParams::validate() const {

@@ -27,12 +27,16 @@ Particle ParticleFilter::sampleUniform(const InitRegion& r) {
 }
 
 void ParticleFilter::initialiseUniform(const InitRegion& region) {
+  particles_.resize(params_.num_particles);
+  weights_.resize(params_.num_particles);
   for (Particle& p : particles_) p = sampleUniform(region);
   std::fill(weights_.begin(), weights_.end(), 1.0 / particles_.size());
   augmented_.reset();
 }
 
 void ParticleFilter::initialiseGaussian(const Particle& mean, const Eigen::Vector4d& sigma) {
+  particles_.resize(params_.num_particles);
+  weights_.resize(params_.num_particles);
   std::normal_distribution<double> g(0.0, 1.0);
   for (Particle& p : particles_) {
     p.x_m = mean.x_m + sigma[0] * g(rng_);
@@ -107,12 +111,34 @@ bool ParticleFilter::updateWeights(const std::vector<double>& ll, int pixels) {
   return true;
 }
 
+int ParticleFilter::occupiedBins(const std::vector<int>& indices) const {
+  // Bin keys of the given particles (16 bits per dimension; the key only has to tell bins apart
+  // within a map of +-6.5 km at 0.2 m), counted by sort and unique.
+  keys_.resize(indices.size());
+  const double ib = 1.0 / params_.kld_bin_m, ia = 1.0 / params_.kld_bin_rad;
+  for (size_t k = 0; k < indices.size(); ++k) {
+    const Particle& p = particles_[indices[k]];
+    auto q = [](double v) { return static_cast<uint64_t>(static_cast<int64_t>(std::floor(v)) & 0xffff); };
+    keys_[k] = q(p.x_m * ib) | (q(p.y_m * ib) << 16) | (q(p.z_m * ib) << 32) |
+               (q((p.yaw_rad + M_PI) * ia) << 48);
+  }
+  std::sort(keys_.begin(), keys_.end());
+  return static_cast<int>(std::unique(keys_.begin(), keys_.end()) - keys_.begin());
+}
+
 void ParticleFilter::resample() {
-  stratifiedLowVarianceResample(weights_, params_.resample_groups, size(), &rng_, &indices_);
-  swap_.resize(particles_.size());
+  int n_out = size();
+  if (params_.adaptive()) {
+    // KLD-sampling: the bins that a resampling at the current count occupies set the count.
+    stratifiedLowVarianceResample(weights_, params_.resample_groups, size(), &rng_, &indices_);
+    const int bound = kldParticleBound(occupiedBins(indices_), params_.kld_epsilon, params_.kld_z);
+    n_out = std::max(params_.min_particles, std::min(params_.num_particles, bound));
+  }
+  stratifiedLowVarianceResample(weights_, params_.resample_groups, n_out, &rng_, &indices_);
+  swap_.resize(n_out);
   for (size_t i = 0; i < indices_.size(); ++i) swap_[i] = particles_[indices_[i]];
   particles_.swap(swap_);
-  std::fill(weights_.begin(), weights_.end(), 1.0 / particles_.size());
+  weights_.assign(n_out, 1.0 / n_out);
 }
 
 bool ParticleFilter::resampleIfNeeded() {
@@ -137,7 +163,7 @@ int ParticleFilter::recover(const std::vector<double>& ll, int pixels, const Ini
   for (double l : ll) {
     if (std::isfinite(l)) sum += std::exp(l / pixels - mx);
   }
-  const double average = std::exp(mx) * sum / size();
+  const double average = std::exp(mx) * sum / static_cast<double>(ll.size());
   const int count = augmented_.update(average, size());
   if (count == 0) return 0;
   // Reinitialise `count` distinct, randomly chosen particles.
@@ -155,25 +181,38 @@ int ParticleFilter::recover(const std::vector<double>& ll, int pixels, const Ini
 }
 
 void ParticleFilter::replaceWorst(const std::vector<double>& ll,
-                                  const std::vector<Particle>& replacements) {
+                                  const std::vector<Particle>& replacements, int keep) {
   if (static_cast<int>(ll.size()) != size()) {
     throw std::invalid_argument("replaceWorst: one log-likelihood per particle expected");
   }
-  const int count = std::min(size(), static_cast<int>(replacements.size()));
-  if (count <= 0) return;
+  const int n = size();
+  keep = keep < 0 ? std::max(0, n - static_cast<int>(replacements.size())) : std::min(keep, n);
+  const int added = static_cast<int>(replacements.size());
+  if (keep + added == 0 || (keep == n && added == 0)) return;
   auto key = [&ll](int i) {
     return std::isfinite(ll[i]) ? ll[i] : -std::numeric_limits<double>::infinity();
   };
-  std::vector<int> order(size());
+  // The `keep` best first (any order), then the replacements, each with the old average weight.
+  std::vector<int> order(n);
   std::iota(order.begin(), order.end(), 0);
-  std::nth_element(order.begin(), order.begin() + (count - 1), order.end(),
-                   [&key](int a, int b) { return key(a) < key(b); });
-  for (int k = 0; k < count; ++k) {
-    particles_[order[k]] = replacements[k];
-    weights_[order[k]] = 1.0 / size();
+  if (keep > 0 && keep < n) {
+    std::nth_element(order.begin(), order.begin() + (keep - 1), order.end(),
+                     [&key](int a, int b) { return key(a) > key(b); });
   }
-  const double total = std::accumulate(weights_.begin(), weights_.end(), 0.0);
-  for (double& w : weights_) w /= total;
+  swap_.resize(keep + added);
+  std::vector<double> w(keep + added);
+  for (int k = 0; k < keep; ++k) {
+    swap_[k] = particles_[order[k]];
+    w[k] = weights_[order[k]];
+  }
+  for (int k = 0; k < added; ++k) {
+    swap_[keep + k] = replacements[k];
+    w[keep + k] = 1.0 / n;
+  }
+  particles_.swap(swap_);
+  const double total = std::accumulate(w.begin(), w.end(), 0.0);
+  for (double& v : w) v /= total;
+  weights_.swap(w);
 }
 
 void ParticleFilter::replaceAll(const std::vector<Particle>& particles) {

@@ -172,5 +172,82 @@ TEST(ParticleFilterTest, SeededRunsAreIdentical) {
   }
 }
 
+// KLD-sampling (Fox 2003): the bound grows with the occupied bins; a spread set keeps the
+// largest count, a concentrated one shrinks to the smallest, and a uniform reinitialisation
+// restores the largest.
+TEST(ParticleFilterTest, AdaptiveCountFollowsTheBeliefsSpread) {
+  EXPECT_EQ(kldParticleBound(1, 0.05, 2.326), 1);
+  int last = 1;
+  for (int k : {2, 10, 100, 1000, 10000}) {
+    const int n = kldParticleBound(k, 0.05, 2.326);
+    EXPECT_GT(n, last) << k;
+    last = n;
+  }
+  // Fox's Eq. 8 for k = 100: 99 / 0.1 * (1 - 2/891 + sqrt(2/891) * 2.326)^3.
+  const double a = 2.0 / (9.0 * 99.0);
+  EXPECT_EQ(kldParticleBound(100, 0.05, 2.326),
+            static_cast<int>(std::ceil(990.0 * std::pow(1.0 - a + std::sqrt(a) * 2.326, 3))));
+
+  ParticleFilterParams p;
+  p.num_particles = 5000;
+  p.min_particles = 300;
+  p.neff_floor_fraction = 0.0;  // the plain likelihood, no tempering floor
+  ASSERT_TRUE(p.adaptive());
+  ASSERT_EQ(p.validate(), "");
+  ParticleFilter pf(p);
+  pf.initialiseUniform(InitRegion());  // 4 m cube, yaw range pi: thousands of bins
+  pf.resample();
+  EXPECT_EQ(pf.size(), 5000);
+  // Weight concentrated near one pose (a few centimetres): a handful of bins.
+  std::vector<double> ll(pf.size());
+  for (int i = 0; i < pf.size(); ++i) {
+    const Particle& q = pf.particles()[i];
+    const double d2 = std::pow(q.x_m - 0.5, 2) + std::pow(q.y_m - 0.5, 2) +
+                      std::pow(q.z_m - 0.5, 2) + std::pow(q.yaw_rad - 0.3, 2);
+    ll[i] = -d2 / (2 * 0.05 * 0.05);
+  }
+  ASSERT_TRUE(pf.updateWeights(ll, 1));
+  pf.resample();
+  EXPECT_EQ(pf.size(), 300);
+  pf.initialiseUniform(InitRegion());
+  EXPECT_EQ(pf.size(), 5000);
+  // Fixed count (min_particles 0): resampling keeps the count.
+  ParticleFilterParams fixed;
+  fixed.num_particles = 500;
+  ParticleFilter f(fixed);
+  f.initialiseUniform(InitRegion());
+  ASSERT_TRUE(f.updateWeights(std::vector<double>(500, -1.0), 10));
+  f.resample();
+  EXPECT_EQ(f.size(), 500);
+  ParticleFilterParams bad = p;
+  bad.min_particles = 6000;
+  EXPECT_NE(bad.validate().find("min_particles"), std::string::npos);
+}
+
+// The lost detector's redraw keeps the best particles and can grow the set.
+TEST(ParticleFilterTest, ReplaceWorstKeepsTheBestAndCanGrow) {
+  ParticleFilterParams p;
+  p.num_particles = 10;
+  ParticleFilter pf(p);
+  pf.initialiseUniform(InitRegion());
+  std::vector<double> ll(10);
+  for (int i = 0; i < 10; ++i) ll[i] = -i;  // particle 0 best
+  const Particle best0 = pf.particles()[0], best1 = pf.particles()[1];
+  Particle fresh;
+  fresh.x_m = 42.0;
+  pf.replaceWorst(ll, std::vector<Particle>(18, fresh), 2);
+  ASSERT_EQ(pf.size(), 20);
+  int kept = 0, added = 0;
+  for (const Particle& q : pf.particles()) {
+    kept += (q.x_m == best0.x_m || q.x_m == best1.x_m) ? 1 : 0;
+    added += q.x_m == 42.0 ? 1 : 0;
+  }
+  EXPECT_EQ(kept, 2);
+  EXPECT_EQ(added, 18);
+  double total = 0.0;
+  for (double w : pf.weights()) total += w;
+  EXPECT_NEAR(total, 1.0, 1e-12);
+}
+
 }  // namespace
 }  // namespace gmm_mcl

@@ -40,7 +40,19 @@ struct InitRegion {
 };
 
 struct ParticleFilterParams {
+  // The particle count at every uniform or Gaussian (re)initialisation, and the largest count.
   int num_particles = kDefaultParticleCount;
+  // Adaptive particle count (KLD-sampling, Fox 2003): at each resampling the count becomes the
+  // number of samples that bounds the Kullback-Leibler error of the resampled set by
+  // kld_epsilon with probability kld_quantile's (z = kld_z) for the number of occupied state bins
+  // (kld_bin_m x kld_bin_m x kld_bin_m x kld_bin_rad), within [min_particles, num_particles]: a
+  // spread or lost belief keeps num_particles, a converged one shrinks to min_particles.
+  // min_particles 0 (or num_particles): a fixed count, the paper's.
+  int min_particles = 0;
+  double kld_epsilon = 0.05;
+  double kld_z = 2.326;  // upper 0.99 quantile of the standard normal
+  double kld_bin_m = 0.2;
+  double kld_bin_rad = 0.2;
   // Process noise per update (paper Table 1, desktop).
   double sigma_translation_m = 0.02;
   double sigma_yaw_rad = 0.01;
@@ -61,8 +73,12 @@ struct ParticleFilterParams {
   double attitude_sigma_rad = 0.0087;     // roll/pitch standard deviation for the covariance
   uint64_t seed = 1;
 
+  bool adaptive() const { return min_particles > 0 && min_particles < num_particles; }
   std::string validate() const;
 };
+
+// The KLD-sampling bound: particles needed for k occupied bins (Fox 2003, Eq. 8), at least 1.
+int kldParticleBound(int occupied_bins, double epsilon, double z);
 
 // Absolute-quality recovery (LostDetector): when the best particle's per-pixel log-likelihood
 // stays more than margin_nats below a reference level for `frames` frames, the worst

@@ -2,6 +2,7 @@
 // augmented-MCL reinitialisation and the pose estimate.
 #pragma once
 
+#include <cstdint>
 #include <random>
 #include <vector>
 
@@ -47,6 +48,8 @@ class ParticleFilter {
   double effectiveSampleSize() const { return gmm_mcl::effectiveSampleSize(weights_); }
   // Resamples when Neff < resample_neff_fraction * N; returns whether it did.
   bool resampleIfNeeded();
+  // Stratified low-variance resampling; with an adaptive count (params().adaptive()) the new
+  // count is the KLD bound of the bins that the resampled set occupies.
   void resample();
   // Source index of every particle in the last resample().
   const std::vector<int>& lastResampleIndices() const { return indices_; }
@@ -54,10 +57,11 @@ class ParticleFilter {
   // randomly chosen particles from `region`. Returns the count.
   int recover(const std::vector<double>& log_likelihood, int pixels, const InitRegion& region);
 
-  // Replaces the worst particles (lowest log_likelihood; non-finite first), as many as given,
-  // with `replacements`, each with the average weight.
+  // Keeps the `keep` best particles (highest log_likelihood; non-finite last) with their weights
+  // and adds `replacements`, each with the old average weight 1/N; the count becomes keep +
+  // replacements (keep < 0: N - replacements, the count stays). Weights normalised.
   void replaceWorst(const std::vector<double>& log_likelihood,
-                    const std::vector<Particle>& replacements);
+                    const std::vector<Particle>& replacements, int keep = -1);
   // Replaces the whole set (equal weights), e.g. by screened uniform candidates.
   void replaceAll(const std::vector<Particle>& particles);
   // n uniform draws from the region with the filter's generator.
@@ -69,6 +73,8 @@ class ParticleFilter {
 
  private:
   Particle sampleUniform(const InitRegion& region);
+  // Distinct KLD bins among the particles at `indices`.
+  int occupiedBins(const std::vector<int>& indices) const;
 
   ParticleFilterParams params_;
   std::mt19937_64 rng_;
@@ -78,6 +84,7 @@ class ParticleFilter {
   std::vector<int> indices_;
   double last_beta_fraction_ = 1.0;
   std::vector<Particle> swap_;
+  mutable std::vector<uint64_t> keys_;
 };
 
 }  // namespace gmm_mcl
