@@ -10,7 +10,7 @@
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/replay/replay.h"
-#include "gmm_mcl/replay/seven_scenes_sequence.h"
+#include "gmm_mcl/replay/sequence_base.h"
 #include "gmm_mcl/sim/box_scene.h"
 #include "gmm_mcl/sim/mesh_renderer.h"
 #include "gmm_mcl/sim/mesh_scene.h"
@@ -50,31 +50,33 @@ class SimSceneSource : public FrameSource {
   std::vector<Eigen::Isometry3d> truth_;
 };
 
-class SevenScenesSource : public FrameSource {
+// Any data-set folder (replay's readers), gravity-aligned like gmm_mcl_replay; the frame rate
+// from the stamps.
+class SequenceSource : public FrameSource {
  public:
-  SevenScenesSource(const std::string& dir, const std::string& map_path)
-      : seq_(dir), T_base_cam_(opticalToBase()) {
-    map_ = rotateMap(loadMap(map_path), seq_.R_aligned_world(), map_path + " (gravity-aligned)");
-    Eigen::Isometry3d T_aligned_world = Eigen::Isometry3d::Identity();
-    T_aligned_world.linear() = seq_.R_aligned_world();
-    for (int i = 0; i < seq_.size(); ++i) {
-      truth_.push_back(T_aligned_world * seq_.T_world_cam(i) * T_base_cam_.inverse());
-    }
+  SequenceSource(std::unique_ptr<Sequence> seq, const std::string& map_path, std::string name)
+      : seq_(std::move(seq)), T_base_cam_(opticalToBase()), name_(std::move(name)) {
+    map_ = rotateMap(loadMap(map_path), seq_->R_aligned_world(), map_path + " (gravity-aligned)");
+    truth_ = alignedBaseTrajectory(*seq_, seq_->size());
+    const int n = seq_->size();
+    if (n > 1) rate_hz_ = (n - 1) / (seq_->stampS(n - 1) - seq_->stampS(0));
   }
-  int size() const override { return seq_.size(); }
+  int size() const override { return seq_->size(); }
   const Eigen::Isometry3d& truthBase(int i) const override { return truth_.at(i); }
-  DepthImage depth(int i, std::mt19937_64*) const override { return seq_.loadDepth(i); }
-  const Intrinsics& intrinsics() const override { return seq_.intrinsics(); }
+  DepthImage depth(int i, std::mt19937_64*) const override { return seq_->loadDepth(i); }
+  const Intrinsics& intrinsics() const override { return seq_->intrinsics(); }
   const Eigen::Isometry3d& baseToCamera() const override { return T_base_cam_; }
   const GmmMap& map() const override { return map_; }
-  double frameRateHz() const override { return seq_.frameRateHz(); }
-  std::string name() const override { return "7scenes"; }
+  double frameRateHz() const override { return rate_hz_; }
+  std::string name() const override { return name_; }
 
  private:
-  SevenScenesSequence seq_;
+  std::unique_ptr<Sequence> seq_;
   Eigen::Isometry3d T_base_cam_;
+  std::string name_;
   GmmMap map_;
   std::vector<Eigen::Isometry3d> truth_;
+  double rate_hz_ = 30.0;
 };
 
 bool inRegion(const Particle& p, const Particle& centre, const KidnapParams& params) {
@@ -119,7 +121,14 @@ std::unique_ptr<FrameSource> makeSyntheticSource(const Intrinsics& K, int frames
 
 std::unique_ptr<FrameSource> makeSevenScenesSource(const std::string& data_dir,
                                                    const std::string& map_path) {
-  return std::unique_ptr<FrameSource>(new SevenScenesSource(data_dir, map_path));
+  return makeSequenceSource("7scenes", data_dir, map_path);
+}
+
+std::unique_ptr<FrameSource> makeSequenceSource(const std::string& format,
+                                                const std::string& data_dir,
+                                                const std::string& map_path) {
+  return std::unique_ptr<FrameSource>(
+      new SequenceSource(openSequence(format, data_dir), map_path, format));
 }
 
 KidnapResult planKidnap(const FrameSource& src, const KidnapParams& params, uint64_t seed) {

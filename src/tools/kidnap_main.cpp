@@ -17,13 +17,15 @@ namespace {
 
 void usage() {
   std::printf(
-      "usage: gmm_mcl_kidnap [--scene synthetic|box|7scenes] [--map MAP.gmm] [--dataset DIR]\n"
+      "usage: gmm_mcl_kidnap [--scene synthetic|box|7scenes|tum|stanford] [--map MAP.gmm]\n"
+      "                      [--dataset DIR]\n"
       "                      [--trials N] [--first-seed S] [--stride PX] [--particles N]\n"
       "                      [--width PX] [--track-frames N] [--after-frames N] [--start-frame F]\n"
       "                      [--backend cpu|cuda]\n"
       "                      [--weighting paper|tempered] [--no-lost-detector]\n"
       "                      [--candidates K] [--reinit-fraction F] [--margin NATS]\n"
-      "                      [--grace FRAMES] [--lost-frames FRAMES]\n"
+      "                      [--grace FRAMES] [--lost-frames FRAMES] [--min-particles N]\n"
+      "                      [--depth-noise A,B,Z0]\n"
       "--track-frames 0: global localisation trials (uniform start, no kidnap).\n"
       "--width: the synthetic scenes' camera width (f = 585 px at 640, scaled; default 640).\n"
       "7scenes needs --map (scripts/build_map_7scenes.sh); DIR defaults to\n"
@@ -69,6 +71,15 @@ int main(int argc, char** argv) {
     else if (a == "--margin") kp.localizer.lost.margin_nats = std::atof(next());
     else if (a == "--grace") kp.localizer.lost.grace_frames = std::atoi(next());
     else if (a == "--lost-frames") kp.localizer.lost.frames = std::atoi(next());
+    else if (a == "--min-particles") kp.localizer.filter.min_particles = std::atoi(next());
+    else if (a == "--depth-noise") {
+      const char* v = next();
+      DepthNoiseModel& n = kp.localizer.measurement.depth_noise;
+      if (std::sscanf(v, "%f,%f,%f", &n.a_m, &n.b_per_m, &n.z0_m) != 3) {
+        std::fprintf(stderr, "--depth-noise: expected A,B,Z0 (got '%s')\n", v);
+        return 2;
+      }
+    }
     else {
       usage();
       return a == "--help" || a == "-h" ? 0 : 2;
@@ -81,12 +92,12 @@ int main(int argc, char** argv) {
       src = scene == "box" ? makeBoxSceneSource(K, 1500) : makeSyntheticSource(K, 1500);
       kp.localizer.frame.pixel_stride = stride > 0 ? stride : 8;
       kp.localizer.frame.max_range_m = 8.f;
-    } else if (scene == "7scenes") {
-      if (map_path.empty()) {
+    } else if (scene == "7scenes" || scene == "tum" || scene == "stanford") {
+      if (map_path.empty() || (scene != "7scenes" && dataset.empty())) {
         usage();
         return 2;
       }
-      src = makeSevenScenesSource(dataset, map_path);
+      src = makeSequenceSource(scene, dataset, map_path);
       kp.localizer.frame.pixel_stride = stride > 0 ? stride : 8;
     } else {
       usage();

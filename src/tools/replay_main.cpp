@@ -30,7 +30,7 @@ void usage() {
       "                      [--backend cpu|cuda]\n"
       "                      [--neff-floor F] [--init-half-extent M] [--init-yaw-half-range RAD]\n"
       "                      [--init cube|map] [--depth-noise A,B,Z0] [--min-range M]\n"
-      "                      [--max-range M] [--floor NATS]\n"
+      "                      [--max-range M] [--floor NATS] [--min-particles N]\n"
       "                      [--lost-margin NATS] [--lost-grace FRAMES] [--candidates K]\n"
       "                      [--hold-frames N (30)] [--tail-frames N (100)]\n"
       "                      [--out DIR] [--quiet]\n"
@@ -85,6 +85,7 @@ int main(int argc, char** argv) {
   std::string backend = "cpu";
   std::string fixture_format, fixture_dir, convert_format, convert_dir;
   int trials = 10, frames = -1, stride = 4, particles = kDefaultParticleCount, width = 160;
+  int min_particles = 0;
   uint64_t first_seed = 1;
   double temperature = -1.0, neff_floor = -1.0;
   LostDetectionParams lost;
@@ -111,6 +112,7 @@ int main(int argc, char** argv) {
     else if (a == "--frames") frames = std::atoi(next());
     else if (a == "--stride") stride = std::atoi(next());
     else if (a == "--particles") particles = std::atoi(next());
+    else if (a == "--min-particles") min_particles = std::atoi(next());
     else if (a == "--weighting") weighting = next();
     else if (a == "--backend") backend = next();
     else if (a == "--temperature") temperature = std::atof(next());
@@ -195,6 +197,7 @@ int main(int argc, char** argv) {
     }
     rp.whole_map_start = init == "map";
     rp.localizer.filter.num_particles = particles;
+    rp.localizer.filter.min_particles = min_particles;
     rp.localizer.backend = backend;
     rp.localizer.measurement = measurement;
     rp.localizer.frame = frame_params;
@@ -210,11 +213,14 @@ int main(int argc, char** argv) {
 
     const Intrinsics& K = seq.intrinsics();
     std::printf("gmm_mcl replay: %s (%s), %d frames %dx%d (fx %.1f fy %.1f cx %.1f cy %.1f), "
-                "gravity: %s; map %s (%zu components), %d particles, "
+                "gravity: %s; map %s (%zu components), %d particles (min %d), start %s, "
+                "depth noise %.4g + %.4g (z - %.2g)^2 m, "
                 "stride %d, %s weighting (T %.3g, Neff floor %.2f), %d trials from seed %llu\n",
                 dataset.c_str(), seq.format(), seq.size(), K.width_px, K.height_px, K.fx_px,
                 K.fy_px, K.cx_px, K.cy_px, seq.gravitySource().c_str(), map_path.c_str(),
-                map.size(), particles, stride,
+                map.size(), particles, min_particles > 0 ? min_particles : particles,
+                init == "map" ? "whole map" : "cube", measurement.depth_noise.a_m,
+                measurement.depth_noise.b_per_m, measurement.depth_noise.z0_m, stride,
                 weighting.c_str(), rp.localizer.filter.temperature,
                 rp.localizer.filter.neff_floor_fraction, trials,
                 static_cast<unsigned long long>(first_seed));

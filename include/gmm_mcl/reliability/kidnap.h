@@ -37,6 +37,11 @@ std::unique_ptr<FrameSource> makeBoxSceneSource(const Intrinsics& K, int frames)
 // 7-Scenes redkitchen (gravity-aligned, like gmm_mcl_replay) against a map file.
 std::unique_ptr<FrameSource> makeSevenScenesSource(const std::string& data_dir,
                                                    const std::string& map_path);
+// Any data-set folder that gmm_mcl_replay reads ("7scenes", "tum", "stanford"), gravity-aligned
+// as there, against a map file in the data set's world frame.
+std::unique_ptr<FrameSource> makeSequenceSource(const std::string& format,
+                                                const std::string& data_dir,
+                                                const std::string& map_path);
 
 struct KidnapParams {
   LocalizerParams localizer;     // T_base_cam and init are set per trial
