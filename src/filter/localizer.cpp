@@ -48,7 +48,8 @@ Localizer::Localizer(const LocalizerParams& params, GmmMap map,
   if (!backend_) backend_ = makeBackend(params_.backend, &backend_warning_);
   backend_->setMap(map_);
   filter_.initialiseUniform(region_);
-  map_self_ll_ = gmm_mcl::mapSelfLogDensity(map_, params_.measurement.floor_log_density);
+  map_self_ll_ = gmm_mcl::mapSelfLogDensity(map_, params_.measurement.floor_log_density,
+                                            params_.measurement.depth_noise);
   lost_ = LostDetector(params_.lost, map_self_ll_);
 }
 
@@ -59,12 +60,14 @@ void Localizer::reset(const InitRegion& region) {
   filter_.initialiseUniform(region_);
   lost_.restart();
   screen_pending_ = true;
+  have_refined_ = false;
 }
 
 void Localizer::resetToPose(const Particle& pose, const Eigen::Vector4d& sigma) {
   filter_.initialiseGaussian(pose, sigma);
   lost_.restart();
   screen_pending_ = false;
+  have_refined_ = false;
 }
 
 InitRegion Localizer::mapBounds() const {
@@ -130,6 +133,7 @@ StepResult Localizer::step(const StepInput& in) {
     filter_.initialiseUniform(region_);
     lost_.restart();
     screen_pending_ = true;
+    have_refined_ = false;
     have_odometry_ = false;
     have_stamp_ = false;
     res.status = StepStatus::kTimeJumpBack;
@@ -167,6 +171,13 @@ StepResult Localizer::step(const StepInput& in) {
     have_odometry_ = true;
   }
   filter_.predict(delta);
+  if (have_refined_) {  // the last refined pose moved like a particle, without noise
+    const double c = std::cos(last_refined_.yaw_rad), sn = std::sin(last_refined_.yaw_rad);
+    last_refined_.x_m += c * delta.translation_m.x() - sn * delta.translation_m.y();
+    last_refined_.y_m += sn * delta.translation_m.x() + c * delta.translation_m.y();
+    last_refined_.z_m += delta.translation_m.z();
+    last_refined_.yaw_rad = wrapAngle(last_refined_.yaw_rad + delta.yaw_rad);
+  }
   res.timings.predict_ms = msSince(t0);
 
   auto finish = [&](StepStatus status, const std::string& why) {
@@ -259,13 +270,37 @@ StepResult Localizer::step(const StepInput& in) {
     const double yaw_sigma = std::sqrt(C(5, 5));
     if (position_sigma <= params_.refinement.max_position_sigma_m &&
         yaw_sigma <= params_.refinement.max_yaw_sigma_rad) {
-      res.refinement = refinePose(map_.packed(), frame, res.estimate.mean, roll_rad_, pitch_rad_,
+      // Warm start from the last refined pose moved by this frame's odometry, while it stays
+      // near the particle mean (a few iterations instead of a dozen when tracking).
+      Particle start = res.estimate.mean;
+      if (have_refined_ && std::hypot(std::hypot(last_refined_.x_m - start.x_m,
+                                                 last_refined_.y_m - start.y_m),
+                                      last_refined_.z_m - start.z_m) <
+                               0.5 * params_.refinement.max_correction_m &&
+          std::abs(wrapAngle(last_refined_.yaw_rad - start.yaw_rad)) <
+              0.5 * params_.refinement.max_correction_rad) {
+        start = last_refined_;
+      }
+      res.refinement = refinePose(map_.packed(), frame, start, roll_rad_, pitch_rad_,
                                   params_.T_base_cam, params_.measurement, params_.refinement);
+      // Judged against the particle mean, whatever the start.
+      const Particle& r = res.refinement.pose;
+      if (res.refinement.refined &&
+          (std::hypot(std::hypot(r.x_m - res.estimate.mean.x_m, r.y_m - res.estimate.mean.y_m),
+                      r.z_m - res.estimate.mean.z_m) > params_.refinement.max_correction_m ||
+           std::abs(wrapAngle(r.yaw_rad - res.estimate.mean.yaw_rad)) >
+               params_.refinement.max_correction_rad)) {
+        res.refinement.refined = false;
+        res.refinement.why = "refined pose too far from the particle mean: rejected";
+        res.refinement.pose = res.estimate.mean;
+      }
       res.timings.refine_ms = res.refinement.ms;
     } else {
       res.refinement.why = "not converged";
     }
   }
+  have_refined_ = res.refinement.refined;
+  if (have_refined_) last_refined_ = res.refinement.pose;
   t0 = Clock::now();
   res.resampled = filter_.resampleIfNeeded();
   res.reinitialised = filter_.recover(output_.log_likelihood, res.pixels, region_);
@@ -279,6 +314,7 @@ StepResult Localizer::step(const StepInput& in) {
       for (size_t i = 0; i < src.size(); ++i) ll_scratch_[i] = output_.log_likelihood[src[i]];
     }
     res.lost = true;
+    have_refined_ = false;
     // The worst fraction is redrawn; with an adaptive count the set grows back to its largest.
     const int n = filter_.size();
     const int keep = n - static_cast<int>(std::floor(params_.lost.reinit_fraction * n));

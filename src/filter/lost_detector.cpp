@@ -5,19 +5,37 @@
 #include <random>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 
 namespace gmm_mcl {
 
 double mapSelfLogDensity(const GmmMap& map, float floor_log_density, int samples,
                          uint64_t seed) {
+  DepthNoiseModel off;
+  off.a_m = off.b_per_m = 0.f;
+  return mapSelfLogDensity(map, floor_log_density, off, samples, seed);
+}
+
+double mapSelfLogDensity(const GmmMap& map, float floor_log_density, const DepthNoiseModel& noise,
+                         int samples, uint64_t seed, double nominal_range_m) {
   const std::vector<GaussianComponent>& comps = map.components();
   if (comps.empty() || samples <= 0) return floor_log_density;
+  // Each component convolved with the depth noise along its normal (the direction of its
+  // smallest variance: a surface seen head-on) at the nominal range.
+  const double d = nominal_range_m - noise.z0_m;
+  const double s = noise.enabled() ? noise.a_m + noise.b_per_m * d * d : 0.0;
   std::vector<Eigen::Matrix3d> L(comps.size());  // Cholesky factors
   std::vector<double> log_norm(comps.size());    // ln(lambda) - ln((2 pi)^1.5 |Sigma|^0.5)
   std::vector<double> cumulative(comps.size());
   double total = 0.0;
   for (size_t j = 0; j < comps.size(); ++j) {
-    L[j] = comps[j].cov_m2.llt().matrixL();
+    Eigen::Matrix3d cov = comps[j].cov_m2;
+    if (s > 0.0) {
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+      const Eigen::Vector3d n = es.eigenvectors().col(0);
+      cov += s * s * n * n.transpose();
+    }
+    L[j] = cov.llt().matrixL();
     log_norm[j] = std::log(comps[j].weight) - 1.5 * std::log(2.0 * M_PI) -
                   L[j].diagonal().array().log().sum();
     total += comps[j].weight;

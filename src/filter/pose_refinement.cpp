@@ -1,11 +1,10 @@
 #include "gmm_mcl/filter/pose_refinement.h"
 
+#include <Eigen/Cholesky>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <sstream>
-
-#include <Eigen/Cholesky>
 
 #include "gmm_mcl/measurement/likelihood.h"
 
@@ -17,133 +16,174 @@ constexpr double kMinResponsibility = 1e-6;
 // Steps after which the membership and the noise-convolved forms are recomputed.
 constexpr double kRelineariseM = 0.01;
 constexpr double kRelineariseRad = 0.01;
+// Work split of the pixel loop: patches in this many chunks; per chunk the log-likelihood, the
+// 21 entries of the upper triangle of H and the 6 of g.
+constexpr int kChunks = 64;
+constexpr int kPartial = 28;
 
-// The frame's log-likelihood at a pose and the Gauss-Newton normal equations of the EM objective sum_ij gamma_ij |y_ij|^2 (y = U q + c, the component's
-// whitened residual scaled by 1/sqrt(2)) in (x, y, z, yaw).
+// A 6-DoF pose: the particle state plus the roll and pitch the refinement may adjust.
+struct Pose6 {
+  Particle p;
+  double roll = 0.0, pitch = 0.0;
+};
+
+// The frame's log-likelihood at a pose and the Gauss-Newton normal equations of the EM objective
+// sum_ij gamma_ij |y_ij|^2 (y = U q + c: the component's whitened residual over sqrt(2)) in
+// (x, y, z, roll, pitch, yaw).
 struct Linearisation {
   double loglik = 0.0;
-  Eigen::Matrix4d H = Eigen::Matrix4d::Zero();
-  Eigen::Vector4d g = Eigen::Vector4d::Zero();
+  Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();
 };
 
 class Objective {
  public:
-  Objective(const std::vector<ComponentF>& components, const DepthFrame& frame, double roll_rad,
-            double pitch_rad, const Eigen::Isometry3d& T_base_cam, const MeasurementParams& params)
-      : components_(components), frame_(frame), roll_(roll_rad), pitch_(pitch_rad),
-        T_base_cam_(T_base_cam), params_(params) {
+  Objective(const std::vector<ComponentF>& components, const DepthFrame& frame,
+            const Eigen::Isometry3d& T_base_cam, const MeasurementParams& params)
+      : components_(components), frame_(frame), T_base_cam_(T_base_cam), params_(params) {
     makeEvalComponents(components_, &base_eval_);
-    // Gravity-aligned, yaw-free points: v = R(roll, pitch) (T_base_cam p_cam); the map point of
-    // pose (x, y, z, yaw) is Rz(yaw) v + t.
-    const Eigen::Isometry3d T_rp_cam =
-        Eigen::Isometry3d(rotationFromRpy(roll_rad, pitch_rad, 0.0)) * T_base_cam;
-    v_.resize(frame.size());
+    // Base-frame points; the map point of a pose is R(roll, pitch, yaw) p_base + t.
+    p_base_.resize(frame.size());
     for (size_t i = 0; i < frame.size(); ++i) {
-      v_[i] = T_rp_cam * Eigen::Vector3d(frame.x_m[i], frame.y_m[i], frame.z_m[i]);
+      p_base_[i] = T_base_cam * Eigen::Vector3d(frame.x_m[i], frame.y_m[i], frame.z_m[i]);
     }
   }
 
   // Membership and evaluation forms (with the depth noise) at `pose`; kept for the iterations
   // that follow, whose steps are small beside the membership's 3-sigma-plus-half-patch margin
   // (the objective stays one function while it is maximised).
-  void linearisePatches(const Particle& pose) {
-    const Eigen::Isometry3d T_map_cam = particleToPose(pose, roll_, pitch_) * T_base_cam_;
+  void linearisePatches(const Pose6& pose) {
+    const Eigen::Isometry3d T_map_cam = particleToPose(pose.p, pose.roll, pose.pitch) * T_base_cam_;
     const RigidTransformF T_cam_map = toRigidF(T_map_cam.inverse());
-    computeMembership(components_, T_cam_map, frame_.intrinsics, frame_.grid, params_,
-                      &projected_, &valid_, &membership_);
+    computeMembership(components_, T_cam_map, frame_.intrinsics, frame_.grid, params_, &projected_,
+                      &valid_, &membership_);
     eval_ = noisyEvalComponents(components_, base_eval_, valid_, T_cam_map, params_.depth_noise,
                                 &noisy_);
   }
 
-  Linearisation evaluate(const Particle& pose, bool linearise) {
+  Linearisation evaluate(const Pose6& pose, bool linearise) {
     const EvalComponentF* eval = eval_;
-    const double c = std::cos(pose.yaw_rad), s = std::sin(pose.yaw_rad);
+    const Eigen::Matrix3d R = rotationFromRpy(pose.roll, pose.pitch, pose.p.yaw_rad);
+    const Eigen::Vector3d t(pose.p.x_m, pose.p.y_m, pose.p.z_m);
+    // dR / d(roll, pitch, yaw) for R = Rz(yaw) Ry(pitch) Rx(roll).
+    const double cr = std::cos(pose.roll), sr = std::sin(pose.roll);
+    const double cp = std::cos(pose.pitch), sp = std::sin(pose.pitch);
+    const double cy = std::cos(pose.p.yaw_rad), sy = std::sin(pose.p.yaw_rad);
+    Eigen::Matrix3d Rx, Ry, Rz, dRx, dRy, dRz;
+    Rx << 1, 0, 0, 0, cr, -sr, 0, sr, cr;
+    Ry << cp, 0, sp, 0, 1, 0, -sp, 0, cp;
+    Rz << cy, -sy, 0, sy, cy, 0, 0, 0, 1;
+    dRx << 0, 0, 0, 0, -sr, -cr, 0, cr, -sr;
+    dRy << -sp, 0, cp, 0, 0, 0, -cp, 0, -sp;
+    dRz << -sy, -cy, 0, cy, -sy, 0, 0, 0, 0;
+    const Eigen::Matrix3d D[3] = {Rz * Ry * dRx, Rz * dRy * Rx, dRz * Ry * Rx};
     const double floor = params_.floor_log_density;
     Linearisation out;
-    // Normal equations accumulated by hand: J = U [I | d], d = dq/dyaw = (dqx, dqy, 0), U upper
-    // triangular, so J^T J = [U^T U, U^T U d; d^T U^T U, d^T U^T U d] and J^T y = [U^T y; d.U^T y].
-    double h[10] = {0};  // upper triangle of H: 00 01 02 03 11 12 13 22 23 33
-    double g[4] = {0};
-    for (int p = 0; p < frame_.grid.count(); ++p) {
-      const int b = frame_.patch_begin[p], e = frame_.patch_begin[p + 1];
-      if (b == e) continue;
-      const int k = membership_.countFor(p);
-      if (k == 0) {
-        out.loglik += floor * (e - b);
-        continue;
-      }
-      const int* members = membership_.comps.data() + membership_.begin[p];
-      t_.resize(k);
-      y_.resize(3 * k);
-      for (int i = b; i < e; ++i) {
-        const Eigen::Vector3d& v = v_[i];
-        const double qx = c * v.x() - s * v.y() + pose.x_m;
-        const double qy = s * v.x() + c * v.y() + pose.y_m;
-        const double qz = v.z() + pose.z_m;
-        double mx = floor;
-        for (int j = 0; j < k; ++j) {
-          const EvalComponentF& ev = eval[members[j]];
-          const double y0 = ev.u00 * qx + ev.u01 * qy + ev.u02 * qz + ev.c[0];
-          const double y1 = ev.u11 * qy + ev.u12 * qz + ev.c[1];
-          const double y2 = ev.u22 * qz + ev.c[2];
-          y_[3 * j] = y0;
-          y_[3 * j + 1] = y1;
-          y_[3 * j + 2] = y2;
-          t_[j] = ev.log_norm - (y0 * y0 + y1 * y1 + y2 * y2);
-          mx = std::max(mx, t_[j]);
+    // Patches in fixed chunks, one partial sum per chunk, added in chunk order: the result does
+    // not depend on the thread count.
+    const int patches = frame_.grid.count();
+    const int chunks = std::min(patches, kChunks);
+    partial_.assign(static_cast<size_t>(chunks) * kPartial, 0.0);
+#pragma omp parallel for schedule(dynamic, 1)
+    for (int ch = 0; ch < chunks; ++ch) {
+      double* acc = partial_.data() + static_cast<size_t>(ch) * kPartial;  // loglik, h[21], g[6]
+      std::vector<double>& t_ = scratch_t();
+      std::vector<double>& y_ = scratch_y();
+      for (int p = ch * patches / chunks; p < (ch + 1) * patches / chunks; ++p) {
+        const int b = frame_.patch_begin[p], e = frame_.patch_begin[p + 1];
+        if (b == e) continue;
+        const int k = membership_.countFor(p);
+        if (k == 0) {
+          acc[0] += floor * (e - b);
+          continue;
         }
-        double sum = std::exp(floor - mx);
-        for (int j = 0; j < k; ++j) {
-          t_[j] = std::exp(t_[j] - mx);
-          sum += t_[j];
-        }
-        out.loglik += mx + std::log(sum);
-        if (!linearise) continue;
-        const double dqx = -(s * v.x() + c * v.y()), dqy = c * v.x() - s * v.y();
-        const double inv_sum = 1.0 / sum;
-        for (int j = 0; j < k; ++j) {
-          const double gamma = t_[j] * inv_sum;
-          if (gamma < kMinResponsibility) continue;
-          const EvalComponentF& ev = eval[members[j]];
-          // Columns of J: a = U e_x, b = U e_y, c3 = U e_z, d = U (dqx, dqy, 0).
-          const double a0 = ev.u00;
-          const double b0 = ev.u01, b1 = ev.u11;
-          const double c0 = ev.u02, c1 = ev.u12, c2 = ev.u22;
-          const double d0 = ev.u00 * dqx + ev.u01 * dqy, d1 = ev.u11 * dqy;
-          const double y0 = y_[3 * j], y1 = y_[3 * j + 1], y2 = y_[3 * j + 2];
-          h[0] += gamma * a0 * a0;
-          h[1] += gamma * a0 * b0;
-          h[2] += gamma * a0 * c0;
-          h[3] += gamma * a0 * d0;
-          h[4] += gamma * (b0 * b0 + b1 * b1);
-          h[5] += gamma * (b0 * c0 + b1 * c1);
-          h[6] += gamma * (b0 * d0 + b1 * d1);
-          h[7] += gamma * (c0 * c0 + c1 * c1 + c2 * c2);
-          h[8] += gamma * (c0 * d0 + c1 * d1);
-          h[9] += gamma * (d0 * d0 + d1 * d1);
-          g[0] += gamma * a0 * y0;
-          g[1] += gamma * (b0 * y0 + b1 * y1);
-          g[2] += gamma * (c0 * y0 + c1 * y1 + c2 * y2);
-          g[3] += gamma * (d0 * y0 + d1 * y1);
+        const int* members = membership_.comps.data() + membership_.begin[p];
+        t_.resize(k);
+        y_.resize(3 * k);
+        for (int i = b; i < e; ++i) {
+          const Eigen::Vector3d q = R * p_base_[i] + t;
+          double mx = floor;
+          for (int j = 0; j < k; ++j) {
+            const EvalComponentF& ev = eval[members[j]];
+            const double y0 = ev.u00 * q.x() + ev.u01 * q.y() + ev.u02 * q.z() + ev.c[0];
+            const double y1 = ev.u11 * q.y() + ev.u12 * q.z() + ev.c[1];
+            const double y2 = ev.u22 * q.z() + ev.c[2];
+            y_[3 * j] = y0;
+            y_[3 * j + 1] = y1;
+            y_[3 * j + 2] = y2;
+            t_[j] = ev.log_norm - (y0 * y0 + y1 * y1 + y2 * y2);
+            mx = std::max(mx, t_[j]);
+          }
+          double sum = std::exp(floor - mx);
+          for (int j = 0; j < k; ++j) {
+            t_[j] = std::exp(t_[j] - mx);
+            sum += t_[j];
+          }
+          acc[0] += mx + std::log(sum);
+          if (!linearise) continue;
+          // dq / d(roll, pitch, yaw).
+          const Eigen::Vector3d m[3] = {D[0] * p_base_[i], D[1] * p_base_[i], D[2] * p_base_[i]};
+          const double inv_sum = 1.0 / sum;
+          for (int j = 0; j < k; ++j) {
+            const double gamma = t_[j] * inv_sum;
+            if (gamma < kMinResponsibility) continue;
+            const EvalComponentF& ev = eval[members[j]];
+            // Columns of J = U [I | dq/droll | dq/dpitch | dq/dyaw] (U upper triangular).
+            double col[6][3] = {
+                {ev.u00, 0.0, 0.0}, {ev.u01, ev.u11, 0.0}, {ev.u02, ev.u12, ev.u22}};
+            for (int a = 0; a < 3; ++a) {
+              col[3 + a][0] = ev.u00 * m[a].x() + ev.u01 * m[a].y() + ev.u02 * m[a].z();
+              col[3 + a][1] = ev.u11 * m[a].y() + ev.u12 * m[a].z();
+              col[3 + a][2] = ev.u22 * m[a].z();
+            }
+            const double y[3] = {y_[3 * j], y_[3 * j + 1], y_[3 * j + 2]};
+            double* h = acc + 1;
+            double* g = acc + 22;
+            for (int r = 0, idx = 0; r < 6; ++r) {
+              for (int c = r; c < 6; ++c, ++idx) {
+                h[idx] +=
+                    gamma * (col[r][0] * col[c][0] + col[r][1] * col[c][1] + col[r][2] * col[c][2]);
+              }
+              g[r] += gamma * (col[r][0] * y[0] + col[r][1] * y[1] + col[r][2] * y[2]);
+            }
+          }
         }
       }
     }
-    out.H << h[0], h[1], h[2], h[3], h[1], h[4], h[5], h[6], h[2], h[5], h[7], h[8], h[3], h[6],
-        h[8], h[9];
-    out.g << g[0], g[1], g[2], g[3];
+    double h[6][6] = {{0}};
+    double g[6] = {0};
+    for (int ch = 0; ch < chunks; ++ch) {
+      const double* acc = partial_.data() + static_cast<size_t>(ch) * kPartial;
+      out.loglik += acc[0];
+      for (int r = 0, idx = 0; r < 6; ++r) {
+        for (int c = r; c < 6; ++c, ++idx) h[r][c] += acc[1 + idx];
+        g[r] += acc[22 + r];
+      }
+    }
+    for (int r = 0; r < 6; ++r) {
+      for (int c = r; c < 6; ++c) out.H(r, c) = out.H(c, r) = h[r][c];
+      out.g(r) = g[r];
+    }
     return out;
   }
 
  private:
   const std::vector<ComponentF>& components_;
   const DepthFrame& frame_;
-  double roll_, pitch_;
   Eigen::Isometry3d T_base_cam_;
   MeasurementParams params_;
   std::vector<EvalComponentF> base_eval_, noisy_;
   const EvalComponentF* eval_ = nullptr;
-  std::vector<Eigen::Vector3d> v_;
-  std::vector<double> t_, y_;
+  std::vector<Eigen::Vector3d> p_base_;
+  std::vector<double> partial_;  // [chunks][kPartial]
+  static std::vector<double>& scratch_t() {
+    static thread_local std::vector<double> v;
+    return v;
+  }
+  static std::vector<double>& scratch_y() {
+    static thread_local std::vector<double> v;
+    return v;
+  }
   std::vector<ProjectedComponent> projected_;
   std::vector<char> valid_;
   PatchMembership membership_;
@@ -160,6 +200,9 @@ std::string RefinementParams::validate() const {
   if (!(max_correction_rad > 0.0)) err << "refinement max_correction_rad must be positive; ";
   if (!(tolerance_m > 0.0)) err << "refinement tolerance_m must be positive; ";
   if (!(tolerance_rad > 0.0)) err << "refinement tolerance_rad must be positive; ";
+  if (!(attitude_prior_sigma_rad >= 0.0)) {
+    err << "refinement attitude_prior_sigma_rad must be >= 0; ";
+  }
   return err.str();
 }
 
@@ -170,43 +213,73 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Dep
   const auto t0 = std::chrono::steady_clock::now();
   RefinementResult r;
   r.pose = start;
+  r.roll_rad = roll_rad;
+  r.pitch_rad = pitch_rad;
   if (frame.empty()) {
     r.why = "no pixels";
     return r;
   }
-  Objective objective(components, frame, roll_rad, pitch_rad, T_base_cam, params);
+  Objective objective(components, frame, T_base_cam, params);
   const double px = static_cast<double>(frame.size());
-  Particle pose = start;
-  objective.linearisePatches(start);
+  // Roll and pitch: free with a Gaussian prior at the attitude input (sigma > 0), else fixed.
+  const double sigma_att = refinement.attitude_prior_sigma_rad;
+  const bool six_dof = sigma_att > 0.0;
+  const double prior = six_dof ? 0.5 / (sigma_att * sigma_att) : 0.0;
+  auto logPosterior = [&](const Pose6& p, double loglik) {
+    return loglik - prior * (std::pow(p.roll - roll_rad, 2) + std::pow(p.pitch - pitch_rad, 2));
+  };
+  Pose6 pose{start, roll_rad, pitch_rad};
+  objective.linearisePatches(pose);
   Linearisation cur = objective.evaluate(pose, true);
+  double cur_post = logPosterior(pose, cur.loglik);
   r.loglik_start = cur.loglik / px;
   double lambda = 1e-3;  // Levenberg-Marquardt damping, relative to the diagonal
   for (int it = 0; it < refinement.max_iterations; ++it) {
     ++r.iterations;
-    Eigen::Matrix4d A = cur.H;
-    for (int d = 0; d < 4; ++d) A(d, d) += lambda * std::max(cur.H(d, d), 1e-9);
-    const Eigen::LDLT<Eigen::Matrix4d> ldlt(A);
+    Eigen::Matrix<double, 6, 6> A = cur.H;
+    Eigen::Matrix<double, 6, 1> g = cur.g;
+    if (six_dof) {
+      A(3, 3) += prior;
+      A(4, 4) += prior;
+      g(3) += prior * (pose.roll - roll_rad);
+      g(4) += prior * (pose.pitch - pitch_rad);
+    } else {
+      for (int d = 3; d < 5; ++d) {
+        A.row(d).setZero();
+        A.col(d).setZero();
+        A(d, d) = 1.0;
+        g(d) = 0.0;
+      }
+    }
+    for (int d = 0; d < 6; ++d) A(d, d) += lambda * std::max(A(d, d), 1e-9);
+    const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(A);
     if (ldlt.info() != Eigen::Success) break;
-    const Eigen::Vector4d delta = -ldlt.solve(cur.g);
+    const Eigen::Matrix<double, 6, 1> delta = -ldlt.solve(g);
     if (!delta.allFinite()) break;
-    Particle next = pose;
-    next.x_m += delta[0];
-    next.y_m += delta[1];
-    next.z_m += delta[2];
-    next.yaw_rad = wrapAngle(next.yaw_rad + delta[3]);
+    Pose6 next = pose;
+    next.p.x_m += delta[0];
+    next.p.y_m += delta[1];
+    next.p.z_m += delta[2];
+    next.roll += delta[3];
+    next.pitch += delta[4];
+    next.p.yaw_rad = wrapAngle(next.p.yaw_rad + delta[5]);
     Linearisation cand = objective.evaluate(next, true);
-    if (cand.loglik > cur.loglik) {
+    double cand_post = logPosterior(next, cand.loglik);
+    if (cand_post > cur_post) {
       // A step of more than a centimetre or degree: membership and noise at the new pose.
-      if (delta.head<3>().norm() > kRelineariseM || std::abs(delta[3]) > kRelineariseRad) {
+      if (delta.head<3>().norm() > kRelineariseM ||
+          delta.tail<3>().cwiseAbs().maxCoeff() > kRelineariseRad) {
         objective.linearisePatches(next);
         cand = objective.evaluate(next, true);
+        cand_post = logPosterior(next, cand.loglik);
       }
       pose = next;
       cur = cand;
+      cur_post = cand_post;
       r.refined = true;
       lambda = std::max(1e-6, 0.3 * lambda);
       if (delta.head<3>().norm() < refinement.tolerance_m &&
-          std::abs(delta[3]) < refinement.tolerance_rad) {
+          delta.tail<3>().cwiseAbs().maxCoeff() < refinement.tolerance_rad) {
         break;
       }
     } else {
@@ -214,10 +287,10 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Dep
       if (lambda > 1e4) break;
     }
   }
-  const double dist = std::sqrt(std::pow(pose.x_m - start.x_m, 2) +
-                                std::pow(pose.y_m - start.y_m, 2) +
-                                std::pow(pose.z_m - start.z_m, 2));
-  const double dyaw = std::abs(wrapAngle(pose.yaw_rad - start.yaw_rad));
+  const double dist =
+      std::sqrt(std::pow(pose.p.x_m - start.x_m, 2) + std::pow(pose.p.y_m - start.y_m, 2) +
+                std::pow(pose.p.z_m - start.z_m, 2));
+  const double dyaw = std::abs(wrapAngle(pose.p.yaw_rad - start.yaw_rad));
   if (!r.refined) {
     r.why = "no step raised the likelihood";
   } else if (dist > refinement.max_correction_m || dyaw > refinement.max_correction_rad) {
@@ -227,7 +300,9 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Dep
     r.refined = false;
   }
   if (r.refined) {
-    r.pose = pose;
+    r.pose = pose.p;
+    r.roll_rad = pose.roll;
+    r.pitch_rad = pose.pitch;
     r.loglik_refined = cur.loglik / px;
   } else {
     r.loglik_refined = r.loglik_start;

@@ -1,5 +1,7 @@
 #include "gmm_mcl/replay/sequence_writer.h"
 
+#include <algorithm>
+
 #include <sys/stat.h>
 
 #include <cerrno>
@@ -45,15 +47,17 @@ void savePng(const DepthImage& img, const std::string& path) {
 #endif
 }
 
-// Millimetres -> `units_per_m` raw units (values that do not fit become 0: no measurement).
-DepthImage rescaleFromMm(const DepthImage& mm, double units_per_m) {
+// Millimetres -> `units_per_m` raw units (values that do not fit become 0: no measurement);
+// with keep_stride > 1 only pixels whose u and v are multiples of it keep their depth.
+DepthImage rescaleFromMm(const DepthImage& mm, double units_per_m, int keep_stride = 1) {
   DepthImage out = mm;
   const double f = units_per_m / 1000.0;
   for (int v = 0; v < out.height_px; ++v) {
     uint8_t* row = out.data.data() + static_cast<size_t>(v) * out.row_bytes;
     for (int u = 0; u < out.width_px; ++u) {
       const unsigned raw = row[2 * u] | (row[2 * u + 1] << 8);
-      double x = raw == 65535 ? 0.0 : raw * f;
+      const bool kept = u % keep_stride == 0 && v % keep_stride == 0;
+      double x = raw == 65535 || !kept ? 0.0 : raw * f;
       if (x > 65535.0) x = 0.0;
       const unsigned q = static_cast<unsigned>(x + 0.5);
       row[2 * u] = static_cast<uint8_t>(q & 0xff);
@@ -101,7 +105,8 @@ void writeTumFolder(const Sequence& seq, const std::string& dir, const TumWriteO
     char name[64];
     std::snprintf(name, sizeof(name), "depth/%.6f.png", seq.stampS(i));
     list << seq.stampS(i) << ' ' << name << '\n';
-    savePng(rescaleFromMm(seq.loadDepth(i), 5000.0), dir + "/" + name);
+    savePng(rescaleFromMm(seq.loadDepth(i), 5000.0, std::max(1, options.keep_stride_px)),
+            dir + "/" + name);
     const Eigen::Isometry3d& A = seq.T_world_cam(i);
     const Eigen::Isometry3d& B = seq.T_world_cam(std::min(i + 1, n - 1));
     const double dt = i + 1 < n ? seq.stampS(i + 1) - seq.stampS(i) : 0.0;

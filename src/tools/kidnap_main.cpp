@@ -2,8 +2,11 @@
 // seeded trial tracks from the true start, teleports the sensor inside the recovery region
 // (odometry keeps reporting the old motion) and measures the time until the estimate is back
 // under 10 cm for 30 frames. Prints a markdown table; exit status 0 always when trials ran.
+#include <sys/stat.h>
+
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <cstdlib>
 #include <string>
 
@@ -25,7 +28,7 @@ void usage() {
       "                      [--weighting paper|tempered] [--no-lost-detector]\n"
       "                      [--candidates K] [--reinit-fraction F] [--margin NATS]\n"
       "                      [--grace FRAMES] [--lost-frames FRAMES] [--min-particles N]\n"
-      "                      [--depth-noise A,B,Z0]\n"
+      "                      [--depth-noise A,B,Z0] [--out DIR]\n"
       "--track-frames 0: global localisation trials (uniform start, no kidnap).\n"
       "--width: the synthetic scenes' camera width (f = 585 px at 640, scaled; default 640).\n"
       "7scenes needs --map (scripts/build_map_7scenes.sh); DIR defaults to\n"
@@ -43,6 +46,7 @@ int main(int argc, char** argv) {
   uint64_t first_seed = 1;
   KidnapParams kp;
   bool lost_detector = true;
+  std::string out_dir;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> const char* {
@@ -71,6 +75,7 @@ int main(int argc, char** argv) {
     else if (a == "--margin") kp.localizer.lost.margin_nats = std::atof(next());
     else if (a == "--grace") kp.localizer.lost.grace_frames = std::atoi(next());
     else if (a == "--lost-frames") kp.localizer.lost.frames = std::atoi(next());
+    else if (a == "--out") out_dir = next();
     else if (a == "--min-particles") kp.localizer.filter.min_particles = std::atoi(next());
     else if (a == "--depth-noise") {
       const char* v = next();
@@ -139,6 +144,16 @@ int main(int argc, char** argv) {
         worst_s = std::max(worst_s, r.recovery_s);
       }
       step_ms += r.mean_step_ms;
+      if (!out_dir.empty()) {  // one file per trial (trials of one folder may run in parallel)
+        mkdir(out_dir.c_str(), 0755);
+        std::ofstream f(out_dir + "/kidnap_" + std::to_string(r.seed) + ".csv");
+        f << "seed,start_frame,kidnap_frame,to_frame,jump_m,recovered,recovery_s,final_error_m,"
+             "ate_after_m,lost_events,mean_step_ms\n"
+          << r.seed << ',' << r.start_frame << ',' << r.from_frame << ',' << r.to_frame << ','
+          << r.jump_m << ',' << (r.recovered ? 1 : 0) << ',' << r.recovery_s << ','
+          << r.final_error_m << ',' << r.ate_after_m << ',' << r.lost_events << ','
+          << r.mean_step_ms << '\n';
+      }
     }
     std::printf("\n%d/%d recovered within %.0f s; mean recovery %.2f s, worst %.2f s; "
                 "mean step %.1f ms\n",

@@ -39,6 +39,7 @@ void usage() {
       "                      first-camera|gx,gy,gz] [--trajectory FILE.log] [--rate HZ]\n"
       "       gmm_mcl_replay --make-fixture tum|stanford DIR [--frames N] [--width PX] [--seed S]\n"
       "       gmm_mcl_replay --format F --dataset DIR --convert tum|stanford OUT_DIR [--frames N]\n"
+      "                      [--convert-stride PX]\n"
       "DIR defaults to $GMM_MCL_DATASETS/7scenes_redkitchen/data, else\n"
       "../shared/datasets/7scenes_redkitchen/data. Runs trials with seeds S..S+N-1 (1..10).\n"
       "MAP is in the data set's world frame; it is rotated into the gravity-aligned frame.\n"
@@ -47,7 +48,8 @@ void usage() {
       "in metres (default 0.0012,0.0019,0.4, a Kinect v1; 0,0,0 turns it off).\n"
       "--make-fixture writes the synthetic scene as a folder of that format and DIR/map.gmm;\n"
       "--convert writes the data set in another folder format (with intrinsics.txt and\n"
-      "gravity-direction.txt).\n");
+      "gravity-direction.txt); --convert-stride keeps only the pixels on that stride's grid (the\n"
+      "same input for a filter of that stride, a fraction of the bytes; TUM only).\n");
 }
 
 int makeFixture(const std::string& format, const std::string& dir, int frames, int width,
@@ -72,6 +74,25 @@ int makeFixture(const std::string& format, const std::string& dir, int frames, i
   return 0;
 }
 
+constexpr const char* kMetricsHeader =
+    "seed,converged,converge_time_s,ate_cm,ate_yaw_deg,refined_ate_cm,refined_ate_yaw_deg,"
+    "refined_fraction,lost_events,success,mean_step_ms,frames,converged_frames\n";
+
+// One trial's row of summary.csv (and of trial_<seed>_metrics.csv).
+std::string metricsRow(const TrialResult& r) {
+  const TrialMetrics& m = r.metrics;
+  int lost_events = 0;
+  for (const ReplayFrame& rf : r.frames) lost_events += rf.step.lost ? 1 : 0;
+  char row[320];
+  std::snprintf(row, sizeof(row), "%llu,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%d,%.2f,%d,%d\n",
+                static_cast<unsigned long long>(r.seed), m.converged ? 1 : 0, m.converge_time_s,
+                100.0 * m.ate_translation_m, m.ate_yaw_rad * 180 / M_PI,
+                100.0 * m.refined_ate_translation_m, m.refined_ate_yaw_rad * 180 / M_PI,
+                m.refined_fraction, lost_events, m.success ? 1 : 0, r.mean_step_ms, m.frames,
+                m.converged ? m.frames - m.converge_frame : 0);
+  return row;
+}
+
 std::string defaultDataset() {
   const char* env = std::getenv("GMM_MCL_DATASETS");
   const std::string root = env && *env ? env : "../shared/datasets";
@@ -85,7 +106,7 @@ int main(int argc, char** argv) {
   std::string backend = "cpu";
   std::string fixture_format, fixture_dir, convert_format, convert_dir;
   int trials = 10, frames = -1, stride = 4, particles = kDefaultParticleCount, width = 160;
-  int min_particles = 0;
+  int min_particles = 0, convert_stride = 1;
   uint64_t first_seed = 1;
   double temperature = -1.0, neff_floor = -1.0;
   LostDetectionParams lost;
@@ -146,6 +167,7 @@ int main(int argc, char** argv) {
     else if (a == "--hold-frames") hold_frames = std::atoi(next());
     else if (a == "--tail-frames") tail_frames = std::atoi(next());
     else if (a == "--seed") first_seed = std::strtoull(next(), nullptr, 10);
+    else if (a == "--convert-stride") convert_stride = std::atoi(next());
     else if (a == "--convert") {
       convert_format = next();
       convert_dir = next();
@@ -176,7 +198,14 @@ int main(int argc, char** argv) {
     const std::unique_ptr<Sequence> seq_ptr = openSequence(format, dataset, so);
     const Sequence& seq = *seq_ptr;
     if (!convert_dir.empty()) {
-      if (convert_format == "tum") writeTumFolder(seq, convert_dir);
+      TumWriteOptions tum_options;  // the ground truth exactly at the depth stamps
+      tum_options.truth_offset_s = 0.0;
+      tum_options.truth_per_frame = 1;
+      tum_options.keep_stride_px = convert_stride;
+      if (convert_stride < 1 || (convert_stride > 1 && convert_format != "tum")) {
+        throw std::runtime_error("--convert-stride: a stride >= 1, for --convert tum only");
+      }
+      if (convert_format == "tum") writeTumFolder(seq, convert_dir, tum_options);
       else if (convert_format == "stanford") writeStanfordFolder(seq, convert_dir);
       else throw std::runtime_error("--convert: format must be tum or stanford");
       std::printf("wrote %s (%s) from %s (%s, %d frames)\n", convert_dir.c_str(),
@@ -269,6 +298,7 @@ int main(int argc, char** argv) {
         writeTum(r, false, base + "_estimate.tum");
         writeTum(r, true, base + "_truth.tum");
         writeFrameCsv(r, base + ".csv");
+        std::ofstream(base + "_metrics.csv") << kMetricsHeader << metricsRow(r);
       }
     }
 
@@ -279,9 +309,7 @@ int main(int argc, char** argv) {
     std::string md =
         "| seed | converged at (s) | ATE (cm) | yaw ATE (deg) | refined ATE (cm) | refined yaw "
         "(deg) | refined frames | lost events | success |\n|---|---|---|---|---|---|---|---|---|\n";
-    std::string csv =
-        "seed,converged,converge_time_s,ate_cm,ate_yaw_deg,refined_ate_cm,refined_ate_yaw_deg,"
-        "refined_fraction,lost_events,success\n";
+    std::string csv = kMetricsHeader;
     for (const TrialResult& r : results) {
       const TrialMetrics& m = r.metrics;
       int lost_events = 0;
@@ -294,12 +322,7 @@ int main(int argc, char** argv) {
                     100.0 * m.refined_ate_translation_m, m.refined_ate_yaw_rad * 180.0 / M_PI,
                     100.0 * m.refined_fraction, lost_events, m.success ? "yes" : "no");
       md += row;
-      std::snprintf(row, sizeof(row), "%llu,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%d,%d\n",
-                    static_cast<unsigned long long>(r.seed), m.converged ? 1 : 0,
-                    m.converge_time_s, 100.0 * m.ate_translation_m, m.ate_yaw_rad * 180 / M_PI,
-                    100.0 * m.refined_ate_translation_m, m.refined_ate_yaw_rad * 180 / M_PI,
-                    m.refined_fraction, lost_events, m.success ? 1 : 0);
-      csv += row;
+      csv += metricsRow(r);
       successes += m.success ? 1 : 0;
       if (m.converged) {
         ++converged;

@@ -57,6 +57,42 @@ TEST(PoseRefinementTest, ConvergesToTheTruePoseFromNearbyStarts) {
   EXPECT_LT(worst_yaw_end, 0.005);
 }
 
+TEST(PoseRefinementTest, CorrectsTheAttitudeInputsTilt) {
+  // Roll and pitch given 0.5 deg off (an IMU's noise): the 6-DoF refinement finds the true
+  // tilt and position; with roll and pitch held (prior sigma 0) the position absorbs the tilt.
+  const auto& w = test::world();
+  const Eigen::Isometry3d T_map_base = test::referenceBasePose();
+  FrameParams fp;
+  fp.pixel_stride = 8;
+  fp.max_range_m = 8.f;
+  const DepthFrame frame = test::renderFrame(T_map_base, test::vgaCamera(), fp);
+  double roll, pitch, yaw;
+  rpyFromRotation(T_map_base.linear(), &roll, &pitch, &yaw);
+  const Particle truth = poseToParticle(T_map_base);
+  const double off = 0.5 * M_PI / 180.0;
+  Particle start = truth;
+  start.x_m += 0.02;
+  start.y_m -= 0.015;
+  RefinementParams six;
+  RefinementParams four;
+  four.attitude_prior_sigma_rad = 0.0;
+  const RefinementResult a = refinePose(w.map.packed(), frame, start, roll + off, pitch - off,
+                                        w.T_base_cam, MeasurementParams(), six);
+  const RefinementResult b = refinePose(w.map.packed(), frame, start, roll + off, pitch - off,
+                                        w.T_base_cam, MeasurementParams(), four);
+  ASSERT_TRUE(a.refined) << a.why;
+  ASSERT_TRUE(b.refined) << b.why;
+  std::printf("[ measured ] roll and pitch given 0.5 deg off: 6-DoF refinement %.2f mm, roll "
+              "%.3f deg, pitch %.3f deg from the truth; 4-DoF %.2f mm\n",
+              1e3 * distance(a.pose, truth), (a.roll_rad - roll) * 180.0 / M_PI,
+              (a.pitch_rad - pitch) * 180.0 / M_PI, 1e3 * distance(b.pose, truth));
+  EXPECT_LT(std::abs(a.roll_rad - roll), 0.1 * M_PI / 180.0);
+  EXPECT_LT(std::abs(a.pitch_rad - pitch), 0.1 * M_PI / 180.0);
+  EXPECT_LT(distance(a.pose, truth), 0.005);
+  EXPECT_LT(distance(a.pose, truth), distance(b.pose, truth));
+  EXPECT_EQ(b.roll_rad, roll + off);  // held
+}
+
 TEST(PoseRefinementTest, RejectsACorrectionBeyondItsBound) {
   const auto& w = test::world();
   const Eigen::Isometry3d T_map_base = test::referenceBasePose();

@@ -120,6 +120,8 @@ class Localizer {
   double pitch_rad_ = 0.0;
   std::vector<RigidTransformF> poses_;
   BackendOutput output_;
+  bool have_refined_ = false;  // last_refined_: the last frame's refined pose, moved by odometry
+  Particle last_refined_;
 };
 
 }  // namespace gmm_mcl

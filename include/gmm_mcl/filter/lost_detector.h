@@ -16,6 +16,12 @@ namespace gmm_mcl {
 // per pixel. The starting reference of the detector.
 double mapSelfLogDensity(const GmmMap& map, float floor_log_density, int samples = 2048,
                          uint64_t seed = 12345);
+// The same for a depth camera with `noise` (measurement_params.h): every component convolved
+// with the noise at nominal_range_m along its normal (its smallest-variance direction, a surface
+// seen head-on), points drawn from the convolved map. A sharp map seen by a noisy camera scores
+// the true pose about ln(sigma' / sigma) per pixel below its noise-free level; this predicts it.
+double mapSelfLogDensity(const GmmMap& map, float floor_log_density, const DepthNoiseModel& noise,
+                         int samples = 2048, uint64_t seed = 12345, double nominal_range_m = 2.0);
 
 class LostDetector {
  public:

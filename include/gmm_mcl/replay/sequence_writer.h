@@ -18,6 +18,10 @@ struct TumWriteOptions {
   // interpolated linearly (position) and by slerp (rotation).
   int truth_per_frame = 3;
   int max_frames = -1;
+  // Keep only the pixels on this stride's grid (u and v multiples of it; the others become "no
+  // measurement"): the same input as the full frames for a filter of that stride (or a multiple
+  // of it), in a fraction of the bytes, for carrying a data set to another machine. 1: all.
+  int keep_stride_px = 1;
 };
 
 // dir/depth.txt, dir/depth/<stamp>.png (5000 units per metre), dir/groundtruth.txt.

@@ -1,0 +1,57 @@
+#!/usr/bin/env bash
+# Prepares, on this machine, what a GPU machine without ROS, Eigen, libpng-dev or network needs to
+# run the offline tools with the CUDA backend: the tools built here (nvcc, sm_90 by default;
+# x86-64 with AVX2/FMA instead of -march=native, which is this machine's CPU), the shared
+# libraries they need beyond glibc, the Replica mesh and trajectory, the maps of
+# scripts/eval_unseen.sh, and the 7-Scenes sequence as a TUM folder reduced to the stride-8 pixel
+# grid (the same input as the full frames for a stride-8 filter; 9 MB instead of 80 MB).
+# Everything goes to $BUNDLE (default .deps/gpu, git-ignored); scripts/gpu_eval.sh runs it there.
+#
+#   scripts/gpu_bundle.sh            # CUDA_ARCH=90, GMM_MCL_DATASETS=../shared/datasets
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+source "$ROOT/scripts/common.sh"
+BUNDLE="${BUNDLE:-$ROOT/.deps/gpu}"
+BUILD="${GMM_MCL_GPU_TOOLS_BUILD:-$ROOT/build/gpu-tools}"
+DATASETS="${GMM_MCL_DATASETS:-$ROOT/../shared/datasets}"
+ARCH="${CUDA_ARCH:-90}"
+NVCC="$(command -v nvcc || echo /usr/local/cuda/bin/nvcc)"
+TOOLS=(gmm_mcl_replay gmm_mcl_kidnap gmm_mcl_render gmm_fit gmm_mcl_bench test_cuda_backend)
+ensure_packages "${CORE_PACKAGES[@]}"
+
+cmake -S "$ROOT" -B "$BUILD" -DGMM_MCL_BUILD_ROS=OFF -DGMM_MCL_WITH_CUDA=ON -DGMM_MCL_BUILD_TESTS=ON \
+  -DGMM_MCL_NATIVE_ARCH=OFF -DCMAKE_CXX_FLAGS="-mavx2 -mfma" -DCMAKE_CUDA_ARCHITECTURES="$ARCH" \
+  -DCMAKE_CUDA_COMPILER="$NVCC" -DCMAKE_BUILD_TYPE=Release > "$BUILD.cmake.log" 2>&1 \
+  || { cat "$BUILD.cmake.log"; exit 1; }
+cmake --build "$BUILD" -j2 --target gmm_mcl_replay_tool gmm_mcl_kidnap gmm_mcl_render gmm_fit \
+  gmm_mcl_bench test_cuda_backend
+
+rm -rf "$BUNDLE"
+mkdir -p "$BUNDLE/bin" "$BUNDLE/lib" "$BUNDLE/data/maps" "$BUNDLE/data/replica_office0"
+for t in "${TOOLS[@]}"; do cp "$BUILD/$t" "$BUNDLE/bin/"; done
+strip "$BUNDLE"/bin/*
+# Shared libraries beyond the C library and the loader (the GPU machine has a newer glibc).
+for t in "$BUNDLE"/bin/*; do
+  ldd "$t" | awk '/=> \// {print $3}'
+done | sort -u | grep -vE '/(libc|libm|libpthread|libdl|librt|ld-linux[^/]*)\.so' | while read -r lib; do
+  cp -L "$lib" "$BUNDLE/lib/"
+done
+
+# Data: the Replica mesh and trajectory, the maps, the reduced 7-Scenes sequence.
+cp "$DATASETS/replica_office0/office0_mesh.ply" "$DATASETS/replica_office0/traj.txt" \
+  "$BUNDLE/data/replica_office0/"
+MAPS="${GMM_MCL_EVAL_MAPS:-$ROOT/build/eval_unseen/maps}"
+mkdir -p "$MAPS"
+SEVEN="$DATASETS/7scenes_redkitchen/data"
+[[ -f "$MAPS/replica_office0_m1000.gmm" ]] || "$BUILD/gmm_fit" \
+  "$DATASETS/replica_office0/office0_mesh.ply" --mesh-samples 250000 -m 1000 --seed 1 \
+  -o "$MAPS/replica_office0_m1000.gmm" -q
+for f0 in 0 5; do
+  m="$MAPS/7scenes_redkitchen_m1000_first$f0.gmm"
+  [[ -f "$m" ]] || "$BUILD/gmm_fit" --7scenes "$SEVEN" --first $f0 --last $((990 + f0)) --step 10 \
+    --min-depth 0.1 --max-depth 4.0 --voxel 0.02 -m 1000 --seed 1 -o "$m" -q
+done
+cp "$MAPS"/*.gmm "$BUNDLE/data/maps/"
+"$BUILD/gmm_mcl_replay" --format 7scenes --dataset "$SEVEN" --convert tum \
+  "$BUNDLE/data/7scenes_tum8" --convert-stride 8 > /dev/null
+du -sh "$BUNDLE"
