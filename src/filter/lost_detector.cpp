@@ -65,7 +65,9 @@ double mapSelfLogDensity(const GmmMap& map, float floor_log_density, const Depth
 }
 
 LostDetector::LostDetector(const LostDetectionParams& params, double initial_reference)
-    : params_(params), reference_(initial_reference) {}
+    : params_(params),
+      reference_(initial_reference),
+      floor_(initial_reference - params.reference_max_drop_nats) {}
 
 void LostDetector::restart() {
   frames_below_ = 0;
@@ -80,7 +82,7 @@ bool LostDetector::update(double best) {
   // several seconds.
   const double rate = best > reference_ ? params_.reference_rate_up : params_.reference_rate_down;
   const bool below = best < reference_ - params_.margin_nats;
-  reference_ += rate * (best - reference_);
+  reference_ = std::max(floor_, reference_ + rate * (best - reference_));
   frames_below_ = below ? frames_below_ + 1 : 0;
   if (frames_since_restart_ <= params_.grace_frames || frames_below_ < params_.frames) return false;
   restart();

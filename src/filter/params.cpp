@@ -96,6 +96,9 @@ std::string LostDetectionParams::validate() const {
   };
   rate("lost.reference_rate_up", reference_rate_up);
   rate("lost.reference_rate_down", reference_rate_down);
+  if (!(reference_max_drop_nats >= 0.0) || !std::isfinite(reference_max_drop_nats)) {
+    err << "lost.reference_max_drop_nats must be >= 0 (got " << reference_max_drop_nats << "); ";
+  }
   rate("lost.reinit_fraction", reinit_fraction);
   if (candidates_per_particle < 1 || candidates_per_particle > 1000) {
     err << "lost.candidates_per_particle must be in [1, 1000] (got " << candidates_per_particle

@@ -1,6 +1,7 @@
 #include "gmm_mcl/filter/pose.h"
 
 #include <cmath>
+#include <sstream>
 
 namespace gmm_mcl {
 
@@ -26,6 +27,21 @@ void rpyFromRotation(const Eigen::Matrix3d& R, double* roll_rad, double* pitch_r
 }
 
 double yawFromRotation(const Eigen::Matrix3d& R) { return std::atan2(R(1, 0), R(0, 0)); }
+
+bool nearestRotation(const Eigen::Matrix3d& M, Eigen::Matrix3d* R, std::string* why) {
+  const double det = M.determinant();
+  const double ortho = (M.transpose() * M - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  if (!std::isfinite(det) || !std::isfinite(ortho) || std::abs(det - 1.0) > 1e-2 || ortho > 1e-2) {
+    if (why) {
+      std::ostringstream msg;
+      msg << "not a rotation (det " << det << ", |R^T R - I| " << ortho << ")";
+      *why = msg.str();
+    }
+    return false;
+  }
+  *R = Eigen::Quaterniond(M).normalized().toRotationMatrix();
+  return true;
+}
 
 Eigen::Isometry3d particleToPose(const Particle& p, double roll_rad, double pitch_rad) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();

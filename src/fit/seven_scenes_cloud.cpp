@@ -9,6 +9,7 @@
 #include "gmm_mcl/camera/depth_frame.h"
 #include "gmm_mcl/camera/depth_image.h"
 #include "gmm_mcl/fit/cloud_filter.h"
+#include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/fit/fit_error.h"
 #ifdef GMM_MCL_HAVE_PNG
 #include "gmm_mcl/camera/png_io.h"
@@ -94,7 +95,13 @@ PointCloud buildSevenScenesCloud(const std::string& data_dir, const SevenScenesC
     for (int r = 0; r < 4; ++r) {
       for (int c = 0; c < 4; ++c) T_world_cam(r, c) = pose[4 * r + c];
     }
-    const Eigen::Matrix3f R = T_world_cam.topLeftCorner<3, 3>().cast<float>();
+    // The rotation as gmm_mcl_replay reads it (nearest rotation of the text matrix).
+    Eigen::Matrix3d R_world_cam;
+    std::string why;
+    if (!nearestRotation(T_world_cam.topLeftCorner<3, 3>(), &R_world_cam, &why)) {
+      throw FitError(framePath(data_dir, f, "pose.txt") + ": " + why);
+    }
+    const Eigen::Matrix3f R = R_world_cam.cast<float>();
     const Eigen::Vector3f t = T_world_cam.topRightCorner<3, 1>().cast<float>();
     for (int v = 0; v < depth.height_px; v += params.pixel_stride) {
       for (int u = 0; u < depth.width_px; u += params.pixel_stride) {

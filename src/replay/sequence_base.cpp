@@ -14,6 +14,8 @@
 #include "gmm_mcl/replay/tum_sequence.h"
 #include "sequence_io.h"
 
+#include "gmm_mcl/filter/pose.h"
+
 #if defined(GMM_MCL_HAVE_PNG)
 #include "gmm_mcl/camera/png_io.h"
 #endif
@@ -77,14 +79,10 @@ bool readNumberFile(const std::string& path, std::vector<double>* out, std::stri
 }
 
 Eigen::Matrix3d orthonormalise(const Eigen::Matrix3d& M, const std::string& where) {
-  const double det = M.determinant();
-  const double ortho = (M.transpose() * M - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
-  if (!std::isfinite(det) || std::abs(det - 1.0) > 1e-2 || ortho > 1e-2) {
-    std::ostringstream msg;
-    msg << "not a rotation (det " << det << ", |R^T R - I| " << ortho << ")";
-    fail(where, msg.str());
-  }
-  return Eigen::Quaterniond(M).normalized().toRotationMatrix();
+  Eigen::Matrix3d R;
+  std::string why;
+  if (!nearestRotation(M, &R, &why)) fail(where, why);
+  return R;
 }
 
 DepthImage loadDepthPngScaled(const std::string& path, double units_per_m) {
@@ -189,7 +187,7 @@ Eigen::Matrix3d resolveGravity(const std::string& option, const std::string& dir
                                const std::string& format_default,
                                const Eigen::Isometry3d& T_world_first_cam, std::string* source) {
   std::string mode = option;
-  Eigen::Vector3d down(0, 0, -1);
+  source->clear();
   if (mode.empty()) {
     const std::string gpath = dir + "/gravity-direction.txt";
     if (seqio::fileExists(gpath)) {
@@ -200,29 +198,41 @@ Eigen::Matrix3d resolveGravity(const std::string& option, const std::string& dir
         seqio::fail(gpath, "expected 3 numbers (the down direction), found " +
                                std::to_string(g.size()));
       }
-      down = Eigen::Vector3d(g[0], g[1], g[2]);
+      const Eigen::Vector3d down(g[0], g[1], g[2]);
       if (down.norm() < 1e-9) seqio::fail(gpath, "zero gravity vector");
       *source = gpath;
       return gravityAlignment(down);
     }
     mode = format_default;
+    if (mode != "none") {
+      // Said, not silent: a wrong up axis turns yaw into a tilt and the 4-DoF search fails.
+      *source = mode + " (assumed: no gravity-direction.txt in " + dir +
+                "; choose with --gravity x-up|y-up|z-up|x-down|y-down|z-down|first-camera|gx,gy,gz)";
+    }
   }
+  const std::string assumed = source->empty() ? "" : *source;
   if (mode == "none") {
     *source = "none";
     return Eigen::Matrix3d::Identity();
   }
-  if (mode == "z-up") {
-    *source = "z-up";
-    return Eigen::Matrix3d::Identity();
+  // An axis of the world frame pointing up or down: x-up, y-up, z-up, x-down, y-down, z-down.
+  if (mode.size() >= 4 && (mode[0] == 'x' || mode[0] == 'y' || mode[0] == 'z') &&
+      (mode.substr(1) == "-up" || mode.substr(1) == "-down")) {
+    Eigen::Vector3d axis = Eigen::Vector3d::Zero();
+    axis[mode[0] - 'x'] = 1.0;
+    *source = assumed.empty() ? mode : assumed;
+    return gravityAlignment(mode.substr(1) == "-up" ? Eigen::Vector3d(-axis) : axis);
   }
   if (mode == "first-camera") {
-    *source = "first-camera";  // the first camera held level: its +y (optical down) is down
+    // the first camera held level: its +y (optical down) is down
+    *source = assumed.empty() ? "first-camera" : assumed;
     return gravityAlignment(T_world_first_cam.linear() * Eigen::Vector3d::UnitY());
   }
   const std::vector<double> g = parseCsvNumbers(mode);
   if (g.size() != 3 || Eigen::Vector3d(g[0], g[1], g[2]).norm() < 1e-9) {
     throw std::runtime_error(dir + ": gravity option '" + mode +
-                             "' is not z-up, first-camera or a non-zero gx,gy,gz");
+                             "' is not x-up, y-up, z-up, x-down, y-down, z-down, first-camera or "
+                             "a non-zero gx,gy,gz");
   }
   *source = "down " + mode;
   return gravityAlignment(Eigen::Vector3d(g[0], g[1], g[2]));

@@ -212,6 +212,9 @@ int main(int argc, char** argv) {
                   convert_format.c_str(), dataset.c_str(), seq.format(), seq.size());
       return 0;
     }
+    if (seq.gravitySource().find("assumed") != std::string::npos) {
+      std::fprintf(stderr, "warning: gravity %s\n", seq.gravitySource().c_str());
+    }
     const GmmMap map_world = loadMap(map_path);
     const GmmMap map = rotateMap(map_world, seq.R_aligned_world(), map_path + " (gravity-aligned)");
     ReplayParams rp;

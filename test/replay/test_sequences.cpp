@@ -97,7 +97,21 @@ TEST(TumSequenceTest, RoundTripOfTheSyntheticScene) {
   o.intrinsics = "fr3";
   const TumSequence five(dir.path(), o);
   EXPECT_EQ(five.size(), 5);
-  EXPECT_EQ(five.gravitySource(), "z-up");
+  // The format's convention is used and said to be an assumption, with the options to change it.
+  EXPECT_EQ(five.gravitySource().rfind("z-up (assumed: no gravity-direction.txt", 0), 0u)
+      << five.gravitySource();
+  EXPECT_NE(five.gravitySource().find("--gravity"), std::string::npos);
+  // Up axes of the world frame: y-up turns world +y into +z.
+  o.gravity = "y-up";
+  const TumSequence yup(dir.path(), o);
+  EXPECT_EQ(yup.gravitySource(), "y-up");
+  EXPECT_LT((yup.R_aligned_world() * Eigen::Vector3d::UnitY() - Eigen::Vector3d::UnitZ()).norm(),
+            1e-12);
+  o.gravity = "z-down";
+  EXPECT_LT((TumSequence(dir.path(), o).R_aligned_world() * Eigen::Vector3d::UnitZ() +
+             Eigen::Vector3d::UnitZ()).norm(), 1e-12);
+  o.gravity = "w-up";
+  EXPECT_THROW(TumSequence(dir.path(), o), std::runtime_error);
   EXPECT_FLOAT_EQ(five.intrinsics().fx_px, 535.4f);
   EXPECT_FLOAT_EQ(five.intrinsics().cy_px, 247.6f);
 }
@@ -250,7 +264,7 @@ TEST(StanfordSequenceTest, RoundTripAndGravityFromTheFirstCamera) {
   std::remove((dir / "gravity-direction.txt").c_str());
   std::remove((dir / "intrinsics.txt").c_str());
   const StanfordSequence level(dir.path());
-  EXPECT_EQ(level.gravitySource(), "first-camera");
+  EXPECT_EQ(level.gravitySource().rfind("first-camera (assumed", 0), 0u) << level.gravitySource();
   const Eigen::Vector3d down_first = level.T_world_cam(0).linear() * Eigen::Vector3d::UnitY();
   EXPECT_LT((level.R_aligned_world() * down_first - Eigen::Vector3d(0, 0, -1)).norm(), 1e-9);
   EXPECT_FLOAT_EQ(level.intrinsics().fx_px, 525.f);  // the Stanford default

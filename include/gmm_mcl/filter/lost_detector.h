@@ -3,7 +3,9 @@
 // first frames (or whose likelihood stays poor after a kidnap longer than the averages remember)
 // is never flagged. This detector compares the best particle's per-pixel log-likelihood with a
 // reference level and flags the filter as lost when it stays more than a margin below for a
-// number of frames; the Localizer then reinitialises the worst particles.
+// number of frames; the Localizer then reinitialises the worst particles. The reference starts
+// at what the map and the depth-noise model predict for a correct pose, rises with the best
+// score and sinks with it only a bounded amount (LostDetectionParams::reference_max_drop_nats).
 #pragma once
 
 #include "gmm_mcl/filter/params.h"
@@ -41,6 +43,7 @@ class LostDetector {
  private:
   LostDetectionParams params_;
   double reference_ = 0.0;
+  double floor_ = 0.0;  // the reference's lowest value
   int frames_below_ = 0;
   int frames_since_restart_ = 0;
 };

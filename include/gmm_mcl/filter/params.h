@@ -91,6 +91,12 @@ struct LostDetectionParams {
   int grace_frames = 30;             // after any (re)initialisation, before judging
   double reference_rate_up = 0.05;
   double reference_rate_down = 0.005;
+  // The reference never follows the best score further down than this below the level the map
+  // and the depth-noise model predict for a correct pose (mapSelfLogDensity with the noise): a
+  // filter settled in a wrong mode from its first frames, or after a kidnap, is flagged however
+  // long it stays there, while a scene whose true pose scores somewhat below the map's own level
+  // (clutter, an older map) still lowers the reference that far.
+  double reference_max_drop_nats = 0.5;
   double reinit_fraction = 0.9;      // the best (1 - fraction) particles are kept
   // Redrawn particles (here and at a uniform (re)initialisation) are the best-scoring of this
   // many uniform candidates per particle, scored on the current frame: a denser search of the

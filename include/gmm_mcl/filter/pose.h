@@ -2,6 +2,8 @@
 // Roll and pitch come from the attitude input and are shared by all particles (DESIGN.md).
 #pragma once
 
+#include <string>
+
 #include <Eigen/Geometry>
 
 #include "gmm_mcl/common/types.h"
@@ -23,6 +25,11 @@ Eigen::Matrix3d rotationFromRpy(double roll_rad, double pitch_rad, double yaw_ra
 void rpyFromRotation(const Eigen::Matrix3d& R, double* roll_rad, double* pitch_rad,
                      double* yaw_rad);
 double yawFromRotation(const Eigen::Matrix3d& R);
+
+// The rotation nearest to a matrix read from text (poses carry rounding): false, with *why,
+// when it is far from a rotation (|det - 1| or |M^T M - I| over 1e-2, or not finite). Every
+// reader of text poses (data sets, the map builder) goes through it, so they agree.
+bool nearestRotation(const Eigen::Matrix3d& M, Eigen::Matrix3d* R, std::string* why);
 
 // Full 6-DoF base pose of a particle with the shared roll and pitch.
 Eigen::Isometry3d particleToPose(const Particle& p, double roll_rad, double pitch_rad);

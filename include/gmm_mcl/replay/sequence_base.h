@@ -48,8 +48,10 @@ struct SequenceOptions {
   double depth_units_per_m = 0.0;
   // TUM: largest |depth stamp - ground-truth stamp| for association (TUM's associate.py: 0.02 s).
   double association_tolerance_s = 0.02;
-  // Gravity: "" (the folder's gravity-direction.txt, else the format's convention: TUM z up,
-  // Stanford the first camera's +y down), "z-up", "first-camera", or "gx,gy,gz" (down, world).
+  // Gravity: "" (the folder's gravity-direction.txt, else the format's convention, TUM z up,
+  // Stanford the first camera's +y down, and the source says it was assumed), an up or down
+  // axis of the world frame ("x-up", "y-up", "z-up", "x-down", "y-down", "z-down"),
+  // "first-camera", or "gx,gy,gz" (down, world).
   std::string gravity;
   // Stanford: the trajectory file (default: the folder's only *.log).
   std::string trajectory;
