@@ -40,4 +40,10 @@ if(GMM_MCL_BUILD_TESTS)
                    ${GMM_MCL_ORACLE_PYTHON} $<TARGET_FILE:gmm_fit>
                    ${CMAKE_CURRENT_BINARY_DIR}/fit_sklearn_agreement)
   set_tests_properties(test_fit_sklearn_agreement PROPERTIES SKIP_RETURN_CODE 77 TIMEOUT 600)
+  # scikit-learn GaussianMixture -> scripts/sklearn_to_gmm_csv.py -> gmm_fit --import.
+  add_test(NAME test_sklearn_import
+           COMMAND ${GMM_MCL_ORACLE_PYTHON} ${CMAKE_CURRENT_LIST_DIR}/../test/fit/sklearn_import.py
+                   $<TARGET_FILE:gmm_fit> $<TARGET_FILE:gmm_inspect>
+                   ${CMAKE_CURRENT_BINARY_DIR}/sklearn_import)
+  set_tests_properties(test_sklearn_import PROPERTIES SKIP_RETURN_CODE 77 TIMEOUT 300)
 endif()

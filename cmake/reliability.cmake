@@ -19,4 +19,13 @@ if(GMM_MCL_BUILD_TESTS)
     add_test(NAME test_kidnap COMMAND test_kidnap)
     set_tests_properties(test_kidnap PROPERTIES TIMEOUT 1500)
   endif()
+  # The unseen-scene evaluation, shortened (test/replay/unseen_scene_test.sh; skips without data).
+  if(TARGET gmm_mcl_kidnap AND TARGET gmm_mcl_render AND TARGET gmm_fit)
+    add_test(NAME test_unseen_scene
+             COMMAND ${CMAKE_CURRENT_LIST_DIR}/../test/replay/unseen_scene_test.sh
+                     ${CMAKE_CURRENT_BINARY_DIR}/unseen_scene $<TARGET_FILE:gmm_fit>
+                     $<TARGET_FILE:gmm_mcl_render> $<TARGET_FILE:gmm_mcl_replay_tool>
+                     $<TARGET_FILE:gmm_mcl_kidnap>)
+    set_tests_properties(test_unseen_scene PROPERTIES SKIP_RETURN_CODE 77 TIMEOUT 1200)
+  endif()
 endif()

@@ -18,6 +18,8 @@ target_compile_options(gmm_mcl_replay PRIVATE -Wall -Wextra)
 add_executable(gmm_mcl_replay_tool src/tools/replay_main.cpp)
 set_target_properties(gmm_mcl_replay_tool PROPERTIES OUTPUT_NAME gmm_mcl_replay)
 target_link_libraries(gmm_mcl_replay_tool PRIVATE gmm_mcl_replay)
+add_executable(gmm_mcl_score src/tools/score_main.cpp)
+target_link_libraries(gmm_mcl_score PRIVATE gmm_mcl_replay)
 
 if(GMM_MCL_BUILD_TESTS)
   enable_testing()

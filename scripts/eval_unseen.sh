@@ -82,7 +82,7 @@ if (( needs_replica )); then
     seg="$OUT/replica_seg$first"
     [[ -f "$seg/depth.txt" ]] && [[ $(grep -vc '^#' "$seg/depth.txt") -ge $FRAMES ]] && continue
     rm -rf "$seg"
-    "$RENDER" --mesh "$REPLICA/office0_mesh.ply" --trajectory "$REPLICA/traj.txt" \
+    OMP_NUM_THREADS="$(nproc)" "$RENDER" --mesh "$REPLICA/office0_mesh.ply" --trajectory "$REPLICA/traj.txt" \
       --camera 525,525,319.5,239.5,640,480 --first "$first" --frames "$FRAMES" --dropout 0.02 \
       --seed 1 --out "$seg" --quiet
   done
@@ -121,4 +121,4 @@ for p in $PROTOCOLS; do
     *) echo "unknown protocol '$p'" >&2; exit 2 ;;
   esac
 done
-/usr/bin/python3 "$ROOT/scripts/unseen_table.py" "$OUT" | tee "$OUT/table.md"
+python3 "$ROOT/scripts/unseen_table.py" "$OUT" | tee "$OUT/table.md"

@@ -29,7 +29,8 @@ PROTOCOLS = [
 
 def rows(pattern):
     out = []
-    for path in sorted(glob.glob(pattern)):
+    seed = lambda p: int(re.sub(r"\D", "", os.path.basename(p)) or 0)
+    for path in sorted(glob.glob(pattern), key=seed):
         with open(path) as f:
             out.extend(csv.DictReader(f))
     return out

@@ -47,6 +47,12 @@ Localizer::Localizer(const LocalizerParams& params, GmmMap map,
   if (map_.empty()) throw std::invalid_argument("localizer: the map is empty");
   if (!backend_) backend_ = makeBackend(params_.backend, &backend_warning_);
   backend_->setMap(map_);
+  if (params_.lost.redraw_blur_m > 0.0 && params_.lost.local_candidate_fraction > 0.0) {
+    std::vector<GaussianComponent> blurred = map_.components();
+    const double b2 = params_.lost.redraw_blur_m * params_.lost.redraw_blur_m;
+    for (GaussianComponent& c : blurred) c.cov_m2 += b2 * Eigen::Matrix3d::Identity();
+    blurred_map_ = GmmMap(std::move(blurred), "blurred map");
+  }
   filter_.initialiseUniform(region_);
   map_self_ll_ = gmm_mcl::mapSelfLogDensity(map_, params_.measurement.floor_log_density,
                                             params_.measurement.depth_noise);
@@ -97,26 +103,59 @@ void Localizer::evaluateParticles(const DepthFrame& frame, const std::vector<Par
   backend_->evaluate(frame, poses_, params_.measurement, out);
 }
 
-std::vector<Particle> Localizer::screenCandidates(const DepthFrame& frame, int count) {
+std::vector<Particle> Localizer::screenCandidates(const DepthFrame& frame, int count,
+                                                  bool local_stage) {
   const int per = params_.lost.candidates_per_particle;
   std::vector<Particle> best;
   if (count <= 0) return best;
+  const int total = count * per;
+  // With the local stage, part of the candidates are drawn around the best uniform ones
+  // (Gaussian, local_sigma_m / local_sigma_rad): a uniform candidate rarely lands inside the
+  // likelihood's basin (a few decimetres), one of the best few often lands beside it.
+  const int local =
+      local_stage && per > 1 ? static_cast<int>(params_.lost.local_candidate_fraction * total) : 0;
   std::vector<std::pair<double, Particle>> scored;
-  scored.reserve(static_cast<size_t>(count) * per);
+  scored.reserve(total);
   const int batch = filter_.size();  // the backend's usual batch size
-  for (int done = 0; done < count * per; done += batch) {
-    filter_.sampleRegion(region_, std::min(batch, count * per - done), &candidates_);
-    evaluateParticles(frame, candidates_, &candidate_output_);
-    for (size_t i = 0; i < candidates_.size(); ++i) {
+  auto score = [&](const std::vector<Particle>& c) {
+    evaluateParticles(frame, c, &candidate_output_);
+    for (size_t i = 0; i < c.size(); ++i) {
       const double ll = candidate_output_.log_likelihood[i];
       scored.emplace_back(std::isfinite(ll) ? ll : -std::numeric_limits<double>::infinity(),
-                          candidates_[i]);
+                          c[i]);
+    }
+  };
+  auto byScore = [](const std::pair<double, Particle>& a, const std::pair<double, Particle>& b) {
+    return a.first > b.first;
+  };
+  // The uniform stage of a redraw against the blurred map (a wider basin), then the map again.
+  const bool blur = local_stage && !blurred_map_.empty();
+  if (blur) backend_->setMap(blurred_map_);
+  try {
+    for (int done = 0; done < total - local; done += batch) {
+      filter_.sampleRegion(region_, std::min(batch, total - local - done), &candidates_);
+      score(candidates_);
+    }
+  } catch (...) {
+    if (blur) backend_->setMap(map_);
+    throw;
+  }
+  if (blur) backend_->setMap(map_);
+  if (local > 0) {
+    const int elites = std::max(1, static_cast<int>(params_.lost.elite_fraction * scored.size()));
+    std::partial_sort(scored.begin(), scored.begin() + elites, scored.end(), byScore);
+    std::vector<Particle> centres(elites);
+    for (int e = 0; e < elites; ++e) centres[e] = scored[e].second;
+    // Blurred scores only chose the centres; the redraw is chosen by the map's own scores.
+    if (blur) scored.clear();
+    for (int done = 0; done < local; done += batch) {
+      filter_.sampleAround(centres, params_.lost.local_sigma_m, params_.lost.local_sigma_rad,
+                           std::min(batch, local - done), &candidates_);
+      score(candidates_);
     }
   }
-  std::nth_element(scored.begin(), scored.begin() + (count - 1), scored.end(),
-                   [](const std::pair<double, Particle>& a, const std::pair<double, Particle>& b) {
-                     return a.first > b.first;
-                   });
+  count = std::min(count, static_cast<int>(scored.size()));
+  std::nth_element(scored.begin(), scored.begin() + (count - 1), scored.end(), byScore);
   best.reserve(count);
   for (int i = 0; i < count; ++i) best.push_back(scored[i].second);
   return best;
@@ -320,7 +359,7 @@ StepResult Localizer::step(const StepInput& in) {
     const int keep = n - static_cast<int>(std::floor(params_.lost.reinit_fraction * n));
     const int count = params_.filter.adaptive() ? params_.filter.num_particles - keep : n - keep;
     try {
-      filter_.replaceWorst(ll_scratch_, screenCandidates(frame, count), keep);
+      filter_.replaceWorst(ll_scratch_, screenCandidates(frame, count, true), keep);
       res.lost_reinitialised = count;
       res.screened_candidates += count * params_.lost.candidates_per_particle;
     } catch (const std::exception& e) {

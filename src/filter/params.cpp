@@ -84,6 +84,11 @@ int kldParticleBound(int k, double epsilon, double z) {
   return static_cast<int>(std::ceil((k - 1) / (2.0 * epsilon) * b * b * b));
 }
 
+void defaultParticleRange(const std::string& backend, int* min_particles, int* max_particles) {
+  *min_particles = kDefaultParticleCount;
+  *max_particles = backend == "cuda" ? 100000 : 3000;
+}
+
 std::string LostDetectionParams::validate() const {
   std::ostringstream err;
   if (!(margin_nats >= 0.0) || !std::isfinite(margin_nats)) {
@@ -96,6 +101,19 @@ std::string LostDetectionParams::validate() const {
   };
   rate("lost.reference_rate_up", reference_rate_up);
   rate("lost.reference_rate_down", reference_rate_down);
+  if (!(local_candidate_fraction >= 0.0 && local_candidate_fraction < 1.0)) {
+    err << "lost.local_candidate_fraction must be in [0, 1) (got " << local_candidate_fraction
+        << "); ";
+  }
+  if (!(elite_fraction > 0.0 && elite_fraction <= 1.0)) {
+    err << "lost.elite_fraction must be in (0, 1] (got " << elite_fraction << "); ";
+  }
+  if (!(redraw_blur_m >= 0.0) || !std::isfinite(redraw_blur_m)) {
+    err << "lost.redraw_blur_m must be >= 0 (got " << redraw_blur_m << "); ";
+  }
+  if (!(local_sigma_m > 0.0) || !(local_sigma_rad > 0.0)) {
+    err << "lost.local_sigma_m and lost.local_sigma_rad must be positive; ";
+  }
   if (!(reference_max_drop_nats >= 0.0) || !std::isfinite(reference_max_drop_nats)) {
     err << "lost.reference_max_drop_nats must be >= 0 (got " << reference_max_drop_nats << "); ";
   }

@@ -223,6 +223,20 @@ void ParticleFilter::replaceAll(const std::vector<Particle>& particles) {
   std::fill(weights_.begin(), weights_.end(), 1.0 / size());
 }
 
+void ParticleFilter::sampleAround(const std::vector<Particle>& centres, double sigma_m,
+                                  double sigma_rad, int n, std::vector<Particle>* out) {
+  out->resize(centres.empty() ? 0 : std::max(0, n));
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (size_t k = 0; k < out->size(); ++k) {
+    const Particle& c = centres[k % centres.size()];
+    Particle& p = (*out)[k];
+    p.x_m = c.x_m + sigma_m * g(rng_);
+    p.y_m = c.y_m + sigma_m * g(rng_);
+    p.z_m = c.z_m + sigma_m * g(rng_);
+    p.yaw_rad = wrapAngle(c.yaw_rad + sigma_rad * g(rng_));
+  }
+}
+
 void ParticleFilter::sampleRegion(const InitRegion& region, int n, std::vector<Particle>* out) {
   out->resize(std::max(0, n));
   for (Particle& p : *out) p = sampleUniform(region);

@@ -209,4 +209,59 @@ void writeEllipsoidsCsv(const GmmMap& map, const std::string& path,
   if (!out) throw FitError(path + ": write failed");
 }
 
+GmmMap readMapCsv(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw FitError(path + ": cannot open: " + std::strerror(errno));
+  const char* kColumns[10] = {"weight",    "mean_x_m",  "mean_y_m",  "mean_z_m",  "cov_xx_m2",
+                              "cov_xy_m2", "cov_xz_m2", "cov_yy_m2", "cov_yz_m2", "cov_zz_m2"};
+  auto split = [](const std::string& line) {
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    std::string cell;
+    while (std::getline(ss, cell, ',')) {
+      const size_t a = cell.find_first_not_of(" \t\r"), b = cell.find_last_not_of(" \t\r");
+      cells.push_back(a == std::string::npos ? "" : cell.substr(a, b - a + 1));
+    }
+    return cells;
+  };
+  std::string line;
+  if (!std::getline(in, line)) throw FitError(path + ": empty file (expected a header row)");
+  const std::vector<std::string> header = split(line);
+  int col[10];
+  for (int k = 0; k < 10; ++k) {
+    const auto it = std::find(header.begin(), header.end(), kColumns[k]);
+    if (it == header.end()) throw FitError(path + ": header has no column '" + kColumns[k] + "'");
+    col[k] = static_cast<int>(it - header.begin());
+  }
+  std::vector<GaussianComponent> comps;
+  int line_no = 1;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    const std::vector<std::string> cells = split(line);
+    double v[10];
+    for (int k = 0; k < 10; ++k) {
+      const std::string where = path + ":" + std::to_string(line_no) + ": " + kColumns[k];
+      if (col[k] >= static_cast<int>(cells.size())) throw FitError(where + ": missing");
+      char* end = nullptr;
+      v[k] = std::strtod(cells[col[k]].c_str(), &end);
+      if (cells[col[k]].empty() || *end != '\0' || !std::isfinite(v[k])) {
+        throw FitError(where + ": '" + cells[col[k]] + "' is not a finite number");
+      }
+    }
+    GaussianComponent c;
+    c.weight = v[0];
+    c.mean_m = Eigen::Vector3d(v[1], v[2], v[3]);
+    c.cov_m2 << v[4], v[5], v[6], v[5], v[7], v[8], v[6], v[8], v[9];
+    comps.push_back(c);
+  }
+  if (comps.empty()) throw FitError(path + ": no components");
+  double total = 0.0;
+  for (const GaussianComponent& c : comps) total += c.weight;
+  if (std::abs(total - 1.0) <= 1e-3 && total > 0.0) {
+    for (GaussianComponent& c : comps) c.weight /= total;
+  }
+  return GmmMap(std::move(comps), path);
+}
+
 }  // namespace gmm_mcl

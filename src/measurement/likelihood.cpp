@@ -238,7 +238,8 @@ FrameLikelihood exactFrameLogLikelihood(const GmmMap& map, const DepthFrame& fra
 
 FrameLikelihood exactFrameLogLikelihood(const GmmMap& map, const DepthFrame& frame,
                                         const Eigen::Isometry3d& T_map_cam,
-                                        const MeasurementParams& params) {
+                                        const MeasurementParams& params,
+                                        std::vector<double>* per_pixel) {
   constexpr double kLog2Pi = 1.8378770664093453;
   const double floor_log_density = params.floor_log_density;
   const DepthNoiseModel& noise = params.depth_noise;
@@ -264,6 +265,7 @@ FrameLikelihood exactFrameLogLikelihood(const GmmMap& map, const DepthFrame& fra
   out.evaluations = static_cast<long long>(m) * frame.size();
   double sum = 0.0;
   int hits = 0;
+  if (per_pixel) per_pixel->assign(frame.size(), 0.0);
 #pragma omp parallel for reduction(+ : sum, hits) schedule(static)
   for (int i = 0; i < static_cast<int>(frame.size()); ++i) {
     const Eigen::Vector3d p = T_map_cam * Eigen::Vector3d(frame.x_m[i], frame.y_m[i], frame.z_m[i]);
@@ -277,7 +279,9 @@ FrameLikelihood exactFrameLogLikelihood(const GmmMap& map, const DepthFrame& fra
     double mix = 0.0;
     for (size_t j = 0; j < m; ++j) mix += std::exp(terms[j] - mx);
     const double floor_term = std::exp(floor_log_density - mx);
-    sum += mx + std::log(floor_term + mix);
+    const double ll = mx + std::log(floor_term + mix);
+    if (per_pixel) (*per_pixel)[i] = ll;
+    sum += ll;
     hits += mix < floor_term ? 1 : 0;
   }
   out.log_likelihood = sum;

@@ -189,7 +189,11 @@ KidnapResult runKidnapTrial(const FrameSource& src, const KidnapParams& params, 
   lp.init.yaw_centre_rad = start.yaw_rad;
   lp.init.yaw_half_range_rad = params.region_yaw_half_range_rad;
   Localizer loc(lp, src.map());
-  if (params.track_frames > 0) loc.resetToPose(start, Eigen::Vector4d(0.05, 0.05, 0.05, 0.05));
+  if (params.track_frames > 0) {
+    loc.resetToPose(start, Eigen::Vector4d(0.05, 0.05, 0.05, 0.05));
+  } else if (params.whole_map_start) {
+    loc.reset(loc.mapBounds());  // global localisation over the whole map, full yaw
+  }
 
   std::mt19937_64 rng(seed * 7919 + 17);
   std::normal_distribution<double> g(0.0, 1.0);

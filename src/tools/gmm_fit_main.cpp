@@ -14,6 +14,7 @@
 
 #include "gmm_mcl/fit/cloud_filter.h"
 #include "gmm_mcl/fit/em_fitter.h"
+#include "gmm_mcl/fit/map_inspect.h"
 #include "gmm_mcl/fit/fit_error.h"
 #include "gmm_mcl/fit/point_cloud_io.h"
 #include "gmm_mcl/fit/seven_scenes_cloud.h"
@@ -26,6 +27,7 @@ using namespace gmm_mcl;
 const char* kUsage =
     "usage: gmm_fit INPUT -o MAP [options]\n"
     "       gmm_fit --7scenes DATA_DIR -o MAP [options]\n"
+    "       gmm_fit --import MAP.csv -o MAP          (a map made elsewhere, e.g. scikit-learn)\n"
     "\n"
     "INPUT is a point cloud (.pcd ascii/binary/binary_compressed, .ply vertices, .xyz/.txt) or a\n"
     "PLY triangle mesh (faces present: points are sampled area-uniformly on its surface).\n"
@@ -54,6 +56,11 @@ const char* kUsage =
     "  --voxel M                voxel-grid centroids at M metres (off)\n"
     "  --mesh-samples N         points sampled on a mesh (1000000)\n"
     "  --use-vertices           for a PLY mesh, fit its vertices instead of sampling faces\n"
+    "import:\n"
+    "  --import FILE.csv        a mixture as CSV, one component per row, header naming weight,\n"
+    "                           mean_x_m, mean_y_m, mean_z_m, cov_xx_m2 .. cov_zz_m2 (gmm_inspect\n"
+    "                           --csv writes one; scripts/sklearn_to_gmm_csv.py converts a\n"
+    "                           scikit-learn GaussianMixture); validated and written, no fitting\n"
     "7-Scenes (DESIGN.md accuracy protocol):\n"
     "  --7scenes DIR            stitch DIR/frame-NNNNNN.depth.png with frame-NNNNNN.pose.txt\n"
     "  --first F --last L --step S    frames F, F+S, ..., <= L (0, 990, 10)\n"
@@ -100,7 +107,7 @@ std::string jsonNumber(double v) {
 int main(int argc, char** argv) {
   Args a;
   a.v.assign(argv, argv + argc);
-  std::string input, output, save_cloud, stats_json, init_means_path, seven_dir;
+  std::string input, output, save_cloud, stats_json, init_means_path, seven_dir, import_path;
   bool quiet = false, use_vertices = false, voxel_set = false;
   size_t mesh_samples = 1000000;
   int threads = 0;
@@ -112,6 +119,8 @@ int main(int argc, char** argv) {
     if (opt == "-h" || opt == "--help") {
       std::cout << kUsage;
       return 0;
+    } else if (opt == "--import") {
+      import_path = a.next(opt);
     } else if (opt == "-o" || opt == "--output") {
       output = a.next(opt);
     } else if (opt == "--save-cloud") {
@@ -184,6 +193,22 @@ int main(int argc, char** argv) {
       input = opt;
     } else {
       usageError("more than one input given ('" + input + "', '" + opt + "')");
+    }
+  }
+  if (!import_path.empty()) {
+    if (!input.empty() || !seven_dir.empty()) usageError("--import takes no INPUT or --7scenes");
+    if (output.empty()) usageError("no output: give -o MAP");
+    try {
+      const GmmMap map = readMapCsv(import_path);
+      saveMap(map, output);
+      loadMap(output);  // read back: the file validates as every consumer will see it
+      if (!quiet) {
+        std::cerr << import_path << ": " << map.size() << " components -> " << output << "\n";
+      }
+      return 0;
+    } catch (const std::exception& e) {
+      std::cerr << "gmm_fit: " << e.what() << "\n";
+      return 1;
     }
   }
   if (input.empty() == seven_dir.empty()) usageError("give one INPUT file or --7scenes DIR");

@@ -22,14 +22,17 @@ void usage() {
   std::printf(
       "usage: gmm_mcl_kidnap [--scene synthetic|box|7scenes|tum|stanford] [--map MAP.gmm]\n"
       "                      [--dataset DIR]\n"
-      "                      [--trials N] [--first-seed S] [--stride PX] [--particles N]\n"
+      "                      [--trials N] [--first-seed S] [--stride PX] [--particles MAX]\n"
       "                      [--width PX] [--track-frames N] [--after-frames N] [--start-frame F]\n"
       "                      [--backend cpu|cuda]\n"
       "                      [--weighting paper|tempered] [--no-lost-detector]\n"
       "                      [--candidates K] [--reinit-fraction F] [--margin NATS]\n"
-      "                      [--grace FRAMES] [--lost-frames FRAMES] [--min-particles N]\n"
-      "                      [--depth-noise A,B,Z0] [--out DIR]\n"
-      "--track-frames 0: global localisation trials (uniform start, no kidnap).\n"
+      "                      [--grace FRAMES] [--lost-frames FRAMES] [--min-particles MIN]\n"
+      "                      [--depth-noise A,B,Z0] [--out DIR] [--init region|map]\n"
+      "Particles: MIN..MAX by KLD-sampling (default 1068..3000 on the CPU, 1068..100000 with\n"
+      "CUDA; MIN = MAX: fixed).\n"
+      "--track-frames 0: global localisation trials (uniform start, no kidnap): over the recovery\n"
+      "region around the start, or with --init map over the whole map (its bounds, full yaw).\n"
       "--width: the synthetic scenes' camera width (f = 585 px at 640, scaled; default 640).\n"
       "7scenes needs --map (scripts/build_map_7scenes.sh); DIR defaults to\n"
       "$GMM_MCL_DATASETS/7scenes_redkitchen/data, else ../shared/datasets/...\n");
@@ -42,7 +45,7 @@ int main(int argc, char** argv) {
   const char* env = std::getenv("GMM_MCL_DATASETS");
   std::string dataset =
       std::string(env && *env ? env : "../shared/datasets") + "/7scenes_redkitchen/data";
-  int trials = 10, stride = -1, particles = kDefaultParticleCount, width = 640;
+  int trials = 10, stride = -1, particles = -1, min_particles = -1, width = 640;
   uint64_t first_seed = 1;
   KidnapParams kp;
   bool lost_detector = true;
@@ -76,7 +79,15 @@ int main(int argc, char** argv) {
     else if (a == "--grace") kp.localizer.lost.grace_frames = std::atoi(next());
     else if (a == "--lost-frames") kp.localizer.lost.frames = std::atoi(next());
     else if (a == "--out") out_dir = next();
-    else if (a == "--min-particles") kp.localizer.filter.min_particles = std::atoi(next());
+    else if (a == "--init") {
+      const std::string v = next();
+      if (v != "region" && v != "map") {
+        std::fprintf(stderr, "--init: region or map (got '%s')\n", v.c_str());
+        return 2;
+      }
+      kp.whole_map_start = v == "map";
+    }
+    else if (a == "--min-particles") min_particles = std::atoi(next());
     else if (a == "--depth-noise") {
       const char* v = next();
       DepthNoiseModel& n = kp.localizer.measurement.depth_noise;
@@ -108,17 +119,26 @@ int main(int argc, char** argv) {
       usage();
       return 2;
     }
+    if (kp.whole_map_start && kp.track_frames != 0) {
+      std::fprintf(stderr, "--init map is for global localisation trials (--track-frames 0)\n");
+      return 2;
+    }
+    int default_min, default_max;  // the tools' defaults by backend (KLD-sampling range)
+    defaultParticleRange(backend, &default_min, &default_max);
+    if (particles < 0) particles = default_max;
+    if (min_particles < 0) min_particles = std::min(default_min, particles);
     kp.localizer.filter.num_particles = particles;
+    kp.localizer.filter.min_particles = min_particles;
     kp.localizer.backend = backend;
     if (!parseWeightingMode(weighting, &kp.localizer.filter.weighting)) {
       std::fprintf(stderr, "unknown weighting '%s'\n", weighting.c_str());
       return 2;
     }
     if (!lost_detector) kp.localizer.lost.margin_nats = 0.0;
-    std::printf("gmm_mcl kidnap: %s, %d particles, stride %d, %s weighting, lost detector %s, "
+    std::printf("gmm_mcl kidnap: %s, %d..%d particles, stride %d, %s weighting, lost detector %s, "
                 "%d tracked + %d frames after the kidnap; %d candidates per redrawn particle, "
                 "redraw fraction %.2f, margin %.1f nats/px\n\n",
-                src->name().c_str(), particles, kp.localizer.frame.pixel_stride,
+                src->name().c_str(), min_particles, particles, kp.localizer.frame.pixel_stride,
                 weighting.c_str(), lost_detector ? "on" : "off", kp.track_frames,
                 kp.after_frames, kp.localizer.lost.candidates_per_particle,
                 kp.localizer.lost.reinit_fraction, kp.localizer.lost.margin_nats);

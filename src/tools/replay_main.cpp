@@ -26,11 +26,12 @@ void usage() {
   std::printf(
       "usage: gmm_mcl_replay --map MAP.gmm [--format 7scenes|tum|stanford] [--dataset DIR]\n"
       "                      [--trials N] [--first-seed S] [--frames N] [--stride PX]\n"
-      "                      [--particles N] [--weighting paper|tempered] [--temperature T]\n"
+      "                      [--particles MAX] [--min-particles MIN] [--weighting paper|tempered]\n"
+      "                      [--temperature T]\n"
       "                      [--backend cpu|cuda]\n"
       "                      [--neff-floor F] [--init-half-extent M] [--init-yaw-half-range RAD]\n"
       "                      [--init cube|map] [--depth-noise A,B,Z0] [--min-range M]\n"
-      "                      [--max-range M] [--floor NATS] [--min-particles N]\n"
+      "                      [--max-range M] [--floor NATS]\n"
       "                      [--lost-margin NATS] [--lost-grace FRAMES] [--candidates K]\n"
       "                      [--hold-frames N (30)] [--tail-frames N (100)]\n"
       "                      [--out DIR] [--quiet]\n"
@@ -43,6 +44,8 @@ void usage() {
       "DIR defaults to $GMM_MCL_DATASETS/7scenes_redkitchen/data, else\n"
       "../shared/datasets/7scenes_redkitchen/data. Runs trials with seeds S..S+N-1 (1..10).\n"
       "MAP is in the data set's world frame; it is rotated into the gravity-aligned frame.\n"
+      "Particles: between MIN and MAX, adapted by KLD-sampling (default 1068..3000 on the CPU,\n"
+      "1068..100000 with CUDA; MIN = MAX: a fixed count).\n"
       "--init map starts uniform over the whole map (its bounds, full yaw) instead of the cube\n"
       "around the true start. --depth-noise: the camera's depth noise sigma(z) = A + B (z - Z0)^2\n"
       "in metres (default 0.0012,0.0019,0.4, a Kinect v1; 0,0,0 turns it off).\n"
@@ -105,8 +108,8 @@ int main(int argc, char** argv) {
   std::string dataset, map_path, out_dir, weighting = "tempered", format = "7scenes";
   std::string backend = "cpu";
   std::string fixture_format, fixture_dir, convert_format, convert_dir;
-  int trials = 10, frames = -1, stride = 4, particles = kDefaultParticleCount, width = 160;
-  int min_particles = 0, convert_stride = 1;
+  int trials = 10, frames = -1, stride = 4, particles = -1, width = 160;
+  int min_particles = -1, convert_stride = 1;
   uint64_t first_seed = 1;
   double temperature = -1.0, neff_floor = -1.0;
   LostDetectionParams lost;
@@ -228,6 +231,10 @@ int main(int argc, char** argv) {
       return 2;
     }
     rp.whole_map_start = init == "map";
+    int default_min, default_max;
+    defaultParticleRange(backend, &default_min, &default_max);
+    if (particles < 0) particles = default_max;
+    if (min_particles < 0) min_particles = std::min(default_min, particles);
     rp.localizer.filter.num_particles = particles;
     rp.localizer.filter.min_particles = min_particles;
     rp.localizer.backend = backend;

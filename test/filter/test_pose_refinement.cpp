@@ -50,9 +50,10 @@ TEST(PoseRefinementTest, ConvergesToTheTruePoseFromNearbyStarts) {
     worst_yaw_end = std::max(worst_yaw_end, std::abs(wrapAngle(r.pose.yaw_rad - truth.yaw_rad)));
     EXPECT_LT(distance(r.pose, truth), 0.5 * distance(start, truth) + 0.002) << "start " << k;
   }
-  std::printf("[ measured ] 12 starts up to %.1f cm off: refined to within %.2f cm and %.3f deg "
-              "of the true pose\n",
-              100.0 * worst_start, 100.0 * worst_end, worst_yaw_end * 180.0 / M_PI);
+  std::printf(
+      "[ measured ] 12 starts up to %.1f cm off: refined to within %.2f cm and %.3f deg "
+      "of the true pose\n",
+      100.0 * worst_start, 100.0 * worst_end, worst_yaw_end * 180.0 / M_PI);
   EXPECT_LT(worst_end, 0.01);
   EXPECT_LT(worst_yaw_end, 0.005);
 }
@@ -82,10 +83,11 @@ TEST(PoseRefinementTest, CorrectsTheAttitudeInputsTilt) {
                                         w.T_base_cam, MeasurementParams(), four);
   ASSERT_TRUE(a.refined) << a.why;
   ASSERT_TRUE(b.refined) << b.why;
-  std::printf("[ measured ] roll and pitch given 0.5 deg off: 6-DoF refinement %.2f mm, roll "
-              "%.3f deg, pitch %.3f deg from the truth; 4-DoF %.2f mm\n",
-              1e3 * distance(a.pose, truth), (a.roll_rad - roll) * 180.0 / M_PI,
-              (a.pitch_rad - pitch) * 180.0 / M_PI, 1e3 * distance(b.pose, truth));
+  std::printf(
+      "[ measured ] roll and pitch given 0.5 deg off: 6-DoF refinement %.2f mm, roll "
+      "%.3f deg, pitch %.3f deg from the truth; 4-DoF %.2f mm\n",
+      1e3 * distance(a.pose, truth), (a.roll_rad - roll) * 180.0 / M_PI,
+      (a.pitch_rad - pitch) * 180.0 / M_PI, 1e3 * distance(b.pose, truth));
   EXPECT_LT(std::abs(a.roll_rad - roll), 0.1 * M_PI / 180.0);
   EXPECT_LT(std::abs(a.pitch_rad - pitch), 0.1 * M_PI / 180.0);
   EXPECT_LT(distance(a.pose, truth), 0.005);

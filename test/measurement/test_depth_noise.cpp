@@ -6,8 +6,8 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
-#include <cmath>
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <random>
 
@@ -87,9 +87,10 @@ TEST(DepthNoiseTest, EvaluationFormMatchesTheConvolvedDensity) {
       }
     }
   }
-  std::printf("[ measured ] %d noisy evaluation forms: worst |ln density error| %.2e nats "
-              "within 3 sigma; variance along the ray >= %.3f s^2\n",
-              formed, worst, worst_thin_dir_ratio);
+  std::printf(
+      "[ measured ] %d noisy evaluation forms: worst |ln density error| %.2e nats "
+      "within 3 sigma; variance along the ray >= %.3f s^2\n",
+      formed, worst, worst_thin_dir_ratio);
   EXPECT_GT(formed, 1000);
   EXPECT_LT(worst, 2e-4);  // float rounding of map-frame points (DESIGN.md: ~1e-4 per pixel)
   EXPECT_GE(worst_thin_dir_ratio, 1.0 - 1e-9);
@@ -120,16 +121,18 @@ TEST(DepthNoiseTest, RayInflationLeavesTheProjectionUnchanged) {
       ProjectedComponent a, b;
       ASSERT_TRUE(projectComponent(c, T_cam_map, K, 0.1f, 3.f, 22.6f, &a));
       ASSERT_TRUE(projectComponent(wide, T_cam_map, K, 0.1f, 3.f, 22.6f, &b));
-      const double scale = std::max({1.0, static_cast<double>(std::abs(a.cov_uu)),
-                                     static_cast<double>(std::abs(a.cov_vv))});
-      worst = std::max({worst, std::abs(a.cov_uu - b.cov_uu) / scale,
-                        std::abs(a.cov_uv - b.cov_uv) / scale,
-                        std::abs(a.cov_vv - b.cov_vv) / scale});
+      const double scale = std::max(
+          {1.0, static_cast<double>(std::abs(a.cov_uu)), static_cast<double>(std::abs(a.cov_vv))});
+      worst =
+          std::max({worst, std::abs(a.cov_uu - b.cov_uu) / scale,
+                    std::abs(a.cov_uv - b.cov_uv) / scale, std::abs(a.cov_vv - b.cov_vv) / scale});
       ++compared;
     }
   }
-  std::printf("[ measured ] %d components: projected covariance changed by at most %.2e "
-              "(relative) by 5 cm of noise along the ray\n", compared, worst);
+  std::printf(
+      "[ measured ] %d components: projected covariance changed by at most %.2e "
+      "(relative) by 5 cm of noise along the ray\n",
+      compared, worst);
   EXPECT_GT(compared, 1000);
   EXPECT_LT(worst, 1e-3);  // float rounding of the larger covariance entries
 }
@@ -184,12 +187,12 @@ TEST(DepthNoiseTest, SharpMapScoresTheTruthNearItsOwnLevel) {
   const FrameLikelihood l_on =
       poseLogLikelihood(sharp.packed(), frame, toRigidF(T_map_cam), on, &scratch);
   const double px = l_on.pixels;
-  std::printf("[ measured ] 2 mm map, noisy frame (%d px): map's own level %.2f nats/px (%.2f "
-              "with the noise at 2 m); true pose %.2f without the noise model (%.0f%% at the "
-              "floor), %.2f with it (%.0f%%)\n",
-              l_on.pixels, self, self_noisy, l_off.log_likelihood / px,
-              100.0 * l_off.floor_hits / px, l_on.log_likelihood / px,
-              100.0 * l_on.floor_hits / px);
+  std::printf(
+      "[ measured ] 2 mm map, noisy frame (%d px): map's own level %.2f nats/px (%.2f "
+      "with the noise at 2 m); true pose %.2f without the noise model (%.0f%% at the "
+      "floor), %.2f with it (%.0f%%)\n",
+      l_on.pixels, self, self_noisy, l_off.log_likelihood / px, 100.0 * l_off.floor_hits / px,
+      l_on.log_likelihood / px, 100.0 * l_on.floor_hits / px);
   EXPECT_LT(self_noisy, self);
   EXPECT_NEAR(l_on.log_likelihood / px, self_noisy, 1.5);
   EXPECT_LT(l_off.log_likelihood / px, self - 4.0);
@@ -203,8 +206,10 @@ TEST(DepthNoiseTest, SharpMapScoresTheTruthNearItsOwnLevel) {
     for (int k = -4; k <= 4; ++k) {
       if (k == 0) continue;
       Particle p = poseToParticle(T_map_base);
-      if (axis == 0) p.x_m += 0.05 * k;
-      else p.yaw_rad += 0.05 * k;
+      if (axis == 0)
+        p.x_m += 0.05 * k;
+      else
+        p.yaw_rad += 0.05 * k;
       const Eigen::Isometry3d T = particleToPose(p, roll, pitch) * sim::defaultBaseToCamera();
       const FrameLikelihood l = poseLogLikelihood(sharp.packed(), frame, toRigidF(T), on, &scratch);
       EXPECT_LT(l.log_likelihood, l_on.log_likelihood) << "axis " << axis << " step " << k;

@@ -94,14 +94,17 @@ class Localizer {
   double pitchRad() const { return pitch_rad_; }
 
  private:
-  // The `count` best-scoring of count * lost.candidates_per_particle uniform draws from the
-  // recovery region, scored on `frame` in batches of the particle count.
-  std::vector<Particle> screenCandidates(const DepthFrame& frame, int count);
+  // The `count` best-scoring of count * lost.candidates_per_particle draws scored on `frame` in
+  // batches of the particle count: uniform from the recovery region, and with local_stage a
+  // fraction (lost.local_candidate_fraction) around the best uniform ones instead.
+  std::vector<Particle> screenCandidates(const DepthFrame& frame, int count,
+                                         bool local_stage = false);
   void evaluateParticles(const DepthFrame& frame, const std::vector<Particle>& particles,
                          BackendOutput* out);
 
   LocalizerParams params_;
   GmmMap map_;
+  GmmMap blurred_map_;  // map_ with lost.redraw_blur_m^2 on every covariance (redraws)
   std::unique_ptr<LikelihoodBackend> backend_;
   std::string backend_warning_;
   ParticleFilter filter_;

@@ -80,6 +80,11 @@ struct ParticleFilterParams {
 // The KLD-sampling bound: particles needed for k occupied bins (Fox 2003, Eq. 8), at least 1.
 int kldParticleBound(int occupied_bins, double epsilon, double z);
 
+// The particle-count range the tools use when none is given, by backend: "cuda" 100,000 while
+// the belief is spread or lost, down to 1068 (the paper's N) while tracking; "cpu" (and a TX2's
+// budget) 3000 down to 1068. Measured on the unseen-scene protocol (docs/unseen_scenes.md).
+void defaultParticleRange(const std::string& backend, int* min_particles, int* max_particles);
+
 // Absolute-quality recovery (LostDetector): when the best particle's per-pixel log-likelihood
 // stays more than margin_nats below a reference level for `frames` frames, the worst
 // reinit_fraction of the particles (by that frame's likelihood) are drawn afresh from the
@@ -102,6 +107,18 @@ struct LostDetectionParams {
   // many uniform candidates per particle, scored on the current frame: a denser search of the
   // region for the same particle count (1 = plain uniform draws).
   int candidates_per_particle = 16;
+  // A lost redraw draws this fraction of its candidates around the best elite_fraction of the
+  // uniform ones (Gaussian, local_sigma_m per axis, local_sigma_rad in yaw): the search narrows
+  // onto the promising places within one frame.
+  double local_candidate_fraction = 0.5;
+  double elite_fraction = 0.01;
+  double local_sigma_m = 0.25;
+  double local_sigma_rad = 0.2;
+  // A lost redraw scores its uniform candidates against the map blurred by this much (every
+  // covariance plus blur^2 I): the likelihood's basin widens from a few decimetres to about a
+  // metre, so that far more of the uniform candidates land in the true pose's basin; the local
+  // candidates around the best of them are scored against the map itself. 0: no blur.
+  double redraw_blur_m = 0.15;
 
   std::string validate() const;
 };

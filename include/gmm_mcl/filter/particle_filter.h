@@ -66,6 +66,9 @@ class ParticleFilter {
   void replaceAll(const std::vector<Particle>& particles);
   // n uniform draws from the region with the filter's generator.
   void sampleRegion(const InitRegion& region, int n, std::vector<Particle>* out);
+  // n draws around the centres (in turn), Gaussian with sigma_m per axis and sigma_rad in yaw.
+  void sampleAround(const std::vector<Particle>& centres, double sigma_m, double sigma_rad, int n,
+                    std::vector<Particle>* out);
 
   PoseEstimate estimate() const;
   // Overrides the particle set (tests, tools); weights normalised here.

@@ -2,17 +2,16 @@
 // maximisation of the same GMM likelihood as the particle weights (with the patch membership,
 // the depth-noise model and the floor) over the 6-DoF pose (x, y, z, yaw, and roll and pitch
 // with a Gaussian prior at the attitude input: an IMU's 0.5 deg of roll noise moves a wall 2 m
-// away by 2 cm, more than the particle spacing), by expectation-maximisation: each iteration weighs every (pixel,
-// relevant component) pair by its responsibility at the current pose (the floor takes the
-// pixels no component explains), then takes one damped Gauss-Newton step on the weighted
+// away by 2 cm, more than the particle spacing), by expectation-maximisation: each iteration weighs
+// every (pixel, relevant component) pair by its responsibility at the current pose (the floor takes
+// the pixels no component explains), then takes one damped Gauss-Newton step on the weighted
 // Mahalanobis residuals; a step is kept only when the likelihood rises. The particle set is not
 // changed: the refined pose is reported beside the particle mean (docs/unseen_scenes.md).
 #pragma once
 
+#include <Eigen/Geometry>
 #include <string>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "gmm_mcl/camera/depth_frame.h"
 #include "gmm_mcl/filter/pose.h"

@@ -46,4 +46,11 @@ void writeEllipsoidsPly(const GmmMap& map, const std::string& path,
 void writeEllipsoidsCsv(const GmmMap& map, const std::string& path,
                         const EllipsoidExportParams& params = EllipsoidExportParams());
 
+// A map from a CSV file with a header row naming at least the columns weight, mean_x_m,
+// mean_y_m, mean_z_m, cov_xx_m2, cov_xy_m2, cov_xz_m2, cov_yy_m2, cov_yz_m2, cov_zz_m2 (others
+// are ignored: writeEllipsoidsCsv's files round-trip; scripts/sklearn_to_gmm_csv.py writes one
+// from a scikit-learn GaussianMixture). Weights within 1e-3 of summing to 1 are renormalised.
+// Throws FitError naming the file, the line and the fault; MapError for an invalid mixture.
+GmmMap readMapCsv(const std::string& path);
+
 }  // namespace gmm_mcl

@@ -72,9 +72,11 @@ FrameLikelihood exactFrameLogLikelihood(const GmmMap& map, const DepthFrame& fra
                                         const Eigen::Isometry3d& T_map_cam,
                                         float floor_log_density);
 // The same with params' floor and depth noise: every component in front of the camera convolved
-// with the noise at its range (depth_noise.h), in double precision.
+// with the noise at its range (depth_noise.h), in double precision; per_pixel (optional) gets
+// each used pixel's log-likelihood in the frame's point order.
 FrameLikelihood exactFrameLogLikelihood(const GmmMap& map, const DepthFrame& frame,
                                         const Eigen::Isometry3d& T_map_cam,
-                                        const MeasurementParams& params);
+                                        const MeasurementParams& params,
+                                        std::vector<double>* per_pixel = nullptr);
 
 }  // namespace gmm_mcl

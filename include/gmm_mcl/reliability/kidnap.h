@@ -49,6 +49,9 @@ struct KidnapParams {
   // localisation trial instead: the filter starts uniform over the recovery region around a
   // random start frame and the recovery time is the convergence time.
   int track_frames = 45;
+  // With track_frames 0: start uniform over the whole map's bounds and the full yaw circle
+  // (Localizer::mapBounds()) instead of the recovery region around the start.
+  bool whole_map_start = false;
   int after_frames = 180;        // frames after it
   int start_frame = -1;          // -1: drawn per seed
   double region_half_extent_m = 2.0;          // recovery region: the protocol's 4 m cube ...
