@@ -4,7 +4,8 @@
 # x86-64 with AVX2/FMA instead of -march=native, which is this machine's CPU), the shared
 # libraries they need beyond glibc, the Replica mesh and trajectory, the maps of
 # scripts/eval_unseen.sh, and the 7-Scenes sequence as a TUM folder reduced to the stride-8 pixel
-# grid (the same input as the full frames for a stride-8 filter; 9 MB instead of 80 MB).
+# grid (the same input as the full frames for a stride-8 filter; 9 MB instead of 80 MB), and the
+# rendered Replica segments likewise when they exist here (GMM_MCL_EVAL_SEGMENTS).
 # Everything goes to $BUNDLE (default .deps/gpu, git-ignored); scripts/gpu_eval.sh runs it there.
 #
 #   scripts/gpu_bundle.sh            # CUDA_ARCH=90, GMM_MCL_DATASETS=../shared/datasets
@@ -54,4 +55,12 @@ done
 cp "$MAPS"/*.gmm "$BUNDLE/data/maps/"
 "$BUILD/gmm_mcl_replay" --format 7scenes --dataset "$SEVEN" --convert tum \
   "$BUNDLE/data/7scenes_tum8" --convert-stride 8 > /dev/null
+# The Replica segments of scripts/eval_unseen.sh, reduced likewise, when already rendered here
+# (GMM_MCL_EVAL_SEGMENTS: the folder holding replica_seg<first>; default the evaluation's).
+SEGS="${GMM_MCL_EVAL_SEGMENTS:-$ROOT/build/eval_unseen}"
+for first in 0 700 1400; do
+  [[ -f "$SEGS/replica_seg$first/depth.txt" ]] || continue
+  "$BUILD/gmm_mcl_replay" --format tum --dataset "$SEGS/replica_seg$first" --convert tum \
+    "$BUNDLE/data/replica_seg${first}_tum8" --convert-stride 8 > /dev/null
+done
 du -sh "$BUNDLE"
