@@ -321,7 +321,8 @@ StepResult Localizer::step(const StepInput& in) {
         start = last_refined_;
       }
       res.refinement = refinePose(map_.packed(), frame, start, roll_rad_, pitch_rad_,
-                                  params_.T_base_cam, params_.measurement, params_.refinement);
+                                  params_.T_base_cam, params_.measurement, params_.refinement,
+                                  backend_->normalEquations());
       // Judged against the particle mean, whatever the start.
       const Particle& r = res.refinement.pose;
       if (res.refinement.refined &&

@@ -16,6 +16,7 @@
 #include "gmm_mcl/camera/depth_frame.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/measurement/measurement_params.h"
+#include "gmm_mcl/measurement/normal_equations.h"
 
 namespace gmm_mcl {
 
@@ -53,10 +54,12 @@ struct RefinementResult {
 };
 
 // Maximises the frame's log-likelihood around `start` (a base pose; roll and pitch shared as in
-// the filter). `components`: the map's packed components.
+// the filter). `components`: the map's packed components. `sums`: where the pixel sums run (a
+// backend's evaluator, LikelihoodBackend::normalEquations()); nullptr: on the host.
 RefinementResult refinePose(const std::vector<ComponentF>& components, const DepthFrame& frame,
                             const Particle& start, double roll_rad, double pitch_rad,
                             const Eigen::Isometry3d& T_base_cam, const MeasurementParams& params,
-                            const RefinementParams& refinement);
+                            const RefinementParams& refinement,
+                            NormalEquationsEvaluator* sums = nullptr);
 
 }  // namespace gmm_mcl
