@@ -5,7 +5,7 @@ usage: scripts/unseen_table.py OUT_DIR
 
 Reads OUT_DIR/<run>/trial_<seed>_metrics.csv (gmm_mcl_replay --out) and
 OUT_DIR/<run>/kidnap_<seed>.csv (gmm_mcl_kidnap --out). Runs: start_seg<first>, map_seg<first>,
-kidnap_seg<first>, 7s-disjoint, 7s. Convergence (replay): the first frame after which the error
+kidnap_seg<first>, 7s-disjoint, 7s, 7s-m4000. Convergence (replay): the first frame after which the error
 stays under 10 cm for 30 frames; success: converged and the last 100 frames under 10 cm; the
 whole-map start counts convergence within 10 s, the others within 5 s. ATE pooled over the
 frames after convergence of every converged trial (RMSE), for the particle mean and the refined
@@ -24,6 +24,7 @@ PROTOCOLS = [
     ("kidnap", "unseen scene (Replica), kidnap", 5.0),
     ("7s-disjoint", "7-Scenes, map from disjoint frames", 5.0),
     ("7s", "7-Scenes, DESIGN.md protocol", 5.0),
+    ("7s-m4000", "7-Scenes, DESIGN.md protocol with an M=4000 map", 5.0),
 ]
 
 
