@@ -32,7 +32,9 @@ add_library(gmm_mcl_cuda OBJECT
   cuda/membership_kernel.cu
   cuda/likelihood_kernel.cu
   cuda/frame_kernel.cu
+  cuda/normal_equations_kernel.cu
   cuda/cuda_backend.cpp
+  cuda/cuda_normal_equations.cpp
 )
 target_include_directories(gmm_mcl_cuda PRIVATE
   ${CMAKE_CURRENT_SOURCE_DIR} ${CMAKE_CURRENT_SOURCE_DIR}/include ${GMM_MCL_CUDA_INCLUDE})

@@ -7,9 +7,11 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "cuda/cuda_normal_equations.h"
 #include "cuda/device_buffer.cuh"
 #include "cuda/kernels.cuh"
 
@@ -82,6 +84,7 @@ struct CudaBackend::Impl {
   cuda::DeviceBuffer<int> counts;  // GPU frame preparation scratch
   cuda::Event prep_end;
   size_t shared_limit_set = 48 * 1024;
+  std::unique_ptr<cuda::CudaNormalEquations> normal_equations;  // pose refinement, made on use
   double last_transfer_ms = 0.0;
   double last_frame_prep_ms = 0.0;
   int last_frame_pixels = 0;
@@ -142,6 +145,14 @@ const CudaDeviceInfo& CudaBackend::deviceInfo() const { return impl_->info; }
 double CudaBackend::lastTransferMs() const { return impl_->last_transfer_ms; }
 double CudaBackend::lastFramePrepMs() const { return impl_->last_frame_prep_ms; }
 int CudaBackend::lastFramePixels() const { return impl_->last_frame_pixels; }
+
+NormalEquationsEvaluator* CudaBackend::normalEquations() {
+  if (!impl_->normal_equations) {
+    impl_->normal_equations.reset(
+        new cuda::CudaNormalEquations(impl_->info.device, impl_->stream.get()));
+  }
+  return impl_->normal_equations.get();
+}
 
 void CudaBackend::setMap(const GmmMap& map) {
   const std::vector<ComponentF>& packed = map.packed();

@@ -48,6 +48,8 @@ class CudaBackend : public LikelihoodBackend {
                 const MeasurementParams& params, BackendOutput* out) override;
   void membership(const DepthFrame& frame, const RigidTransformF& T_map_cam,
                   const MeasurementParams& params, PatchMembership* out) override;
+  // The pose refinement's pixel sums on this backend's device and stream.
+  NormalEquationsEvaluator* normalEquations() override;
 
   // evaluate() with the frame prepared on the GPU from the raw image: uploads the image (not
   // the points) and builds prepareFrame's points, in its order and with its arithmetic.
