@@ -475,9 +475,21 @@ bool CudaParticleFilter::weighFrame(int pixels, FrameScores* scores) {
   cfg.neff_floor = p.neff_floor_fraction * d.n;
   cfg.paper_margin = p.paper_min_nll_per_pixel * pixels;
   d.w_new.reserve(d.capacity, d.stream);
-  GMM_MCL_CUDA_CHECK(cuda::launchWeightUpdate(d.n, cfg, kBisectionIterations, d.ll.data(),
-                                              d.hits.data(), d.weights.data(), d.w_new.data(),
-                                              d.wstate.data(), d.scratch(), d.stream));
+  GMM_MCL_CUDA_CHECK(cuda::launchWeightStart(d.n, cfg, d.ll.data(), d.weights.data(),
+                                             d.wstate.data(), d.scratch(), d.stream));
+  // Steady tracking rarely hits the Neff floor: read the decision back (a few microseconds)
+  // rather than queue the bisection's launches every frame.
+  GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(d.h_wstate.data(), d.wstate.data(), sizeof(cuda::WeightState),
+                                     cudaMemcpyDeviceToHost, d.stream));
+  GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(d.stream));
+  if (d.h_wstate[0].bisect == cuda::kExponentBisected) {
+    GMM_MCL_CUDA_CHECK(cuda::launchWeightBisection(d.n, cfg, kBisectionIterations, d.ll.data(),
+                                                   d.weights.data(), d.wstate.data(), d.scratch(),
+                                                   d.stream));
+  }
+  GMM_MCL_CUDA_CHECK(cuda::launchWeightFinish(d.n, cfg, d.ll.data(), d.hits.data(),
+                                              d.weights.data(), d.w_new.data(), d.wstate.data(),
+                                              d.scratch(), d.stream));
   GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(d.h_wstate.data(), d.wstate.data(), sizeof(cuda::WeightState),
                                      cudaMemcpyDeviceToHost, d.stream));
   GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(d.stream));

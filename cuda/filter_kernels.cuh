@@ -62,13 +62,16 @@ struct WeightConfig {
   double neff_floor;      // neff_floor_fraction * N
   double paper_margin;    // paper_min_nll_per_pixel * pixels
 };
-// Device-resident state of one weight update, read back once.
+// WeightState::bisect: the exponent at beta_max, found by bisection (the Neff floor binds), or 0
+// (beta_max and 0 both fall below the floor: the prior weights kept, as ParticleFilter does).
+constexpr int kExponentMax = 0, kExponentBisected = 1, kExponentZero = 2;
+// Device-resident state of one weight update, read back twice.
 struct WeightState {
   double best;         // largest finite log-likelihood
   double argmax_ll;    // log-likelihood of the best particle (the first of the largest)
   int argmax;
   int finite;          // particles with a finite log-likelihood
-  int bisect;          // 0: beta_max; 1: the Neff floor binds, beta by bisection; 2: beta 0
+  int bisect;          // kExponentMax, kExponentBisected or kExponentZero
   int ok;              // the weights were updated
   double neff_prior;   // Neff of the prior weights over the finite entries (beta = 0)
   double neff_max;     // Neff at beta_max
@@ -80,10 +83,18 @@ struct WeightState {
   double neff;         // after the update
   int best_hits;       // floor hits of the best particle
 };
-// The whole update: maxima and prior Neff, Neff at beta_max, `iterations` bisection steps (no-ops
-// unless the floor binds), the new weights, their normalisation and the scores. w_new: scratch
-// [n]. Nothing is synchronised; *state is valid after the stream reaches this point.
-cudaError_t launchWeightUpdate(int n, const WeightConfig& cfg, int iterations, const double* ll,
+// The update in three launches so that the bisection runs only where the floor binds (the
+// caller reads state->bisect in between): launchWeightStart (maxima, prior Neff, Neff at
+// beta_max and the recovery sum), launchWeightBisection (`iterations` steps, no-ops unless
+// state->bisect is 1), launchWeightFinish (the new weights, their normalisation, the scores).
+// w_new: scratch [n]. Nothing is synchronised.
+cudaError_t launchWeightStart(int n, const WeightConfig& cfg, const double* ll,
+                              const double* weights, WeightState* state, ReduceScratch scratch,
+                              cudaStream_t stream);
+cudaError_t launchWeightBisection(int n, const WeightConfig& cfg, int iterations,
+                                  const double* ll, const double* weights, WeightState* state,
+                                  ReduceScratch scratch, cudaStream_t stream);
+cudaError_t launchWeightFinish(int n, const WeightConfig& cfg, const double* ll,
                                const int* floor_hits, double* weights, double* w_new,
                                WeightState* state, ReduceScratch scratch, cudaStream_t stream);
 

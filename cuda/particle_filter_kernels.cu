@@ -14,8 +14,6 @@ namespace cuda {
 namespace {
 
 constexpr int kThreads = 256;
-// WeightState::bisect: the exponent at beta_max, found by bisection, or 0 (the prior weights).
-constexpr int kBetaMax = 0, kBisect = 1, kPrior = 2;
 
 int blocksFor(int n) { return (n + kThreads - 1) / kThreads; }
 int reduceBlocksFor(int n) {
@@ -239,7 +237,7 @@ __global__ void __launch_bounds__(kThreads)
   s.finite = static_cast<int>(r.v[3]);
   s.neff_prior = r.v[5] > 0.0 ? r.v[4] * r.v[4] / r.v[5] : 0.0;
   s.neff_max = 0.0;
-  s.bisect = kBetaMax;
+  s.bisect = kExponentMax;
   s.ok = 0;
   s.lo = 0.0;
   s.hi = cfg.beta_max;
@@ -260,7 +258,7 @@ __global__ void __launch_bounds__(kThreads)
                const double* __restrict__ weights, WeightState* __restrict__ state,
                ReduceScratch scratch) {
   const WeightState s = *state;
-  if (s.finite == 0 || !cfg.tempered || (!first && s.bisect != kBisect)) return;
+  if (s.finite == 0 || !cfg.tempered || (!first && s.bisect != kExponentBisected)) return;
   const double beta = first ? cfg.beta_max : 0.5 * (s.lo + s.hi);
   const double px = cfg.pixels;
   const double mx = s.best / px;
@@ -282,7 +280,9 @@ __global__ void __launch_bounds__(kThreads)
     // ParticleFilter::updateWeights: bisect when the update at beta_max would fall below the
     // floor and beta = 0 would not; where both fall below it, the weights of beta = 0 (the
     // prior's) are kept, reported as the full exponent.
-    if (neff < cfg.neff_floor) state->bisect = s.neff_prior > cfg.neff_floor ? kBisect : kPrior;
+    if (neff < cfg.neff_floor) {
+      state->bisect = s.neff_prior > cfg.neff_floor ? kExponentBisected : kExponentZero;
+    }
   } else if (neff >= cfg.neff_floor) {
     state->lo = beta;
   } else {
@@ -315,8 +315,8 @@ __global__ void __launch_bounds__(kThreads)
   const WeightState s = *state;
   if (s.finite == 0) return;
   double beta = cfg.beta_max;
-  if (s.bisect == kBisect) beta = s.lo;
-  if (s.bisect == kPrior) beta = 0.0;
+  if (s.bisect == kExponentBisected) beta = s.lo;
+  if (s.bisect == kExponentZero) beta = 0.0;
   // kPaper: NLL_i = -L_i, shifted so that the best NLL is at least the margin.
   const double shift = fmax(0.0, cfg.paper_margin - (-s.best));
   const double floor_nll = fmax(cfg.paper_margin, 2.2250738585072014e-308);
@@ -336,7 +336,7 @@ __global__ void __launch_bounds__(kThreads)
   state->total = r.v[0];
   state->ok = r.v[0] > 0.0 && isfinite(r.v[0]) ? 1 : 0;
   state->beta = beta;
-  state->beta_fraction = s.bisect == kBisect ? s.lo / cfg.beta_max : 1.0;
+  state->beta_fraction = s.bisect == kExponentBisected ? s.lo / cfg.beta_max : 1.0;
 }
 
 // Normalised weights (when the update is usable) and the scores over them.
@@ -607,20 +607,36 @@ cudaError_t launchFill(int n, double value, double* out, cudaStream_t stream) {
   return cudaGetLastError();
 }
 
-cudaError_t launchWeightUpdate(int n, const WeightConfig& cfg, int iterations, const double* ll,
-                               const int* floor_hits, double* weights, double* w_new,
-                               WeightState* state, ReduceScratch scratch, cudaStream_t stream) {
+cudaError_t launchWeightStart(int n, const WeightConfig& cfg, const double* ll,
+                              const double* weights, WeightState* state, ReduceScratch scratch,
+                              cudaStream_t stream) {
   if (n <= 0) return cudaSuccess;
   const int blocks = reduceBlocksFor(n);
   weightStartKernel<<<blocks, kThreads, 0, stream>>>(n, cfg, ll, weights, state, scratch);
   if (cfg.tempered) {
     neffKernel<<<blocks, kThreads, 0, stream>>>(n, cfg, 1, ll, weights, state, scratch);
-    for (int it = 0; it < iterations; ++it) {
-      neffKernel<<<blocks, kThreads, 0, stream>>>(n, cfg, 0, ll, weights, state, scratch);
-    }
   } else {
     recoverSumKernel<<<blocks, kThreads, 0, stream>>>(n, cfg, ll, state, scratch);
   }
+  return cudaGetLastError();
+}
+
+cudaError_t launchWeightBisection(int n, const WeightConfig& cfg, int iterations,
+                                  const double* ll, const double* weights, WeightState* state,
+                                  ReduceScratch scratch, cudaStream_t stream) {
+  if (n <= 0 || !cfg.tempered) return cudaSuccess;
+  const int blocks = reduceBlocksFor(n);
+  for (int it = 0; it < iterations; ++it) {
+    neffKernel<<<blocks, kThreads, 0, stream>>>(n, cfg, 0, ll, weights, state, scratch);
+  }
+  return cudaGetLastError();
+}
+
+cudaError_t launchWeightFinish(int n, const WeightConfig& cfg, const double* ll,
+                               const int* floor_hits, double* weights, double* w_new,
+                               WeightState* state, ReduceScratch scratch, cudaStream_t stream) {
+  if (n <= 0) return cudaSuccess;
+  const int blocks = reduceBlocksFor(n);
   applyWeightsKernel<<<blocks, kThreads, 0, stream>>>(n, cfg, ll, weights, w_new, state, scratch);
   normaliseKernel<<<blocks, kThreads, 0, stream>>>(n, ll, floor_hits, w_new, weights, state,
                                                    scratch);

@@ -105,7 +105,7 @@ if [[ " $STEPS " == *" memcheck "* ]]; then
   note "== memcheck test_cuda_particle_filter: exit $? at $(elapsed)"
   timeout "${SAN_TIMEOUT:-200}" "$SANITIZER" --tool memcheck --error-exitcode 3 \
     "$bin/test_cuda_localizer" \
-    --gtest_filter='*Reproducible*:*TwoLocalizers*:*Fallback*:*ThreadsDrive*' \
+    --gtest_filter='*Reproducible*:*TwoLocalizers*:*FallsBack*:*ThreadsDrive*' \
     > "$LOGS/memcheck_localizer.log" 2>&1
   note "== memcheck test_cuda_localizer (threads, fallback): exit $? at $(elapsed)"
   grep -hE "ERROR SUMMARY|LEAK SUMMARY|PASSED|FAILED" "$LOGS"/memcheck_*.log | tee -a "$SUMMARY"
