@@ -31,9 +31,11 @@ if [ -x "$NVCC" ]; then
     -DCMAKE_CUDA_COMPILER="$NVCC" -DCMAKE_BUILD_TYPE=Release > "$CUDA_BUILD/cmake.log" 2>&1 \
     || { cat "$CUDA_BUILD/cmake.log"; exit 1; }
   start=$(date +%s)
-  cmake --build "$CUDA_BUILD" -j2 --target test_cuda_backend gmm_mcl_bench
+  cmake --build "$CUDA_BUILD" -j2 --target test_cuda_backend test_cuda_particle_filter \
+    test_cuda_localizer gmm_mcl_bench
   echo "== CUDA build took $(( $(date +%s) - start )) s"
-  (cd "$CUDA_BUILD" && ctest --output-on-failure -R test_cuda_backend) | tee "$CUDA_BUILD/ctest.log"
+  (cd "$CUDA_BUILD" && ctest --output-on-failure -R 'test_cuda_(backend|particle_filter|localizer)') \
+    | tee "$CUDA_BUILD/ctest.log"
 else
   echo "== nvcc not found: CUDA backend not compiled"
 fi

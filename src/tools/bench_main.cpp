@@ -2,6 +2,10 @@
 // Per (backend, workload): warm-up frames, then timed updates (frame preparation + backend),
 // median updates per second, per-stage milliseconds, Gaussian evaluations per update and per
 // second, and for CUDA the likelihood kernel's fraction of the GPU's FP32 peak. One table out.
+// --step: the whole filter step per stage instead (predict, frame preparation, likelihood,
+// weights, estimate, resampling, recovery, lost detector), the particle set on the host
+// (ParticleFilter) and, with CUDA, on the device (CudaParticleFilter); and the localizer's own
+// step (Localizer::step with its stage times) with either filter.
 #include <omp.h>
 #include <sys/stat.h>
 #include <time.h>
@@ -20,10 +24,14 @@
 #include "bench/frame_set.h"
 #include "gmm_mcl/backend/cpu_backend.h"
 #include "gmm_mcl/camera/depth_frame.h"
+#include "gmm_mcl/filter/localizer.h"
+#include "gmm_mcl/filter/lost_detector.h"
+#include "gmm_mcl/filter/particle_filter.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 #if defined(GMM_MCL_HAVE_CUDA)
 #include "gmm_mcl/backend/cuda_backend.h"
+#include "gmm_mcl/filter/cuda_particle_filter.h"
 #endif
 
 namespace gmm_mcl {
@@ -56,6 +64,7 @@ struct Options {
   bool synthetic = false;
   bool cuda_host_prep = false;  // CUDA: prepare frames on the host (prepareFrame) and upload points
   bool depth_noise = true;      // the depth-noise model (per-particle evaluation forms)
+  bool step = false;            // the whole filter step per stage (--step)
 };
 
 bool exists(const std::string& p) {
@@ -80,7 +89,10 @@ void usage() {
       "                              (default: the raw image is uploaded and prepared on the GPU)\n"
       "  --export-frames FILE        write the loaded frames as a raw file and exit\n"
       "  --no-depth-noise            the paper's model: no depth-noise convolution (one evaluation\n"
-      "                              form for all particles)\n");
+      "                              form for all particles)\n"
+      "  --step                      the whole filter step per stage at each workload's N (scale:\n"
+      "                              100,000; cpu: 1068): the particle set on the host and, with\n"
+      "                              CUDA, on the GPU; then Localizer::step with either filter\n");
 }
 
 bool listed(const std::string& list, const std::string& name) {
@@ -248,6 +260,283 @@ Row runWorkload(LikelihoodBackend* backend, double fp32_peak_gflops, const Workl
   return row;
 }
 
+// ---- --step: the whole filter step --------------------------------------------------------------
+
+using Clock = std::chrono::steady_clock;
+double msBetween(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
+}
+
+// Base (x forward, z up) to the camera optical frame, the replay tool's mount.
+Eigen::Isometry3d baseToCamera() {
+  Eigen::Matrix3d R;
+  R << 0, 0, 1, -1, 0, 0, 0, -1, 0;
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = R;
+  return T;
+}
+
+struct StepRow {
+  std::string what, workload;
+  int particles = 0, resampled_to = 0, timed = 0;
+  double predict = 0, prep = 0, likelihood = 0, weights = 0, estimate = 0, resample = 0,
+         recover = 0, lost = 0, refine = 0, total = 0;
+};
+
+// The filter's operations one after the other, each timed to its end (synchronised), on fresh
+// particles for every frame (uniform +-spread around the true base pose, as the `scale`
+// workload's), the particle count adapting by KLD-sampling between 1068 and N at a resampling
+// done on every step (the worst case: the localizer resamples when Neff < N / 2).
+StepRow runFilterStep(LikelihoodBackend* backend, bool device, const Workload& w,
+                      const bench::FrameSet& frames, const Options& opt) {
+  StepRow row;
+  row.workload = w.name;
+  row.particles = opt.particles > 0 ? opt.particles : w.particles;
+  const int n = row.particles;
+  ParticleFilterParams fp;
+  fp.num_particles = n;
+  fp.min_particles = n > kDefaultParticleCount ? kDefaultParticleCount : 0;
+  fp.seed = opt.seed;
+  std::unique_ptr<ParticleFilterBase> filter;
+#if defined(GMM_MCL_HAVE_CUDA)
+  if (device) filter.reset(new CudaParticleFilter(fp, dynamic_cast<CudaBackend*>(backend)));
+#endif
+  if (!filter) filter.reset(new ParticleFilter(fp));
+  row.what = std::string(device ? "device filter" : "host filter") + ", " + backend->name() +
+             " backend";
+  FrameParams frp;
+  frp.pixel_stride = w.stride_px;
+  frp.patch_size_px = 32;
+  MeasurementParams mp;
+  if (!opt.depth_noise) mp.depth_noise.a_m = mp.depth_noise.b_per_m = 0.f;
+  const Eigen::Isometry3d T_base_cam = baseToCamera();
+  LostDetector lost(LostDetectionParams(), 0.0);
+  std::vector<double> v_predict, v_prep, v_lik, v_weights, v_est, v_res, v_rec, v_lost, v_total,
+      v_n;
+  const int nf = static_cast<int>(frames.images.size());
+  double timed_s = 0.0;
+  for (int it = 0;; ++it) {
+    const int f = it % nf;
+    const bool warm = it < opt.warmup;
+    if (!warm) {
+      const int timed = it - opt.warmup;
+      if (timed >= opt.frames) break;
+      if (timed >= opt.min_timed && timed_s >= opt.budget_s) break;
+    }
+    const Eigen::Isometry3d T_map_base = frames.T_map_cam[f] * T_base_cam.inverse();
+    const Particle truth = poseToParticle(T_map_base);
+    double roll, pitch, yaw;
+    rpyFromRotation(T_map_base.linear(), &roll, &pitch, &yaw);
+    std::mt19937_64 rng(opt.seed * 7919u + static_cast<unsigned>(f));
+    std::uniform_real_distribution<double> um(-opt.spread_m, opt.spread_m),
+        ur(-opt.spread_rad, opt.spread_rad);
+    std::vector<Particle> particles(n, truth);
+    for (int i = 1; i < n; ++i) {
+      particles[i].x_m += um(rng);
+      particles[i].y_m += um(rng);
+      particles[i].z_m += um(rng);
+      particles[i].yaw_rad = wrapAngle(particles[i].yaw_rad + ur(rng));
+    }
+    filter->setParticles(particles, std::vector<double>(n, 1.0));
+    InitRegion region;
+    region.centre_m = Eigen::Vector3d(truth.x_m, truth.y_m, truth.z_m);
+    filter->synchronize();
+
+    PlanarDelta delta;
+    delta.translation_m = Eigen::Vector3d(0.01, 0.0, 0.0);
+    delta.yaw_rad = 0.005;
+    const Clock::time_point t0 = Clock::now();
+    filter->predict(delta);
+    filter->synchronize();
+    const Clock::time_point t1 = Clock::now();
+    DepthFrame frame;
+    DeviceFrameSummary summary;
+    int pixels = 0;
+    if (filter->prepareDeviceFrame(frames.images[f], frames.K, frp, &summary)) {
+      pixels = summary.pixels;
+    } else {
+      frame = prepareFrame(frames.images[f], frames.K, frp);
+      pixels = static_cast<int>(frame.size());
+    }
+    const Clock::time_point t2 = Clock::now();
+    MeasurementContext ctx;
+    ctx.backend = backend;
+    ctx.frame = device ? nullptr : &frame;
+    ctx.roll_rad = roll;
+    ctx.pitch_rad = pitch;
+    ctx.T_base_cam = T_base_cam;
+    ctx.params = &mp;
+    EvaluationStats stats;
+    filter->evaluateFrame(ctx, &stats);
+    filter->synchronize();
+    const Clock::time_point t3 = Clock::now();
+    FrameScores scores;
+    if (!filter->weighFrame(pixels, &scores)) throw std::runtime_error("--step: degenerate weights");
+    const Clock::time_point t4 = Clock::now();
+    filter->estimate();
+    filter->effectiveSampleSize();
+    const Clock::time_point t5 = Clock::now();
+#if defined(GMM_MCL_HAVE_CUDA)
+    if (auto* d = dynamic_cast<CudaParticleFilter*>(filter.get())) d->resample();
+#endif
+    if (auto* h = dynamic_cast<ParticleFilter*>(filter.get())) h->resample();
+    filter->synchronize();
+    const Clock::time_point t6 = Clock::now();
+    filter->recoverFrame(pixels, region);
+    filter->synchronize();
+    const Clock::time_point t7 = Clock::now();
+    lost.update(scores.best_loglik / pixels);
+    const Clock::time_point t8 = Clock::now();
+    if (warm) continue;
+    v_predict.push_back(msBetween(t0, t1));
+    v_prep.push_back(msBetween(t1, t2));
+    v_lik.push_back(msBetween(t2, t3));
+    v_weights.push_back(msBetween(t3, t4));
+    v_est.push_back(msBetween(t4, t5));
+    v_res.push_back(msBetween(t5, t6));
+    v_rec.push_back(msBetween(t6, t7));
+    v_lost.push_back(msBetween(t7, t8));
+    v_total.push_back(msBetween(t0, t8));
+    v_n.push_back(filter->size());
+    timed_s += msBetween(t0, t8) * 1e-3;
+  }
+  row.timed = static_cast<int>(v_total.size());
+  row.predict = median(v_predict);
+  row.prep = median(v_prep);
+  row.likelihood = median(v_lik);
+  row.weights = median(v_weights);
+  row.estimate = median(v_est);
+  row.resample = median(v_res);
+  row.recover = median(v_rec);
+  row.lost = median(v_lost);
+  row.total = median(v_total);
+  row.resampled_to = static_cast<int>(median(v_n));
+  return row;
+}
+
+// Localizer::step along the frames (back and forth, so that the motion stays continuous) with
+// odometry and attitude from the ground truth, from a Gaussian start at the truth, at a fixed
+// count of N particles: the product path, refinement included.
+StepRow runLocalizerStep(const std::string& backend, bool device, const Workload& w,
+                         const GmmMap& map, const bench::FrameSet& frames, const Options& opt) {
+  StepRow row;
+  row.workload = w.name;
+  row.particles = opt.particles > 0 ? opt.particles : w.particles;
+  LocalizerParams lp;
+  lp.backend = backend;
+  lp.device_filter = device;
+  lp.filter.num_particles = row.particles;
+  lp.filter.min_particles = 0;
+  lp.filter.seed = opt.seed;
+  lp.frame.pixel_stride = w.stride_px;
+  lp.T_base_cam = baseToCamera();
+  if (!opt.depth_noise) lp.measurement.depth_noise.a_m = lp.measurement.depth_noise.b_per_m = 0.f;
+  const int nf = static_cast<int>(frames.images.size());
+  std::vector<Eigen::Isometry3d> T_map_base(nf);
+  for (int f = 0; f < nf; ++f) T_map_base[f] = frames.T_map_cam[f] * lp.T_base_cam.inverse();
+  const Particle start = poseToParticle(T_map_base[0]);
+  lp.init.centre_m = Eigen::Vector3d(start.x_m, start.y_m, start.z_m);
+  lp.init.yaw_centre_rad = start.yaw_rad;
+  Localizer loc(lp, map);
+  row.what = std::string("Localizer::step, ") + loc.filterName() + " filter, " +
+             loc.backend().name() + " backend";
+  loc.resetToPose(start, Eigen::Vector4d(0.05, 0.05, 0.05, 0.05));
+  std::vector<double> v_predict, v_prep, v_lik, v_weights, v_est, v_res, v_refine, v_total;
+  double timed_s = 0.0;
+  const int period = nf > 1 ? 2 * (nf - 1) : 1;
+  for (int it = 0;; ++it) {
+    const bool warm = it < opt.warmup;
+    if (!warm) {
+      const int timed = it - opt.warmup;
+      if (timed >= opt.frames) break;
+      if (timed >= opt.min_timed && timed_s >= opt.budget_s) break;
+    }
+    const int k = it % period;
+    const int f = k < nf ? k : period - k;  // 0, 1, ..., nf - 1, nf - 2, ..., 1
+    StepInput in;
+    in.stamp_s = it / 30.0;
+    in.has_odometry = true;
+    in.T_odom_base = T_map_base[f];
+    in.has_attitude = true;
+    double yaw;
+    rpyFromRotation(T_map_base[f].linear(), &in.roll_rad, &in.pitch_rad, &yaw);
+    in.depth = &frames.images[f];
+    in.intrinsics = frames.K;
+    const StepResult r = loc.step(in);
+    if (r.status != StepStatus::kOk) {
+      std::fprintf(stderr, "# %s: frame %d: %s (%s)\n", row.what.c_str(), f,
+                   stepStatusName(r.status), r.message.c_str());
+    }
+    if (warm) continue;
+    const StepTimings& t = r.timings;
+    v_predict.push_back(t.predict_ms);
+    v_prep.push_back(t.frame_prep_ms);
+    v_lik.push_back(t.projection_membership_ms + t.likelihood_ms);
+    v_weights.push_back(t.weights_ms);
+    v_est.push_back(t.estimate_ms);
+    v_res.push_back(t.resample_ms);
+    v_refine.push_back(t.refine_ms);
+    v_total.push_back(t.total_ms);
+    timed_s += t.total_ms * 1e-3;
+  }
+  row.timed = static_cast<int>(v_total.size());
+  row.predict = median(v_predict);
+  row.prep = median(v_prep);
+  row.likelihood = median(v_lik);
+  row.weights = median(v_weights);
+  row.estimate = median(v_est);
+  row.resample = median(v_res);
+  row.refine = median(v_refine);
+  row.total = median(v_total);
+  row.resampled_to = loc.filter().size();
+  return row;
+}
+
+void runSteps(const std::vector<LikelihoodBackend*>& backends, const GmmMap& map,
+              const bench::FrameSet& frames, const Options& opt) {
+  std::vector<StepRow> rows;
+  for (LikelihoodBackend* b : backends) {
+    for (const Workload& w : kWorkloads) {
+      if (!listed(opt.workloads, w.name)) continue;
+      for (int device = 0; device < 2; ++device) {
+        bool is_cuda = false;
+#if defined(GMM_MCL_HAVE_CUDA)
+        is_cuda = dynamic_cast<CudaBackend*>(b) != nullptr;
+#endif
+        if (device && !is_cuda) continue;
+        rows.push_back(runFilterStep(b, device != 0, w, frames, opt));
+        std::fprintf(stderr, "# done %s / %s: %.2f ms\n", rows.back().what.c_str(), w.name,
+                     rows.back().total);
+      }
+    }
+  }
+  for (LikelihoodBackend* b : backends) {
+    for (const Workload& w : kWorkloads) {
+      if (!listed(opt.workloads, w.name)) continue;
+      for (int device = 0; device < 2; ++device) {
+        if (device && b->name() != "cuda") continue;
+        rows.push_back(runLocalizerStep(b->name(), device != 0, w, map, frames, opt));
+        std::fprintf(stderr, "# done %s / %s: %.2f ms\n", rows.back().what.c_str(), w.name,
+                     rows.back().total);
+      }
+    }
+  }
+  std::printf(
+      "\n# filter step: wall-clock medians (ms), each stage synchronised to its end; filter rows "
+      "resample on every step (KLD count 1068..N), localizer rows resample when Neff < N/2 "
+      "(fixed N) and their likelihood column is the GPU's event time (CPU: the stages' time)\n");
+  std::printf("| step | workload | N | predict | frame prep | likelihood | weights | estimate "
+              "| resample | recover | lost detector | refine | total | N after | timed |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  for (const StepRow& r : rows) {
+    std::printf("| %s | %s | %d | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.4f | %.3f "
+                "| **%.2f** | %d | %d |\n",
+                r.what.c_str(), r.workload.c_str(), r.particles, r.predict, r.prep, r.likelihood,
+                r.weights, r.estimate, r.resample, r.recover, r.lost, r.refine, r.total,
+                r.resampled_to, r.timed);
+  }
+}
+
 int run(int argc, char** argv) {
   Options opt;
   for (int i = 1; i < argc; ++i) {
@@ -292,6 +581,8 @@ int run(int argc, char** argv) {
       opt.synthetic = true;
     else if (a == "--cuda-host-prep")
       opt.cuda_host_prep = true;
+    else if (a == "--step")
+      opt.step = true;
     else if (a == "-h" || a == "--help") {
       usage();
       return 0;
@@ -400,6 +691,15 @@ int run(int argc, char** argv) {
 #else
     std::printf("# cuda: not built (GMM_MCL_WITH_CUDA=OFF)\n");
 #endif
+  }
+  if (opt.step) {
+    std::vector<LikelihoodBackend*> list;
+    for (Candidate& c : backends) {
+      c.backend->setMap(map);
+      list.push_back(c.backend.get());
+    }
+    runSteps(list, map, frames, opt);
+    return 0;
   }
   std::vector<Row> rows;
   for (Candidate& c : backends) {
