@@ -96,6 +96,7 @@ struct CudaBackend::Impl {
   cuda::PinnedBuffer<unsigned char> dframe_staging;
   cuda::PinnedBuffer<int> dframe_patch_begin;
   bool has_dframe = false;
+  int dframe_pixels = 0;
   Intrinsics dframe_K;
   PatchGrid dframe_grid;
   size_t dframe_x = 0, dframe_y = 0, dframe_z = 0, dframe_patch_begin_at = 0;  // offsets
@@ -176,8 +177,19 @@ int CudaBackend::lastFramePixels() const { return impl_->last_frame_pixels; }
 
 NormalEquationsEvaluator* CudaBackend::normalEquations() {
   if (!impl_->normal_equations) {
-    impl_->normal_equations.reset(
-        new cuda::CudaNormalEquations(impl_->info.device, impl_->stream.get()));
+    Impl* d = impl_.get();
+    impl_->normal_equations.reset(new cuda::CudaNormalEquations(
+        d->info.device, d->stream.get(), [d](cuda::BackendFrameRef* ref) {
+          if (!d->has_dframe) return false;
+          unsigned char* dev = d->dframe.data();
+          ref->x_m = reinterpret_cast<const float*>(dev + d->dframe_x);
+          ref->y_m = reinterpret_cast<const float*>(dev + d->dframe_y);
+          ref->z_m = reinterpret_cast<const float*>(dev + d->dframe_z);
+          ref->patch_begin = reinterpret_cast<const int*>(dev + d->dframe_patch_begin_at);
+          ref->patches = d->dframe_grid.count();
+          ref->pixels = d->dframe_pixels;
+          return true;
+        }));
   }
   return impl_->normal_equations.get();
 }
@@ -651,6 +663,7 @@ CudaBackend::DeviceFrameInfo CudaBackend::prepareDeviceFrame(const DepthImage& i
   d.dframe_patch_begin_at = L.patch_begin;
   const int side = (frame_params.patch_size_px + st - 1) / st;
   d.dframe_max_patch_pixels = side * side;
+  d.dframe_pixels = info.pixels;
   d.has_dframe = true;
   return info;
 }
@@ -692,6 +705,7 @@ CudaBackend::DeviceFrameInfo CudaBackend::uploadDeviceFrame(const DepthFrame& fr
   d.dframe_z = L.z;
   d.dframe_patch_begin_at = L.patch_begin;
   d.dframe_max_patch_pixels = max_patch_pixels;
+  d.dframe_pixels = info.pixels;
   d.has_dframe = true;
   return info;
 }

@@ -2,6 +2,8 @@
 
 #include <stdexcept>
 
+#include <Eigen/Core>
+
 #include "cuda/normal_equations_kernel.cuh"
 
 namespace gmm_mcl {
@@ -38,6 +40,35 @@ void CudaNormalEquations::setPoints(const std::vector<double>& x_m, const std::v
                                      n * sizeof(int), cudaMemcpyHostToDevice, stream_));
   // The host vectors are read by the copies until the stream passes them.
   GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(stream_));
+  x_ = points_.data();
+  y_ = x_ + n;
+  z_ = x_ + 2 * n;
+  T_base_points_ = Eigen::Isometry3d::Identity();
+}
+
+bool CudaNormalEquations::hasBackendFrame() const {
+  BackendFrameRef ref;
+  return frame_source_ && frame_source_(&ref);
+}
+
+int CudaNormalEquations::setPointsFromBackendFrame(const Eigen::Isometry3d& T_base_cam) {
+  BackendFrameRef ref;
+  if (!frame_source_ || !frame_source_(&ref)) {
+    throw std::logic_error("normal equations: the backend holds no device frame");
+  }
+  GMM_MCL_CUDA_CHECK(cudaSetDevice(device_));
+  num_pixels_ = ref.pixels;
+  have_linearisation_ = false;
+  x_ = ref.x_m;
+  y_ = ref.y_m;
+  z_ = ref.z_m;
+  T_base_points_ = T_base_cam;
+  if (num_pixels_ > 0) {
+    pixel_patch_dev_.reserve(num_pixels_);
+    GMM_MCL_CUDA_CHECK(
+        launchFillPixelPatch(ref.patches, ref.patch_begin, pixel_patch_dev_.data(), stream_));
+  }
+  return num_pixels_;
 }
 
 void CudaNormalEquations::setLinearisation(const std::vector<EvalComponentF>& eval_nats,
@@ -71,19 +102,32 @@ void CudaNormalEquations::evaluate(const PoseDerivatives& pose, float floor_log_
     throw std::logic_error("normal equations: evaluate() before setLinearisation()");
   }
   GMM_MCL_CUDA_CHECK(cudaSetDevice(device_));
+  // The pose applied to the points in use: q = R (R_bp p + t_bp) + t, dq_a = dR_a (R_bp p + t_bp).
+  const Eigen::Matrix3d Rbp = T_base_points_.linear();
+  const Eigen::Vector3d tbp = T_base_points_.translation();
+  const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> R(pose.R);
+  const Eigen::Matrix3d Rc = R * Rbp;
+  const Eigen::Vector3d tc = R * tbp + Eigen::Vector3d(pose.t[0], pose.t[1], pose.t[2]);
   NormalEquationPose p;
-  for (int k = 0; k < 9; ++k) {
-    p.R[k] = static_cast<float>(pose.R[k]);
-    for (int a = 0; a < 3; ++a) p.dR[a][k] = static_cast<float>(pose.dR[a][k]);
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) p.R[3 * r + c] = static_cast<float>(Rc(r, c));
+    p.t[r] = static_cast<float>(tc[r]);
   }
-  for (int k = 0; k < 3; ++k) p.t[k] = static_cast<float>(pose.t[k]);
+  for (int a = 0; a < 3; ++a) {
+    const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> dR(pose.dR[a]);
+    const Eigen::Matrix3d dRc = dR * Rbp;
+    const Eigen::Vector3d dtc = dR * tbp;
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) p.dR[a][3 * r + c] = static_cast<float>(dRc(r, c));
+      p.dt[a][r] = static_cast<float>(dtc[r]);
+    }
+  }
   const int blocks = normalEquationBlocks(num_pixels_);
   const size_t values = static_cast<size_t>(blocks) * kNormalEquationValues;
   partials_.reserve(values);
   h_partials_.reserve(values);
-  const float* x = points_.data();
-  GMM_MCL_CUDA_CHECK(launchNormalEquations(num_pixels_, p, floor_log_density, linearise ? 1 : 0, x,
-                                           x + num_pixels_, x + 2 * num_pixels_,
+  GMM_MCL_CUDA_CHECK(launchNormalEquations(num_pixels_, p, floor_log_density, linearise ? 1 : 0, x_,
+                                           y_, z_,
                                            pixel_patch_dev_.data(), member_begin_.data(),
                                            members_.data(), eval_.data(), partials_.data(),
                                            stream_));

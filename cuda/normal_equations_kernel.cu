@@ -61,7 +61,7 @@ __global__ void __launch_bounds__(kNormalEquationThreads)
       for (int a = 0; a < 3; ++a) {
         for (int r = 0; r < 3; ++r) {
           dq[a][r] = pose.dR[a][3 * r] * p[0] + pose.dR[a][3 * r + 1] * p[1] +
-                     pose.dR[a][3 * r + 2] * p[2];
+                     pose.dR[a][3 * r + 2] * p[2] + pose.dt[a][r];
         }
       }
       const float inv_sum = 1.f / sum;
@@ -109,7 +109,23 @@ __global__ void __launch_bounds__(kNormalEquationThreads)
   }
 }
 
+__global__ void fillPixelPatchKernel(int patches, const int* __restrict__ patch_begin,
+                                     int* __restrict__ pixel_patch) {
+  const int p = blockIdx.x;
+  if (p >= patches) return;
+  for (int i = patch_begin[p] + threadIdx.x; i < patch_begin[p + 1]; i += blockDim.x) {
+    pixel_patch[i] = p;
+  }
+}
+
 }  // namespace
+
+cudaError_t launchFillPixelPatch(int patches, const int* patch_begin, int* pixel_patch,
+                                 cudaStream_t stream) {
+  if (patches <= 0) return cudaSuccess;
+  fillPixelPatchKernel<<<patches, 64, 0, stream>>>(patches, patch_begin, pixel_patch);
+  return cudaGetLastError();
+}
 
 cudaError_t launchNormalEquations(int num_pixels, const NormalEquationPose& pose,
                                   float floor_log_density, int linearise, const float* x_m,

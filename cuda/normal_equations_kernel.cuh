@@ -14,11 +14,14 @@ constexpr int kNormalEquationValues = 28;
 // Threads per block of the kernel (one pixel each).
 constexpr int kNormalEquationThreads = 128;
 
-// The pose: R row-major, t, dR/d(roll, pitch, yaw) row-major (float).
+// The pose applied to the kernel's points p: q = R p + t and dq/d(roll, pitch, yaw)_a =
+// dR[a] p + dt[a] (R, dR row-major). Base-frame points: the pose itself with dt = 0; camera
+// points: the pose composed with the camera's extrinsics.
 struct NormalEquationPose {
   float R[9];
   float t[3];
   float dR[3][9];
+  float dt[3][3];
 };
 
 // Blocks the kernel uses for n pixels.
@@ -37,6 +40,10 @@ cudaError_t launchNormalEquations(int num_pixels, const NormalEquationPose& pose
                                   const int* pixel_patch, const int* member_begin,
                                   const int* members, const EvalComponentF* eval,
                                   double* partials_out, cudaStream_t stream);
+
+// pixel_patch[i] = p for every pixel i of patch p (patch_begin: [patches + 1]).
+cudaError_t launchFillPixelPatch(int patches, const int* patch_begin, int* pixel_patch,
+                                 cudaStream_t stream);
 
 }  // namespace cuda
 }  // namespace gmm_mcl

@@ -387,14 +387,23 @@ void Localizer::stepOnce(const StepInput& in, StepResult* res_out) {
               0.5 * params_.refinement.max_correction_rad) {
         start = last_refined_;
       }
-      if (!host_frame_ready_) {  // the points on the host, prepared only now
+      // The pixel sums run on the backend (on the GPU with the CUDA backend, reading the frame it
+      // prepared there), else on the host with the points prepared there now.
+      NormalEquationsEvaluator* sums = backend_->normalEquations();
+      RefinementFrame rf;
+      if (!host_frame_ready_ && sums != nullptr && sums->hasBackendFrame()) {
+        rf.intrinsics = in.intrinsics;
+        rf.grid = PatchGrid::forImage(in.depth->width_px, in.depth->height_px,
+                                      params_.frame.patch_size_px);
+        rf.pixels = res.pixels;
+      } else {
         const Clock::time_point tp = Clock::now();
-        hostFrame(in);
+        rf = RefinementFrame::of(hostFrame(in));
         res.timings.frame_prep_ms += msSince(tp);
       }
-      res.refinement = refinePose(map_.packed(), host_frame_, start, roll_rad_, pitch_rad_,
+      res.refinement = refinePose(map_.packed(), rf, start, roll_rad_, pitch_rad_,
                                   params_.T_base_cam, params_.measurement, params_.refinement,
-                                  backend_->normalEquations());
+                                  sums);
       // Judged against the particle mean, whatever the start.
       const Particle& r = res.refinement.pose;
       if (res.refinement.refined &&

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <sstream>
+#include <stdexcept>
 
 #include "gmm_mcl/measurement/likelihood.h"
 #include "gmm_mcl/measurement/normal_equations.h"
@@ -35,21 +36,26 @@ struct Linearisation {
 // host's, or a backend's on its device).
 class Objective {
  public:
-  Objective(const std::vector<ComponentF>& components, const DepthFrame& frame,
+  Objective(const std::vector<ComponentF>& components, const RefinementFrame& frame,
             const Eigen::Isometry3d& T_base_cam, const MeasurementParams& params,
             NormalEquationsEvaluator* sums)
       : components_(components), frame_(frame), T_base_cam_(T_base_cam), params_(params),
         sums_(sums) {
     makeEvalComponents(components_, &base_eval_);
+    if (frame.points == nullptr) {  // on the evaluator's device already
+      sums_->setPointsFromBackendFrame(T_base_cam);
+      return;
+    }
     // Base-frame points; the map point of a pose is R(roll, pitch, yaw) p_base + t.
-    std::vector<double> x(frame.size()), y(frame.size()), z(frame.size());
-    for (size_t i = 0; i < frame.size(); ++i) {
-      const Eigen::Vector3d p = T_base_cam * Eigen::Vector3d(frame.x_m[i], frame.y_m[i], frame.z_m[i]);
+    const DepthFrame& f = *frame.points;
+    std::vector<double> x(f.size()), y(f.size()), z(f.size());
+    for (size_t i = 0; i < f.size(); ++i) {
+      const Eigen::Vector3d p = T_base_cam * Eigen::Vector3d(f.x_m[i], f.y_m[i], f.z_m[i]);
       x[i] = p.x();
       y[i] = p.y();
       z[i] = p.z();
     }
-    sums_->setPoints(x, y, z, frame.patch_begin);
+    sums_->setPoints(x, y, z, f.patch_begin);
   }
 
   // Membership and evaluation forms (with the depth noise) at `pose`; kept for the iterations
@@ -102,7 +108,7 @@ class Objective {
 
  private:
   const std::vector<ComponentF>& components_;
-  const DepthFrame& frame_;
+  const RefinementFrame& frame_;
   Eigen::Isometry3d T_base_cam_;
   MeasurementParams params_;
   NormalEquationsEvaluator* sums_;
@@ -129,7 +135,7 @@ std::string RefinementParams::validate() const {
   return err.str();
 }
 
-RefinementResult refinePose(const std::vector<ComponentF>& components, const DepthFrame& frame,
+RefinementResult refinePose(const std::vector<ComponentF>& components, const RefinementFrame& frame,
                             const Particle& start, double roll_rad, double pitch_rad,
                             const Eigen::Isometry3d& T_base_cam, const MeasurementParams& params,
                             const RefinementParams& refinement, NormalEquationsEvaluator* sums) {
@@ -138,13 +144,17 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Dep
   r.pose = start;
   r.roll_rad = roll_rad;
   r.pitch_rad = pitch_rad;
-  if (frame.empty()) {
+  if (frame.pixels <= 0) {
     r.why = "no pixels";
     return r;
   }
+  if (frame.points == nullptr && (sums == nullptr || !sums->hasBackendFrame())) {
+    throw std::invalid_argument("refinePose: the frame's points are neither on the host nor on "
+                                "the backend's device");
+  }
   HostNormalEquations host_sums;
   Objective objective(components, frame, T_base_cam, params, sums ? sums : &host_sums);
-  const double px = static_cast<double>(frame.size());
+  const double px = static_cast<double>(frame.pixels);
   // Roll and pitch: free with a Gaussian prior at the attitude input (sigma > 0), else fixed.
   const double sigma_att = refinement.attitude_prior_sigma_rad;
   const bool six_dof = sigma_att > 0.0;

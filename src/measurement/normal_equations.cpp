@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 #include <vector>
 
 #include <Eigen/Core>
@@ -30,6 +31,10 @@ Eigen::Matrix3d rowMajor(const double* m) {
 }
 
 }  // namespace
+
+int NormalEquationsEvaluator::setPointsFromBackendFrame(const Eigen::Isometry3d&) {
+  throw std::logic_error("normal equations: no frame on the backend's device");
+}
 
 void HostNormalEquations::setPoints(const std::vector<double>& x_m, const std::vector<double>& y_m,
                                     const std::vector<double>& z_m,

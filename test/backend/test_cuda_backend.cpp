@@ -237,6 +237,68 @@ TEST(CudaBackendTest, RefinementSumsMatchHost) {
   }
 }
 
+// The refinement reading the frame the backend prepared on the GPU (no host points; the camera's
+// extrinsics folded into each pose) lands where the host refinement of the same frame does.
+TEST(CudaBackendTest, RefinementOnTheDeviceFrameMatchesHost) {
+  GMM_MCL_REQUIRE_DEVICE();
+  const auto& w = test::world();
+  CudaBackend gpu;
+  gpu.setMap(w.map);
+  const Intrinsics K = test::vgaCamera();
+  const Eigen::Isometry3d T_map_base = test::referenceBasePose();
+  double roll, pitch, yaw;
+  rpyFromRotation(T_map_base.linear(), &roll, &pitch, &yaw);
+  const Particle truth = poseToParticle(T_map_base);
+  sim::DepthNoise noise;
+  noise.dropout = 0.05;
+  std::mt19937_64 rng(11);
+  const DepthImage img = sim::renderDepth(w.scene, K, T_map_base * w.T_base_cam,
+                                          DepthEncoding::kMono16Millimetres, 6.0, noise, &rng);
+  FrameParams fp;
+  fp.pixel_stride = 8;
+  fp.max_range_m = 5.f;
+  const DepthFrame frame = prepareFrame(img, K, fp);
+  NormalEquationsEvaluator* sums = gpu.normalEquations();
+  EXPECT_FALSE(sums->hasBackendFrame());  // nothing prepared yet
+  const CudaBackend::DeviceFrameInfo info = gpu.prepareDeviceFrame(img, K, fp);
+  ASSERT_EQ(info.pixels, static_cast<int>(frame.size()));
+  ASSERT_TRUE(sums->hasBackendFrame());
+  RefinementFrame on_device;
+  on_device.intrinsics = K;
+  on_device.grid = frame.grid;
+  on_device.pixels = info.pixels;
+  const MeasurementParams mp;
+  const RefinementParams rp;
+  std::normal_distribution<double> n01(0.0, 1.0);
+  double worst = 0.0;
+  for (int k = 0; k < 4; ++k) {
+    Particle start = truth;
+    start.x_m += 0.03 * n01(rng);
+    start.y_m += 0.03 * n01(rng);
+    start.yaw_rad += 0.015 * n01(rng);
+    const RefinementResult h =
+        refinePose(w.map.packed(), frame, start, roll, pitch, w.T_base_cam, mp, rp);
+    const RefinementResult d =
+        refinePose(w.map.packed(), on_device, start, roll, pitch, w.T_base_cam, mp, rp, sums);
+    ASSERT_TRUE(h.refined) << h.why;
+    ASSERT_TRUE(d.refined) << d.why;
+    const double dist = std::sqrt(std::pow(h.pose.x_m - d.pose.x_m, 2) +
+                                  std::pow(h.pose.y_m - d.pose.y_m, 2) +
+                                  std::pow(h.pose.z_m - d.pose.z_m, 2));
+    worst = std::max(worst, dist);
+    EXPECT_LT(dist, kRefinedPoseTolM) << "start " << k;
+    EXPECT_NEAR(d.loglik_start, h.loglik_start,
+                kNormalEquationsRelTol * std::max(1.0, std::abs(h.loglik_start)));
+  }
+  std::printf("[ measured ] refinement on the device frame vs host points: within %.3f mm\n",
+              1000.0 * worst);
+  // Points without a device frame are an error, not a silent host fallback.
+  CpuBackend cpu;
+  EXPECT_EQ(cpu.normalEquations(), nullptr);
+  EXPECT_THROW(refinePose(w.map.packed(), on_device, truth, roll, pitch, w.T_base_cam, mp, rp),
+               std::invalid_argument);
+}
+
 // The sums themselves: H, g and the log-likelihood at several poses, GPU against host.
 TEST(CudaBackendTest, NormalEquationsMatchHost) {
   GMM_MCL_REQUIRE_DEVICE();

@@ -14,6 +14,8 @@
 
 #include <vector>
 
+#include <Eigen/Geometry>
+
 #include "gmm_mcl/measurement/eval_component.h"
 #include "gmm_mcl/measurement/membership.h"
 
@@ -45,6 +47,12 @@ class NormalEquationsEvaluator {
   // (patch_begin: patches + 1 entries). Called once per frame.
   virtual void setPoints(const std::vector<double>& x_m, const std::vector<double>& y_m,
                          const std::vector<double>& z_m, const std::vector<int>& patch_begin) = 0;
+  // Whether the backend holds the current frame on its device (the frame its last likelihood
+  // evaluation used), so that setPointsFromBackendFrame() can replace setPoints().
+  virtual bool hasBackendFrame() const { return false; }
+  // That frame's camera points, moved into the base frame by T_base_cam, without a host copy.
+  // Returns its pixel count; throws std::logic_error when hasBackendFrame() is false.
+  virtual int setPointsFromBackendFrame(const Eigen::Isometry3d& T_base_cam);
   // The linearisation: evaluation forms in nats (indexed like the map's components) and the
   // patch membership. Called whenever either changes.
   virtual void setLinearisation(const std::vector<EvalComponentF>& eval_nats,
