@@ -28,10 +28,13 @@ PROTOCOLS = [
 ]
 
 
-def rows(pattern):
+def rows(pattern, skip=None):
+    """Rows of every file matching pattern, by seed; names ending in `skip` left out (the
+    kidnap tool's per-frame files beside its per-trial ones)."""
     out = []
     seed = lambda p: int(re.sub(r"\D", "", os.path.basename(p)) or 0)
-    for path in sorted(glob.glob(pattern), key=seed):
+    paths = [p for p in glob.glob(pattern) if not (skip and p.endswith(skip))]
+    for path in sorted(paths, key=seed):
         with open(path) as f:
             out.extend(csv.DictReader(f))
     return out
@@ -81,7 +84,7 @@ def main():
         if not dirs:
             continue
         if key == "kidnap":
-            trials = [r for d in dirs for r in rows(os.path.join(d, "kidnap_*.csv"))]
+            trials = [r for d in dirs for r in rows(os.path.join(d, "kidnap_*.csv"), skip="_frames.csv")]
             if not trials:
                 continue
             rec = [t for t in trials if t["recovered"] == "1"]
@@ -96,7 +99,7 @@ def main():
             details.append("\n%s:\n\n| run | seed | jump (m) | recovered in (s) | final error (cm) | "
                            "lost events |\n|---|---|---|---|---|---|" % label)
             for d in dirs:
-                for t in rows(os.path.join(d, "kidnap_*.csv")):
+                for t in rows(os.path.join(d, "kidnap_*.csv"), skip="_frames.csv"):
                     details.append("| %s | %s | %.2f | %s | %.1f | %s |" % (
                         os.path.basename(d), t["seed"], float(t["jump_m"]),
                         "%.2f" % float(t["recovery_s"]) if t["recovered"] == "1" else "never",

@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <memory>
+#include <random>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -30,6 +31,7 @@ void usage() {
       "                     [--frame I] [--pose X,Y,Z,YAW] [--stride PX] [--depth-noise A,B,Z0]\n"
       "                     [--floor NATS] [--min-range M] [--max-range M] [--gravity G]\n"
       "                     [--per-pixel OUT.csv] [--refine] [--frames FIRST:LAST:STEP]\n"
+      "                     [--attitude-noise DEG]\n"
       "The pose is the base in the gravity-aligned map frame (as gmm_mcl_replay's estimates),\n"
       "with the frame's true roll and pitch; default: the frame's ground truth. MAP is in the "
       "data\n"
@@ -39,7 +41,9 @@ void usage() {
       "the prior on roll and pitch at the true attitude) and prints how far the maximum lies from\n"
       "the ground truth. --frames scores every STEP-th frame of FIRST..LAST at its ground truth\n"
       "(with --refine: where the likelihood's own maximum lies, per frame as CSV on stdout and\n"
-      "summarised on stderr): the accuracy that the map and the ground truth allow together.\n");
+      "summarised on stderr): the accuracy that the map and the ground truth allow together.\n"
+      "--attitude-noise: with --frames --refine, the refinement's attitude prior at the true roll\n"
+      "and pitch plus this much Gaussian noise (the DESIGN.md protocol's IMU: 0.5).\n");
 }
 
 bool parseNumbers(const char* text, int n, double* out) {
@@ -67,7 +71,7 @@ double median(std::vector<double> v) {
 // with refine, where the likelihood's maximum near it lies. CSV on stdout, summary on stderr.
 int scoreRange(const Sequence& seq, const GmmMap& map, const Eigen::Isometry3d& T_base_cam,
                const FrameParams& fp, const MeasurementParams& measurement, int first, int last,
-               int step, bool refine) {
+               int step, bool refine, double attitude_noise_rad) {
   const std::vector<Eigen::Isometry3d> truth = alignedBaseTrajectory(seq, last + 1);
   const RefinementParams rp;
   std::printf("frame,pixels,loglik_per_px_truth,floor_hit_fraction%s\n",
@@ -96,8 +100,17 @@ int scoreRange(const Sequence& seq, const GmmMap& map, const Eigen::Isometry3d& 
     std::printf("%d,%d,%.5f,%.4f", i, static_cast<int>(px), l.log_likelihood / px,
                 l.floor_hits / px);
     if (refine) {
+      // The refinement's attitude prior at the IMU's roll and pitch: the truth, or the truth
+      // with the protocol's attitude noise (seeded per frame).
+      double roll_in = roll, pitch_in = pitch;
+      if (attitude_noise_rad > 0.0) {
+        std::mt19937_64 rng(1000003ULL * (i + 1));
+        std::normal_distribution<double> g(0.0, attitude_noise_rad);
+        roll_in += g(rng);
+        pitch_in += g(rng);
+      }
       const RefinementResult r =
-          refinePose(map.packed(), frame, p, roll, pitch, T_base_cam, measurement, rp);
+          refinePose(map.packed(), frame, p, roll_in, pitch_in, T_base_cam, measurement, rp);
       const Eigen::Vector3d d(r.pose.x_m - p.x_m, r.pose.y_m - p.y_m, r.pose.z_m - p.z_m);
       const double dyaw = wrapAngle(r.pose.yaw_rad - p.yaw_rad);
       std::printf(",%d,%.5f,%.5f,%.5f,%.5f,%.5f,%.4f,%.4f,%.4f,%d", r.refined ? 1 : 0,
@@ -139,6 +152,7 @@ int main(int argc, char** argv) {
   int frame_index = 0;
   int range_first = -1, range_last = -1, range_step = 1;
   bool refine = false;
+  double attitude_noise_rad = 0.0;
   bool have_pose = false;
   double pose[4] = {0, 0, 0, 0};
   MeasurementParams measurement;
@@ -180,6 +194,9 @@ int main(int argc, char** argv) {
     else if (a == "--frame") {
       number(num);
       frame_index = static_cast<int>(num[0]);
+    } else if (a == "--attitude-noise") {
+      number(num);
+      attitude_noise_rad = num[0] * M_PI / 180.0;
     } else if (a == "--frames") {
       const std::string r(v);
       const size_t c1 = r.find(':'), c2 = r.find(':', c1 == std::string::npos ? c1 : c1 + 1);
@@ -249,7 +266,7 @@ int main(int argc, char** argv) {
     const Eigen::Isometry3d T_base_cam = opticalToBase();
     if (range_first >= 0) {
       return scoreRange(*seq, map, T_base_cam, fp, measurement, range_first, range_last,
-                        range_step, refine);
+                        range_step, refine, attitude_noise_rad);
     }
     const Eigen::Isometry3d truth = alignedBaseTrajectory(*seq, frame_index + 1)[frame_index];
     double roll, pitch, yaw;
