@@ -6,15 +6,16 @@
 # (apt: the cross compiler, qemu-user, libpng-dev:arm64, libgtest-dev:arm64; adds the arm64
 # architecture to dpkg once). Builds into build/aarch64 (GMM_MCL_AARCH64_BUILD_DIR).
 #
-#   scripts/tx2_cross_test.sh        # every case of every core unit test (about 2 h under qemu:
-#                                    # LocalizerTest.ConvergesFromAUniformFourMetreCube alone)
-#   scripts/tx2_cross_test.sh --ci   # the same less two long cases (scripts/test.sh runs this)
+#   scripts/tx2_cross_test.sh        # every case of every core unit test (hours under qemu)
+#   scripts/tx2_cross_test.sh --ci   # the same less three long cases (scripts/test.sh runs this)
 #
-# The --ci filter leaves out LocalizerTest.ConvergesFromAUniformFourMetreCube (200 frames x
-# 1068 particles at stride 4: 3 min natively on this 2-core machine, hours emulated) and
-# MembershipTest.FastTableEqualsBruteForceAtRandomPoses (5 s natively, about 35 s of CPU
-# emulated): the same kernels run emulated in the other membership, likelihood and localizer
-# cases (docs/tx2.md has the measured times).
+# The --ci filter leaves out three cases that take minutes emulated (qemu emulates the double
+# precision math of their brute-force references slowly; docs/tx2.md has the measured times):
+# LocalizerTest.ConvergesFromAUniformFourMetreCube (200 frames x 1068 particles at stride 4:
+# 3 min natively on this 2-core machine), MembershipTest.FastTableEqualsBruteForceAtRandomPoses
+# and MembershipTest.ApproximateLikelihoodWithinOnePercentOfExact (the whole test_membership
+# takes 5 s natively). The same kernels run emulated in the other membership, likelihood and
+# localizer cases.
 set -euo pipefail
 source "$(dirname "$0")/common.sh"
 source "$(dirname "$0")/tx2_common.sh"
@@ -35,7 +36,7 @@ TESTS=(test_gmm_map test_depth_frame test_projection test_membership test_likeli
   test_depth_noise test_params test_resampling test_particle_filter test_localizer
   test_pose_refinement test_lost_detector test_backend_threads test_input_validation
   fuzz_replay_map_loader fuzz_replay_depth_frame fuzz_replay_compressed_depth)
-SLOW_CASES="LocalizerTest.ConvergesFromAUniformFourMetreCube:MembershipTest.FastTableEqualsBruteForceAtRandomPoses"
+SLOW_CASES="LocalizerTest.ConvergesFromAUniformFourMetreCube:MembershipTest.FastTableEqualsBruteForceAtRandomPoses:MembershipTest.ApproximateLikelihoodWithinOnePercentOfExact"
 
 launcher=()
 command -v ccache > /dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
@@ -66,5 +67,5 @@ filter=""
 regex="^($(IFS='|'; echo "${TESTS[*]}"))\$"
 start=$(date +%s)
 (cd "$BUILD" && env OMP_WAIT_POLICY=passive ${filter:+GTEST_FILTER="$filter"} \
-  ctest --output-on-failure --timeout 3600 -R "$regex") | tee "$BUILD/ctest.log"
+  ctest --output-on-failure --timeout 21600 -R "$regex") | tee "$BUILD/ctest.log"
 echo "== aarch64 tests under qemu took $(( $(date +%s) - start )) s${filter:+ (left out: ${SLOW_CASES//:/, })}"
