@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Jetson TX2 proxy 3: every C++ source of the package (the core, the CPU backend, the CUDA
-# backend's host code, the tools and the ROS nodelet) compiled as strict ISO C++14:
+# Jetson TX2 proxy 3: the C++ sources of the core (the CPU backend included), the CUDA backend's
+# host code and the ROS nodelet (--all: the tools, the map builder, replay and figures too)
+# compiled as strict ISO C++14:
 # -std=c++14 -pedantic-errors, syntax only (JetPack 4 / ROS Melodic: GCC 7, C++14). Reads the
 # compile commands of a configured build (include paths, definitions, catkin's generated
 # message headers) and re-runs each with -fsyntax-only; a C++17 construct (if constexpr,
@@ -8,7 +9,7 @@
 # GNU extension is an error there. Also checks that every source is compiled with the same
 # Eigen definitions (EIGEN_MAX_STATIC_ALIGN_BYTES=0: one object layout across the package).
 #
-#   scripts/tx2_cxx14_check.sh [BUILD_DIR]
+#   scripts/tx2_cxx14_check.sh [--all] [BUILD_DIR]
 #
 # BUILD_DIR: a build configured with -DCMAKE_EXPORT_COMPILE_COMMANDS=ON whose generated headers
 # exist (scripts/test.sh passes build/test after building it). Without one, configures
@@ -17,6 +18,8 @@
 set -euo pipefail
 source "$(dirname "$0")/common.sh"
 
+SCOPE=core
+if [[ "${1:-}" == "--all" ]]; then SCOPE=all; shift; fi
 BUILD="${1:-}"
 if [[ -z "$BUILD" ]]; then
   BUILD="$GMM_MCL_ROOT/build/cxx14"
@@ -36,20 +39,24 @@ fi
 DB="$BUILD/compile_commands.json"
 [[ -f "$DB" ]] || { echo "error: $DB not found (configure with -DCMAKE_EXPORT_COMPILE_COMMANDS=ON)" >&2; exit 1; }
 
-# One shell command per package source (src/, cuda/*.cpp; not the tests, not the CUDA kernels:
+# One shell command per source (not the tests, not the CUDA kernels:
 # nvcc's own C++14 compile is scripts/tx2_cuda_compile.sh), as the build ran it, with the
 # object output replaced by -fsyntax-only and the C++14 flags appended (they override any
 # earlier -std).
 start=$(date +%s)
-/usr/bin/python3 - "$DB" "$GMM_MCL_ROOT" > "$BUILD/cxx14_commands.txt" <<'EOF'
+/usr/bin/python3 - "$DB" "$GMM_MCL_ROOT" "$SCOPE" > "$BUILD/cxx14_commands.txt" <<'EOF'
 import json, os, shlex, sys
-db, root = sys.argv[1], os.path.realpath(sys.argv[2])
+db, root, everything = sys.argv[1], os.path.realpath(sys.argv[2]), sys.argv[3] == "all"
+# The core (with the CPU backend), the CUDA backend's host code and the ROS nodelet.
+CORE_DIRS = ("map", "camera", "measurement", "backend", "filter", "sim", "ros")
 seen = set()
 eigen_defs = {}
 for e in json.load(open(db)):
     src = os.path.realpath(os.path.join(e["directory"], e["file"]))
     rel = os.path.relpath(src, root)
-    if not (rel.startswith("src/") or (rel.startswith("cuda/") and rel.endswith(".cpp"))):
+    core = rel.startswith(tuple("src/%s/" % d for d in CORE_DIRS)) or \
+        (rel.startswith("cuda/") and rel.endswith(".cpp"))
+    if not (core or (everything and rel.startswith("src/"))):
         continue
     if rel in seen:
         continue
@@ -87,4 +94,4 @@ if [[ "$fail" -ne 0 ]]; then
   exit 1
 fi
 ros_n=$(grep -c '/src/ros/' "$BUILD/cxx14_commands.txt" || true)
-echo "== C++14 -pedantic-errors: $n sources ($ros_n of them the ROS nodelet's) compile, $(( $(date +%s) - start )) s"
+echo "== C++14 -pedantic-errors: $n sources ($ros_n of them the ROS nodelet's; scope $SCOPE) compile, $(( $(date +%s) - start )) s"
