@@ -7,15 +7,16 @@
 # architecture to dpkg once). Builds into build/aarch64 (GMM_MCL_AARCH64_BUILD_DIR).
 #
 #   scripts/tx2_cross_test.sh        # every case of every core unit test (hours under qemu)
-#   scripts/tx2_cross_test.sh --ci   # the same less three long cases (scripts/test.sh runs this)
+#   scripts/tx2_cross_test.sh --ci   # the same less eight long cases (scripts/test.sh runs this)
 #
-# The --ci filter leaves out three cases that take minutes emulated (qemu emulates the double
-# precision math of their brute-force references slowly; docs/tx2.md has the measured times):
+# The --ci filter leaves out the cases that take minutes emulated (qemu emulates their double
+# precision references and OpenMP loops slowly; docs/tx2.md has the measured times):
 # LocalizerTest.ConvergesFromAUniformFourMetreCube (200 frames x 1068 particles at stride 4:
 # 3 min natively on this 2-core machine), MembershipTest.FastTableEqualsBruteForceAtRandomPoses
-# and MembershipTest.ApproximateLikelihoodWithinOnePercentOfExact (the whole test_membership
-# takes 5 s natively). The same kernels run emulated in the other membership, likelihood and
-# localizer cases.
+# and .ApproximateLikelihoodWithinOnePercentOfExact, LikelihoodTest.FloatKernelAgreesWith-
+# DoubleReferencePerPixel, the three PoseRefinementTest cases (3 s natively together, over 10
+# min emulated), BackendThreadsTest.SameLikelihoodsForEveryThreadCount. The same kernels run
+# emulated in the other membership, likelihood, depth-noise and localizer cases.
 set -euo pipefail
 source "$(dirname "$0")/common.sh"
 source "$(dirname "$0")/tx2_common.sh"
@@ -36,7 +37,11 @@ TESTS=(test_gmm_map test_depth_frame test_projection test_membership test_likeli
   test_depth_noise test_params test_resampling test_particle_filter test_localizer
   test_pose_refinement test_lost_detector test_backend_threads test_input_validation
   fuzz_replay_map_loader fuzz_replay_depth_frame fuzz_replay_compressed_depth)
-SLOW_CASES="LocalizerTest.ConvergesFromAUniformFourMetreCube:MembershipTest.FastTableEqualsBruteForceAtRandomPoses:MembershipTest.ApproximateLikelihoodWithinOnePercentOfExact"
+SLOW_CASES="LocalizerTest.ConvergesFromAUniformFourMetreCube:MembershipTest.FastTableEqualsBruteForceAtRandomPoses"
+SLOW_CASES+=":MembershipTest.ApproximateLikelihoodWithinOnePercentOfExact"
+SLOW_CASES+=":LikelihoodTest.FloatKernelAgreesWithDoubleReferencePerPixel"
+SLOW_CASES+=":PoseRefinementTest.*"
+SLOW_CASES+=":BackendThreadsTest.SameLikelihoodsForEveryThreadCount"
 
 launcher=()
 command -v ccache > /dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
