@@ -23,7 +23,7 @@ if(CMAKE_VERSION VERSION_LESS 3.17)
 else()
   find_package(CUDAToolkit REQUIRED)
   set(GMM_MCL_CUDART_TARGET CUDA::cudart)
-  set(GMM_MCL_CUDA_INCLUDE "")
+  set(GMM_MCL_CUDA_INCLUDE ${CUDAToolkit_INCLUDE_DIRS})
 endif()
 
 # Kernels (nvcc) and the backend's host code (the C++ compiler, CUDA runtime API only), as
@@ -53,9 +53,13 @@ set_target_properties(gmm_mcl_cuda_sort PROPERTIES POSITION_INDEPENDENT_CODE ON)
 target_sources(gmm_mcl_core PRIVATE $<TARGET_OBJECTS:gmm_mcl_cuda_sort>)
 target_include_directories(gmm_mcl_cuda PRIVATE
   ${CMAKE_CURRENT_SOURCE_DIR} ${CMAKE_CURRENT_SOURCE_DIR}/include ${GMM_MCL_CUDA_INCLUDE})
-target_link_libraries(gmm_mcl_cuda PRIVATE ${GMM_MCL_EIGEN_TARGET} ${GMM_MCL_CUDART_TARGET})
-# The core's Eigen layout (gmm_mcl_core's public definition): these objects are part of it.
-target_compile_definitions(gmm_mcl_cuda PRIVATE EIGEN_MAX_STATIC_ALIGN_BYTES=0)
+# Eigen's headers, and the core's definitions: EIGEN_MAX_STATIC_ALIGN_BYTES=0 gives Eigen objects
+# the same layout here as in the core. Not through target_link_libraries: CMake links OBJECT
+# libraries from 3.12 on (JetPack 4 has 3.10).
+target_include_directories(gmm_mcl_cuda SYSTEM PRIVATE
+  $<TARGET_PROPERTY:${GMM_MCL_EIGEN_TARGET},INTERFACE_INCLUDE_DIRECTORIES>)
+target_compile_definitions(gmm_mcl_cuda PRIVATE
+  $<TARGET_PROPERTY:gmm_mcl_core,INTERFACE_COMPILE_DEFINITIONS>)
 target_compile_options(gmm_mcl_cuda PRIVATE
   $<$<COMPILE_LANGUAGE:CXX>:-Wall -Wextra>
   $<$<COMPILE_LANGUAGE:CUDA>:-Xcompiler=-Wall --expt-relaxed-constexpr -lineinfo>)
