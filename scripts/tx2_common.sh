@@ -63,7 +63,8 @@ TX2_NVCC="$TX2_CUDA_PREFIX/usr/lib/nvidia-cuda-toolkit/bin/nvcc"
 TX2_CUDA_HOST_CXX=g++-11
 
 tx2_cuda_toolkit_present() {
-  [ -x "$TX2_NVCC" ] && [ -f "$TX2_CUDA_PREFIX/.complete" ] && command -v "$TX2_CUDA_HOST_CXX" > /dev/null
+  [ -x "$TX2_NVCC" ] && [ -f "$TX2_CUDA_PREFIX/.complete" ] &&
+    [ -f "$TX2_CUDA_PREFIX/usr/include/cub/cub.cuh" ] && command -v "$TX2_CUDA_HOST_CXX" > /dev/null
 }
 
 ensure_cuda_toolkit_11() {
@@ -73,7 +74,9 @@ ensure_cuda_toolkit_11() {
   local tmp p
   tmp="$(mktemp -d)"
   echo "== downloading Debian's CUDA 11.8 compiler packages (about 870 MB) into $tmp"
-  (cd "$tmp" && apt-get download -qq nvidia-cuda-toolkit nvidia-cuda-dev libcudart11.0 libnvvm4)
+  # libcub-dev: the device filter's sorts and scans (cuda/filter_sort.cu); Debian keeps cub apart.
+  (cd "$tmp" && apt-get download -qq nvidia-cuda-toolkit nvidia-cuda-dev libcudart11.0 libnvvm4 \
+     libcub-dev libthrust-dev)
   tx2_sudo rm -rf "$TX2_CUDA_PREFIX.partial"
   tx2_sudo mkdir -p "$TX2_CUDA_PREFIX.partial"
   for p in "$tmp"/*.deb; do tx2_sudo dpkg -x "$p" "$TX2_CUDA_PREFIX.partial"; done

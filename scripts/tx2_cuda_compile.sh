@@ -42,12 +42,12 @@ cmake -S "$GMM_MCL_ROOT" -B "$BUILD" -DGMM_MCL_BUILD_ROS=OFF -DGMM_MCL_BUILD_TES
   -DCMAKE_BUILD_TYPE=Release > "$BUILD/cmake.log" 2>&1 || { cat "$BUILD/cmake.log"; exit 1; }
 grep -q "CUDA backend for architectures 62" "$BUILD/cmake.log" ||
   { echo "error: the CUDA backend was not configured for sm_62" >&2; exit 1; }
-targets=(gmm_mcl_cuda)
+targets=(gmm_mcl_cuda gmm_mcl_cuda_sort)
 [[ "$IF_INSTALLED" -eq 1 ]] || targets+=(test_cuda_backend gmm_mcl_bench)
 start=$(date +%s)
 cmake --build "$BUILD" -j2 --target "${targets[@]}"
 # The objects hold sm_62 machine code.
-for o in "$BUILD"/CMakeFiles/gmm_mcl_cuda.dir/cuda/*.cu.o; do
+for o in "$BUILD"/CMakeFiles/gmm_mcl_cuda{,_sort}.dir/cuda/*.cu.o; do
   "$TX2_CUDA_PREFIX/usr/bin/cuobjdump" --list-elf "$o" | grep -q "sm_62" ||
     { echo "error: $o has no sm_62 code" >&2; exit 1; }
 done
