@@ -1,7 +1,9 @@
-// gmm_mcl_bench: the DESIGN.md benchmark workloads (paper, cpu, full, scale) on both backends.
-// Per (backend, workload): warm-up frames, then timed updates (frame preparation + backend),
-// median updates per second, per-stage milliseconds, Gaussian evaluations per update and per
-// second, and for CUDA the likelihood kernel's fraction of the GPU's FP32 peak. One table out.
+// gmm_mcl_bench: the DESIGN.md benchmark workloads (paper, cpu, full, scale, large) on both
+// backends. Per (backend, workload): warm-up frames, then timed updates (frame preparation +
+// backend), median updates per second, per-stage milliseconds, Gaussian evaluations per update
+// and per second, for CUDA the likelihood kernel's fraction of the GPU's FP32 peak, and the
+// relative error of the backend's log-likelihood against the exact sum (every component, double
+// precision) at a few particles. One table out.
 // --step: the whole filter step per stage instead (predict, frame preparation, likelihood,
 // weights, estimate, resampling, recovery, lost detector), the particle set on the host
 // (ParticleFilter) and, with CUDA, on the device (CudaParticleFilter); and the localizer's own
@@ -12,6 +14,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -29,6 +32,7 @@
 #include "gmm_mcl/filter/particle_filter.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/map/gmm_map_io.h"
+#include "gmm_mcl/measurement/likelihood.h"
 #if defined(GMM_MCL_HAVE_CUDA)
 #include "gmm_mcl/backend/cuda_backend.h"
 #include "gmm_mcl/filter/cuda_particle_filter.h"
@@ -41,14 +45,19 @@ struct Workload {
   const char* name;
   int particles;
   int stride_px;
+  bool large_map;  // the M=4000 map of the same scene (--large-map) instead of --map
 };
-const Workload kWorkloads[] = {
-    {"paper", 1068, 4}, {"cpu", 1068, 8}, {"full", 1068, 1}, {"scale", 100000, 8}};
+const Workload kWorkloads[] = {{"paper", 1068, 4, false},
+                               {"cpu", 1068, 8, false},
+                               {"full", 1068, 1, false},
+                               {"scale", 100000, 8, false},
+                               {"large", 1068, 4, true}};
 
 struct Options {
   std::string backends = "all";
   std::string workloads = "all";
   std::string map_path;
+  std::string large_map_path;
   std::string frames_dir;
   std::string frames_raw;
   std::string export_frames;
@@ -58,6 +67,9 @@ struct Options {
   int min_timed = 3;
   int threads = 0;
   int particles = 0;  // override
+  int patch_px = FrameParams().patch_size_px;
+  int exact_particles = 2;  // per checked frame: particle 0 (the true pose) and spread ones
+  int exact_frames = 2;     // the first timed frames
   unsigned seed = 1;
   double spread_m = 0.5;
   double spread_rad = 0.3;
@@ -76,9 +88,14 @@ void usage() {
   std::printf(
       "gmm_mcl_bench [options]\n"
       "  --backend cpu|cuda|all      (all: cpu, and cuda when built and a device is present)\n"
-      "  --workload paper|cpu|full|scale|all   (comma-separated list accepted)\n"
+      "  --workload paper|cpu|full|scale|large|all   (comma-separated list accepted)\n"
       "  --map FILE                  GMM map (default $GMM_MCL_MAP, "
       "build/maps/7scenes_redkitchen_m1000.gmm)\n"
+      "  --large-map FILE            the `large` workload's M=4000 map of the same scene (default\n"
+      "                              $GMM_MCL_LARGE_MAP, build/maps/7scenes_redkitchen_m4000.gmm)\n"
+      "  --patch PX                  membership patch size (default 32)\n"
+      "  --exact N --exact-frames F  relative error against the exact sum at N particles (the\n"
+      "                              true pose first) of the first F timed frames (2, 2; 0: off)\n"
       "  --frames-dir DIR            7-Scenes sequence folder (needs libpng)\n"
       "  --frames-raw FILE           raw frame file (bench --export-frames writes one)\n"
       "  --synthetic                 synthetic box scene and its map instead of 7-Scenes\n"
@@ -148,10 +165,46 @@ struct Row {
   double prep_ms = 0, membership_ms = 0, likelihood_ms = 0, transfer_ms = 0, total_ms = 0;
   double cpu_ms = 0;  // process CPU time per update (all threads)
   double gevals_per_s = 0, kernel_gevals_per_s = 0, peak_fraction = -1, floor_hit_fraction = 0;
+  // |L - L_exact| / |L_exact| of the backend's log-likelihood against the exact sum, at the true
+  // pose (worst checked frame) and worst over every checked particle; -1: not checked.
+  double rel_err_truth = -1, rel_err_max = -1;
 };
 
+// A pose the backend evaluated, with its log-likelihood, for the exact-sum check.
+struct CheckedPose {
+  int frame;
+  RigidTransformF T_map_cam;
+  double log_likelihood;
+};
+
+// Relative error of the backend's log-likelihoods against exactFrameLogLikelihood (double
+// precision, every component, the same floor and depth noise) on the host's prepared frames.
+void exactErrors(const GmmMap& map, const bench::FrameSet& frames, const FrameParams& fp,
+                 const MeasurementParams& mp, const std::vector<CheckedPose>& checked,
+                 int per_frame, Row* row) {
+  if (checked.empty()) return;
+  row->rel_err_truth = row->rel_err_max = 0.0;
+  int last_frame = -1;
+  DepthFrame frame;
+  for (size_t k = 0; k < checked.size(); ++k) {
+    const CheckedPose& c = checked[k];
+    if (c.frame != last_frame) frame = prepareFrame(frames.images[c.frame], frames.K, fp);
+    last_frame = c.frame;
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    for (int r = 0; r < 3; ++r) {
+      for (int q = 0; q < 3; ++q) T.linear()(r, q) = c.T_map_cam.R[3 * r + q];
+      T.translation()(r) = c.T_map_cam.t[r];
+    }
+    const FrameLikelihood exact = exactFrameLogLikelihood(map, frame, T, mp);
+    const double rel = std::abs(c.log_likelihood - exact.log_likelihood) /
+                       std::max(std::abs(exact.log_likelihood), 1e-12);
+    if (k % per_frame == 0) row->rel_err_truth = std::max(row->rel_err_truth, rel);
+    row->rel_err_max = std::max(row->rel_err_max, rel);
+  }
+}
+
 Row runWorkload(LikelihoodBackend* backend, double fp32_peak_gflops, const Workload& w,
-                const bench::FrameSet& frames, const Options& opt) {
+                const GmmMap& map, const bench::FrameSet& frames, const Options& opt) {
   Row row;
   row.backend = backend->name();
 #if defined(GMM_MCL_HAVE_CUDA)
@@ -163,9 +216,11 @@ Row runWorkload(LikelihoodBackend* backend, double fp32_peak_gflops, const Workl
   row.stride = w.stride_px;
   FrameParams fp;
   fp.pixel_stride = w.stride_px;
-  fp.patch_size_px = 32;
+  fp.patch_size_px = opt.patch_px;
   MeasurementParams mp;
   if (!opt.depth_noise) mp.depth_noise.a_m = mp.depth_noise.b_per_m = 0.f;
+  const int check_per_frame = std::min(opt.exact_particles, row.particles);
+  std::vector<CheckedPose> checked;
   std::vector<double> total_ms, prep_ms, memb_ms, lik_ms, xfer_ms, pixels, cpp, evals, hits, cpu_ms;
   BackendOutput out;
   const int nf = static_cast<int>(frames.images.size());
@@ -207,6 +262,11 @@ Row runWorkload(LikelihoodBackend* backend, double fp32_peak_gflops, const Workl
     }
     const double cpu = processCpuMs() - cpu0;
     if (warm) continue;
+    if (static_cast<int>(total_ms.size()) < opt.exact_frames) {
+      for (int k = 0; k < check_per_frame; ++k) {
+        checked.push_back(CheckedPose{f, particles[k], out.log_likelihood[k]});
+      }
+    }
     cpu_ms.push_back(cpu);
     timed_s += total * 1e-3;
     total_ms.push_back(total);
@@ -257,6 +317,7 @@ Row runWorkload(LikelihoodBackend* backend, double fp32_peak_gflops, const Workl
 #else
   (void)fp32_peak_gflops;
 #endif
+  exactErrors(map, frames, fp, mp, checked, check_per_frame, &row);
   return row;
 }
 
@@ -306,7 +367,7 @@ StepRow runFilterStep(LikelihoodBackend* backend, bool device, const Workload& w
              " backend";
   FrameParams frp;
   frp.pixel_stride = w.stride_px;
-  frp.patch_size_px = 32;
+  frp.patch_size_px = opt.patch_px;
   MeasurementParams mp;
   if (!opt.depth_noise) mp.depth_noise.a_m = mp.depth_noise.b_per_m = 0.f;
   const Eigen::Isometry3d T_base_cam = baseToCamera();
@@ -429,6 +490,7 @@ StepRow runLocalizerStep(const std::string& backend, bool device, const Workload
   lp.filter.min_particles = 0;
   lp.filter.seed = opt.seed;
   lp.frame.pixel_stride = w.stride_px;
+  lp.frame.patch_size_px = opt.patch_px;
   lp.T_base_cam = baseToCamera();
   if (!opt.depth_noise) lp.measurement.depth_noise.a_m = lp.measurement.depth_noise.b_per_m = 0.f;
   const int nf = static_cast<int>(frames.images.size());
@@ -497,7 +559,7 @@ void runSteps(const std::vector<LikelihoodBackend*>& backends, const GmmMap& map
   std::vector<StepRow> rows;
   for (LikelihoodBackend* b : backends) {
     for (const Workload& w : kWorkloads) {
-      if (!listed(opt.workloads, w.name)) continue;
+      if (!listed(opt.workloads, w.name) || w.large_map) continue;
       for (int device = 0; device < 2; ++device) {
         bool is_cuda = false;
 #if defined(GMM_MCL_HAVE_CUDA)
@@ -512,7 +574,7 @@ void runSteps(const std::vector<LikelihoodBackend*>& backends, const GmmMap& map
   }
   for (LikelihoodBackend* b : backends) {
     for (const Workload& w : kWorkloads) {
-      if (!listed(opt.workloads, w.name)) continue;
+      if (!listed(opt.workloads, w.name) || w.large_map) continue;
       for (int device = 0; device < 2; ++device) {
         if (device && b->name() != "cuda") continue;
         rows.push_back(runLocalizerStep(b->name(), device != 0, w, map, frames, opt));
@@ -551,6 +613,14 @@ int run(int argc, char** argv) {
       opt.workloads = next("--workload");
     else if (a == "--map")
       opt.map_path = next("--map");
+    else if (a == "--large-map")
+      opt.large_map_path = next("--large-map");
+    else if (a == "--patch")
+      opt.patch_px = std::stoi(next("--patch"));
+    else if (a == "--exact")
+      opt.exact_particles = std::stoi(next("--exact"));
+    else if (a == "--exact-frames")
+      opt.exact_frames = std::stoi(next("--exact-frames"));
     else if (a == "--frames-dir")
       opt.frames_dir = next("--frames-dir");
     else if (a == "--frames-raw")
@@ -590,6 +660,10 @@ int run(int argc, char** argv) {
       throw std::invalid_argument("unknown option " + a);
   }
   if (opt.frames < 1 || opt.warmup < 0) throw std::invalid_argument("--frames >= 1, --warmup >= 0");
+  if (opt.patch_px < 1) throw std::invalid_argument("--patch must be >= 1");
+  if (opt.exact_particles < 0 || opt.exact_frames < 0) {
+    throw std::invalid_argument("--exact and --exact-frames must be >= 0");
+  }
 
   // Data: the 7-Scenes M=1000 map and frames, else the synthetic scene (said so in the output).
   GmmMap map;
@@ -642,6 +716,32 @@ int run(int argc, char** argv) {
   }
   std::printf("# frames: %s (%zu), map: %s (M = %zu)\n", frames.source.c_str(),
               frames.images.size(), map_source.c_str(), map.size());
+  // The `large` workload's map: the same scene fitted with M=4000 (DESIGN.md), only with the
+  // 7-Scenes frames.
+  GmmMap large_map;
+  std::string large_absent;
+  bool want_large = false;
+  for (const Workload& w : kWorkloads) want_large |= w.large_map && listed(opt.workloads, w.name);
+  if (want_large && !opt.step) {
+    const char* env_large = std::getenv("GMM_MCL_LARGE_MAP");
+    if (opt.large_map_path.empty()) {
+      opt.large_map_path = env_large && *env_large ? env_large
+                                                   : "build/maps/7scenes_redkitchen_m4000.gmm";
+    }
+    if (map_source.compare(0, 9, "synthetic") == 0) {
+      large_absent = "the synthetic scene has no M=4000 map";
+    } else if (!exists(opt.large_map_path)) {
+      large_absent = "no map at '" + opt.large_map_path +
+                     "' (scripts/build_map_7scenes.sh with -m 4000, see docs/benchmark.md)";
+    } else {
+      large_map = loadMap(opt.large_map_path);
+      std::printf("# large: map %s (M = %zu)\n", opt.large_map_path.c_str(), large_map.size());
+    }
+    if (!large_absent.empty()) std::printf("# large: skipped (%s)\n", large_absent.c_str());
+  }
+  std::printf("# patches %dx%d px; relative error against the exact sum at %d particle(s) of "
+              "the first %d timed frame(s)\n",
+              opt.patch_px, opt.patch_px, opt.exact_particles, opt.exact_frames);
   double load[3] = {0, 0, 0};
   if (getloadavg(load, 3) == 3) {
     std::printf("# host load average %.2f %.2f %.2f on %d CPUs (CPU ms/update = process CPU time, "
@@ -703,10 +803,20 @@ int run(int argc, char** argv) {
   }
   std::vector<Row> rows;
   for (Candidate& c : backends) {
-    c.backend->setMap(map);
+    const GmmMap* current = nullptr;
     for (const Workload& w : kWorkloads) {
       if (!listed(opt.workloads, w.name)) continue;
-      rows.push_back(runWorkload(c.backend.get(), c.peak, w, frames, opt));
+      if (w.large_map && !large_absent.empty()) continue;
+      const GmmMap& m = w.large_map ? large_map : map;
+      if (current != &m) c.backend->setMap(m);
+      current = &m;
+      try {
+        rows.push_back(runWorkload(c.backend.get(), c.peak, w, m, frames, opt));
+      } catch (const BackendError& e) {  // e.g. a bitmask beyond the GPU's shared memory
+        std::printf("# %s/%s: skipped (%s)\n", c.backend->name().c_str(), w.name, e.what());
+        current = nullptr;
+        continue;
+      }
       const Row& r = rows.back();
       std::fprintf(stderr, "# done %s/%s: %.2f updates/s\n", r.backend.c_str(), r.workload.c_str(),
                    r.updates_per_s);
@@ -715,10 +825,15 @@ int run(int argc, char** argv) {
   std::printf(
       "\n| backend | workload | N | stride | pixels | comps/patch | evals/update | updates/s "
       "| prep ms | proj+memb ms | likelihood ms | transfer ms | update ms | Geval/s "
-      "| lik. kernel Geval/s | FP32 peak | floor hits | CPU ms/update | timed |\n");
-  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+      "| lik. kernel Geval/s | FP32 peak | floor hits | CPU ms/update | rel. err. truth "
+      "| rel. err. max | timed |\n");
+  std::printf(
+      "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (const Row& r : rows) {
-    char xfer[32], peak[32];
+    char xfer[32], peak[32], err_truth[32], err_max[32];
+    std::snprintf(err_truth, sizeof(err_truth), r.rel_err_truth >= 0 ? "%.2e" : "-",
+                  r.rel_err_truth);
+    std::snprintf(err_max, sizeof(err_max), r.rel_err_max >= 0 ? "%.2e" : "-", r.rel_err_max);
     if (r.transfer_ms >= 0)
       std::snprintf(xfer, sizeof(xfer), "%.3f", r.transfer_ms);
     else
@@ -729,11 +844,11 @@ int run(int argc, char** argv) {
       std::snprintf(peak, sizeof(peak), "-");
     std::printf(
         "| %s | %s | %d | %d | %.0f | %.1f | %.3g | %.2f | %.3f | %.3f | %.3f | %s | %.3f "
-        "| %.2f | %.2f | %s | %.3f | %.1f | %d |\n",
+        "| %.2f | %.2f | %s | %.3f | %.1f | %s | %s | %d |\n",
         r.backend.c_str(), r.workload.c_str(), r.particles, r.stride, r.pixels, r.comps_per_patch,
         r.evals_per_update, r.updates_per_s, r.prep_ms, r.membership_ms, r.likelihood_ms, xfer,
         r.total_ms, r.gevals_per_s, r.kernel_gevals_per_s, peak, r.floor_hit_fraction, r.cpu_ms,
-        r.timed);
+        err_truth, err_max, r.timed);
   }
   return 0;
 }

@@ -511,6 +511,40 @@ TEST(CudaBackendTest, SevenScenesFramesMatchCpu) {
     const std::vector<RigidTransformF> some(poses.begin(), poses.begin() + 32);
     expectSameMembership(map, frame, some, &cpu, &gpu, label.c_str());
   }
+  // Another patch size (a parameter of the model) on the first frame (8x8 patches: 4,800 of them
+  // exceed the membership bitmask's shared memory at M = 1000).
+  for (int patch : {16}) {
+    FrameParams fp;
+    fp.pixel_stride = 4;
+    fp.patch_size_px = patch;
+    const DepthFrame frame = prepareFrame(frames.images[0], frames.K, fp);
+    const auto poses = perturbedPoses(frames.T_map_cam[0], 64, 300u + unsigned(patch));
+    const std::string label = "7-Scenes frame 0, " + std::to_string(patch) + "x" +
+                              std::to_string(patch) + " patches";
+    expectSameLikelihood(map, frame, poses, &cpu, &gpu, label.c_str());
+    const std::vector<RigidTransformF> some(poses.begin(), poses.begin() + 8);
+    expectSameMembership(map, frame, some, &cpu, &gpu, label.c_str());
+  }
+  // The benchmark's `large` map (M = 4000, $GMM_MCL_LARGE_MAP) when given.
+  const char* env_large = std::getenv("GMM_MCL_LARGE_MAP");
+  if (env_large && *env_large && stat(env_large, &st) == 0) {
+    const GmmMap large = loadMap(env_large);
+    cpu.setMap(large);
+    gpu.setMap(large);
+    for (int stride : {4, 8}) {
+      FrameParams fp;
+      fp.pixel_stride = stride;
+      const DepthFrame frame = prepareFrame(frames.images[0], frames.K, fp);
+      const auto poses = perturbedPoses(frames.T_map_cam[0], 128, 400u + unsigned(stride));
+      const std::string label = "7-Scenes frame 0, M=" + std::to_string(large.size()) +
+                                ", stride " + std::to_string(stride);
+      expectSameLikelihood(large, frame, poses, &cpu, &gpu, label.c_str());
+      const std::vector<RigidTransformF> some(poses.begin(), poses.begin() + 8);
+      expectSameMembership(large, frame, some, &cpu, &gpu, label.c_str());
+    }
+  } else {
+    std::printf("[ skipped  ] M=4000 map: GMM_MCL_LARGE_MAP not set\n");
+  }
 }
 
 }  // namespace

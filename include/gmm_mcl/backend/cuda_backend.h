@@ -24,6 +24,7 @@ struct CudaDeviceInfo {
   double clock_ghz = 0.0;         // peak SM clock
   double fp32_peak_gflops = 0.0;  // 2 (FMA) x lanes x SMs x clock
   size_t shared_per_block_bytes = 0;
+  size_t total_memory_bytes = 0;
 };
 
 // Floating-point operations the likelihood kernel executes per Gaussian evaluation, counted
