@@ -4,7 +4,7 @@
 # Debian's GNU cross compiler for 64-bit Arm, user-mode emulation, and the arm64 multiarch
 # libraries the core links (libpng) and tests with (googletest). Eigen is architecture-free
 # (CORE_PACKAGES has it); libgomp comes with the cross compiler.
-TX2_CROSS_PACKAGES=(g++-aarch64-linux-gnu qemu-user libpng-dev:arm64 libgtest-dev:arm64)
+TX2_CROSS_PACKAGES=(g++-aarch64-linux-gnu qemu-user libpng-dev:arm64 zlib1g-dev:arm64 libgtest-dev:arm64)
 
 tx2_sudo() {
   if [ "$(id -u)" -eq 0 ]; then "$@"; else sudo "$@"; fi
