@@ -7,7 +7,7 @@
 # architecture to dpkg once). Builds into build/aarch64 (GMM_MCL_AARCH64_BUILD_DIR).
 #
 #   scripts/tx2_cross_test.sh        # every case of every core unit test (hours under qemu)
-#   scripts/tx2_cross_test.sh --ci   # the same less eight long cases (scripts/test.sh runs this)
+#   scripts/tx2_cross_test.sh --ci   # the same less nine long cases (scripts/test.sh runs this)
 #
 # The --ci filter leaves out the cases that take minutes emulated (qemu emulates their double
 # precision references and OpenMP loops slowly; docs/tx2.md has the measured times):
