@@ -27,6 +27,10 @@ class ParticleFilter {
   explicit ParticleFilter(const ParticleFilterParams& params);  // throws std::invalid_argument
 
   const ParticleFilterParams& params() const { return params_; }
+  // New parameters for the same particle set (throws std::invalid_argument when invalid; the
+  // seed is the generator's and stays). A count the new range does not allow (num_particles,
+  // or [min_particles, num_particles] when adaptive) is resampled to the nearest allowed one.
+  void setParams(const ParticleFilterParams& params);
   const std::vector<Particle>& particles() const { return particles_; }
   const std::vector<double>& weights() const { return weights_; }
   int size() const { return static_cast<int>(particles_.size()); }
