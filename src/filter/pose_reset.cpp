@@ -7,11 +7,12 @@ namespace gmm_mcl {
 
 bool isPlanarPose(const Eigen::Isometry3d& T, const Eigen::Matrix<double, 6, 6>& cov) {
   const Eigen::Vector3d z_axis = T.linear().col(2);
-  return T.translation().z() == 0.0 && cov(2, 2) == 0.0 && (z_axis - Eigen::Vector3d::UnitZ()).norm() < 1e-9;
+  return T.translation().z() == 0.0 && cov(2, 2) == 0.0 &&
+         (z_axis - Eigen::Vector3d::UnitZ()).norm() < 1e-9;
 }
 
 PoseReset resolvePoseReset(const PoseResetRequest& r, const PoseEstimate* current,
-                           double fallback_z_m, const Eigen::Vector4d& min_sigma) {
+                           double fallback_z_m, const Eigen::Vector4d& default_sigma) {
   PoseReset out;
   if (!r.T_map_base.matrix().allFinite() || !r.covariance.diagonal().allFinite()) {
     out.message = "pose not finite: ignored";
@@ -27,11 +28,11 @@ PoseReset resolvePoseReset(const PoseResetRequest& r, const PoseEstimate* curren
   const int idx[4] = {0, 1, 2, 5};
   for (int k = 0; k < 4; ++k) {
     const double var = r.covariance(idx[k], idx[k]);
-    out.sigma[k] = std::isfinite(var) && var > 0.0 ? std::max(std::sqrt(var), min_sigma[k]) : min_sigma[k];
+    out.sigma[k] = std::isfinite(var) && var > 0.0 ? std::sqrt(var) : default_sigma[k];
   }
   if (r.planar) {
     out.pose.z_m = current ? current->mean.z_m : fallback_z_m;
-    if (current) out.sigma[2] = std::max(std::sqrt(current->covariance(2, 2)), min_sigma[2]);
+    if (current) out.sigma[2] = std::sqrt(current->covariance(2, 2));
     m << "planar pose: height " << out.pose.z_m << " m kept from the "
       << (current ? "current estimate" : "initial region") << "; ";
   }
@@ -46,7 +47,7 @@ bool MotionGate::shouldUpdate(bool has_odometry, const Eigen::Isometry3d& T) con
   if (!has_odometry || !have_last_ || (min_d_m_ <= 0.0 && min_a_rad_ <= 0.0)) return true;
   const Eigen::Isometry3d d = last_.inverse() * T;
   const double yaw = std::abs(std::atan2(d.linear()(1, 0), d.linear()(0, 0)));
-  return d.translation().norm() >= min_d_m_ || yaw >= min_a_rad_;
+  return d.translation().norm() > min_d_m_ || yaw > min_a_rad_;
 }
 
 void MotionGate::updated(bool has_odometry, const Eigen::Isometry3d& T) {

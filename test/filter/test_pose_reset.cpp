@@ -9,7 +9,7 @@
 namespace gmm_mcl {
 namespace {
 
-const Eigen::Vector4d kMinSigma(0.25, 0.25, 0.1, 0.2);
+const Eigen::Vector4d kDefaultSigma(0.25, 0.25, 0.1, 0.2);
 
 Eigen::Isometry3d planarPose(double x, double y, double yaw) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
@@ -36,17 +36,17 @@ TEST(PoseResetTest, PlanarToolKeepsTheCurrentHeight) {
   ASSERT_TRUE(isPlanarPose(r.T_map_base, r.covariance));
   r.planar = true;
   const PoseEstimate current = estimateAt(1.33, 0.02);
-  const PoseReset out = resolvePoseReset(r, &current, 0.7, kMinSigma);
+  const PoseReset out = resolvePoseReset(r, &current, 0.7, kDefaultSigma);
   ASSERT_TRUE(out.ok) << out.message;
   EXPECT_NEAR(out.pose.z_m, 1.33, 1e-12);
   EXPECT_NEAR(out.pose.x_m, 1.0, 1e-12);
   EXPECT_NEAR(out.pose.yaw_rad, 0.5, 1e-12);
   EXPECT_NEAR(out.sigma[0], 0.5, 1e-12);
-  EXPECT_NEAR(out.sigma[2], 0.1, 1e-12);  // the estimate's 0.02, raised to the minimum
+  EXPECT_NEAR(out.sigma[2], 0.02, 1e-12);  // the estimate's
   EXPECT_NEAR(out.sigma[3], std::sqrt(0.0685), 1e-12);
   EXPECT_NE(out.message.find("height 1.33 m kept from the current estimate"), std::string::npos) << out.message;
   // Before any estimate: the fallback height.
-  const PoseReset early = resolvePoseReset(r, nullptr, 0.7, kMinSigma);
+  const PoseReset early = resolvePoseReset(r, nullptr, 0.7, kDefaultSigma);
   EXPECT_NEAR(early.pose.z_m, 0.7, 1e-12);
 }
 
@@ -67,9 +67,9 @@ TEST(PoseResetTest, FullPosesAreNotPlanar) {
   r.T_map_base = planarPose(1, 2, 0.3);
   r.T_map_base.translation().z() = 1.2;
   const PoseEstimate current = estimateAt(0.4, 0.02);
-  const PoseReset out = resolvePoseReset(r, &current, 0.0, kMinSigma);
+  const PoseReset out = resolvePoseReset(r, &current, 0.0, kDefaultSigma);
   EXPECT_NEAR(out.pose.z_m, 1.2, 1e-12);
-  EXPECT_EQ(out.sigma, kMinSigma);  // zero covariance: the minimum sigmas
+  EXPECT_EQ(out.sigma, kDefaultSigma);  // no spread in the covariance: the defaults
 }
 
 TEST(PoseResetTest, StaleStampIsCarriedForwardByOdometry) {
@@ -80,7 +80,7 @@ TEST(PoseResetTest, StaleStampIsCarriedForwardByOdometry) {
   r.age_s = 1.5;
   r.T_odom_base_then = planarPose(5.0, 5.0, 0.0);
   r.T_odom_base_now = planarPose(5.5, 5.0, 0.0);  // 0.5 m forward since
-  const PoseReset out = resolvePoseReset(r, nullptr, 0.0, kMinSigma);
+  const PoseReset out = resolvePoseReset(r, nullptr, 0.0, kDefaultSigma);
   ASSERT_TRUE(out.ok);
   EXPECT_NEAR(out.pose.x_m, 1.0, 1e-12);
   EXPECT_NEAR(out.pose.y_m, 0.5, 1e-12);
@@ -90,7 +90,7 @@ TEST(PoseResetTest, StaleStampIsCarriedForwardByOdometry) {
 TEST(PoseResetTest, NonFinitePoseIsRefused) {
   PoseResetRequest r;
   r.T_map_base.translation().x() = NAN;
-  const PoseReset out = resolvePoseReset(r, nullptr, 0.0, kMinSigma);
+  const PoseReset out = resolvePoseReset(r, nullptr, 0.0, kDefaultSigma);
   EXPECT_FALSE(out.ok);
   EXPECT_NE(out.message.find("not finite"), std::string::npos);
 }
@@ -108,7 +108,10 @@ TEST(MotionGateTest, UpdatesOnlyAfterMovingOrTurning) {
   EXPECT_TRUE(gate.shouldUpdate(true, start));
   gate.updated(true, start);
   gate.setThresholds(0.0, 0.0);
-  EXPECT_TRUE(gate.shouldUpdate(true, start));  // 0: every frame
+  EXPECT_TRUE(gate.shouldUpdate(true, start));  // both 0: every frame
+  gate.setThresholds(0.2, 0.0);
+  EXPECT_TRUE(gate.shouldUpdate(true, planarPose(0.0, 0.0, 0.01)));  // any turn
+  EXPECT_FALSE(gate.shouldUpdate(true, planarPose(0.1, 0.0, 0.0)));
 }
 
 }  // namespace

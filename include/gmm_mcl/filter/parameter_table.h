@@ -46,8 +46,8 @@ struct ParamSpec {
   std::string name;   // ROS parameter / dynamic_reconfigure name, snake_case
   std::string field;  // the member of S it maps to, e.g. "filter.sigma_translation_m"
   ParamType type = ParamType::kDouble;
-  std::string unit;   // "m", "rad", "nats/px", "px", "s", "Hz"; "" when none
-  std::string group;  // section of the reference and of dynamic_reconfigure
+  std::string unit;      // "m", "rad", "nats/px", "px", "s", "Hz"; "" when none
+  std::string group;     // section of the reference and of dynamic_reconfigure
   bool runtime = false;  // can change while running (dynamic_reconfigure), keeping the belief
   // Accepted range for numbers (also dynamic_reconfigure's bounds); cross-field rules stay in
   // the struct's validate().
@@ -132,7 +132,7 @@ ParamSpec<S> paramSpec(const char* name, const char* field, Ref ref, const char*
 }
 
 // "member.path", [](S& s) -> T& { return s.member.path; }
-#define GMM_MCL_PARAM_FIELD(S, path) #path, [](S& s) -> decltype((s.path)) { return s.path; }
+#define GMM_MCL_PARAM_FIELD(S, path) #path, [](S & s) -> decltype((s.path)) { return s.path; }
 
 // ---- using tables ----------------------------------------------------------------------------
 
@@ -144,7 +144,8 @@ std::string ParamSpec<S>::check(const ParamValue& v) const {
         << ")";
   } else if (type == ParamType::kInt || type == ParamType::kDouble) {
     const double x = type == ParamType::kInt ? static_cast<double>(v.i) : v.d;
-    if (!(x >= min && x <= max)) err << name << " must be in [" << min << ", " << max << "] (got " << x << ")";
+    if (!(x >= min && x <= max))
+      err << name << " must be in [" << min << ", " << max << "] (got " << x << ")";
   } else if (type == ParamType::kString && !choices.empty()) {
     bool known = false;
     for (const std::string& c : choices) known = known || c == v.s;
@@ -172,7 +173,8 @@ std::string describeChanges(const ParamTable<S>& table, const S& a, const S& b) 
   std::string out;
   for (const ParamSpec<S>& p : table) {
     const ParamValue va = p.get(a), vb = p.get(b);
-    if (va != vb) out += (out.empty() ? "" : ", ") + p.name + " " + va.toString() + " -> " + vb.toString();
+    if (va != vb)
+      out += (out.empty() ? "" : ", ") + p.name + " " + va.toString() + " -> " + vb.toString();
   }
   return out;
 }

@@ -31,17 +31,19 @@ struct PoseReset {
   bool ok = false;
   Particle pose;
   Eigen::Vector4d sigma = Eigen::Vector4d::Zero();  // x, y, z, yaw
-  std::string message;                               // what was done, or why not
+  std::string message;                              // what was done, or why not
 };
 
 // A pose with z = 0, a pure yaw rotation and no z variance: what planar tools send.
-bool isPlanarPose(const Eigen::Isometry3d& T_map_base, const Eigen::Matrix<double, 6, 6>& covariance);
+bool isPlanarPose(const Eigen::Isometry3d& T_map_base,
+                  const Eigen::Matrix<double, 6, 6>& covariance);
 
 // The reset for a request. `current`: the filter's estimate (nullptr before the first update:
-// a planar pose then takes fallback_z_m, e.g. the initial region's centre). min_sigma (x, y, z,
-// yaw) replaces sigmas that are smaller, zero or not finite. Not ok when the pose is not finite.
+// a planar pose then takes fallback_z_m, e.g. the initial region's centre, and its z spread from
+// default_sigma). default_sigma (x, y, z, yaw) stands in where the covariance gives no spread
+// (zero, negative or not finite). Not ok when the pose is not finite.
 PoseReset resolvePoseReset(const PoseResetRequest& request, const PoseEstimate* current,
-                           double fallback_z_m, const Eigen::Vector4d& min_sigma);
+                           double fallback_z_m, const Eigen::Vector4d& default_sigma);
 
 // Measurement updates only after the robot has moved (amcl's update_min_d / update_min_a):
 // while hovering, frames are not used and the estimate follows odometry. Thresholds of 0
@@ -55,8 +57,8 @@ class MotionGate {
     min_a_rad_ = min_yaw_rad;
   }
   // True for the first frame, after force(), without odometry, with both thresholds 0, or once
-  // the odometry moved farther (3-D) or turned more (yaw) than a threshold since the last
-  // update.
+  // the odometry moved farther (3-D) or turned more (yaw) than a threshold since the last update
+  // (as amcl: a threshold of 0 lets any motion of its kind through).
   bool shouldUpdate(bool has_odometry, const Eigen::Isometry3d& T_odom_base) const;
   // A frame updated the filter with this odometry.
   void updated(bool has_odometry, const Eigen::Isometry3d& T_odom_base);
