@@ -81,12 +81,12 @@ const ParamTable<RosOptions>& rosOptionsTable() {
                      "pitch from odometry, warned)"));
     add(paramSpec<R>("update_min_d", GMM_MCL_PARAM_FIELD(R, update_min_d_m), "m", g, {0, 10},
                      kRuntime,
-                     "No update until the odometry moved this far since the last one (amcl's; 0 = "
-                     "every frame)"));
+                     "Motion gate (amcl's): a frame updates the filter once the odometry moved more "
+                     "than this or turned more than update_min_a since the last update; both 0: "
+                     "every frame. Frames in between only carry the estimate by odometry"));
     add(paramSpec<R>("update_min_a", GMM_MCL_PARAM_FIELD(R, update_min_a_rad), "rad", g, {0, 3.15},
                      kRuntime,
-                     "No update until the odometry turned this much in yaw since the last one (0 = "
-                     "every frame)"));
+                     "Motion gate: the yaw turn that lets a frame update (see update_min_d)"));
     g = "output";
     add(paramSpec<R>("tf_broadcast", GMM_MCL_PARAM_FIELD(R, tf_broadcast), "", g, {}, kRuntime,
                      "Publish map -> odom (false: only the pose, e.g. beside another localizer)"));
@@ -135,8 +135,8 @@ const ParamTable<RosOptions>& rosOptionsTable() {
                      g, {0, 100}, kStartup, "Single-pose start: variance in yaw"));
     add(paramSpec<R>("initial_sigma_xy", GMM_MCL_PARAM_FIELD(R, initial_sigma_xy_m), "m", g,
                      {1e-4, 100}, kRuntime,
-                     "Smallest x and y spread of a requested pose (initialpose, ~reset_to_pose, a "
-                     "single-pose start)"));
+                     "x and y spread of a requested pose (initialpose, ~reset_to_pose) whose "
+                     "covariance gives none"));
     add(paramSpec<R>("initial_sigma_z", GMM_MCL_PARAM_FIELD(R, initial_sigma_z_m), "m", g,
                      {1e-4, 100}, kRuntime, "z spread of a requested pose whose covariance gives none"));
     add(paramSpec<R>("initial_sigma_yaw", GMM_MCL_PARAM_FIELD(R, initial_sigma_yaw_rad), "rad", g,

@@ -69,6 +69,8 @@ double errorOfFrame(const ros::Time& t, int k) {
 // Resets the filter to the robot's true pose (the service answers once it is applied) and
 // tracks a few frames: the precondition of most cases.
 bool ensureTracking() {
+  if (!w->robot.waitForNodelet()) return false;
+  w->robot.publishStaticExtrinsics();  // latched; the first case sends its first frame without
   ResetToPose srv;
   srv.request.pose.header.frame_id = "map";
   srv.request.pose.pose.pose = ros_conv::poseFromIsometry(w->robot.truth(w->k));
@@ -472,5 +474,6 @@ int main(int argc, char** argv) {
   std::string filter;
   ros::param::param<std::string>("~filter", filter, "");
   if (!filter.empty()) testing::GTEST_FLAG(filter) = filter;
+  world.robot.waitForNodelet();  // every case starts with the nodelet up (a failure shows there)
   return RUN_ALL_TESTS();
 }

@@ -82,6 +82,8 @@ class SyntheticRobot {
     });
   }
   void publishStaticExtrinsics() {
+    if (static_sent_) return;
+    static_sent_ = true;
     static_tf_.sendTransform(ros_conv::transformStamped(extrinsics(), "base_link", "camera_depth_optical_frame", ros::Time(0)));
   }
   void publishOdometry(const ros::Time& t, const Eigen::Isometry3d& T_map_base) {
@@ -159,6 +161,7 @@ class SyntheticRobot {
   std::mt19937_64 rng_;
   uint32_t seq_ = 0;
   long long imu_published_ = 0;
+  bool static_sent_ = false;
 };
 
 }  // namespace lockstep
