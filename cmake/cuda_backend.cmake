@@ -23,7 +23,7 @@ if(CMAKE_VERSION VERSION_LESS 3.17)
 else()
   find_package(CUDAToolkit REQUIRED)
   set(GMM_MCL_CUDART_TARGET CUDA::cudart)
-  set(GMM_MCL_CUDA_INCLUDE "")
+  set(GMM_MCL_CUDA_INCLUDE ${CUDAToolkit_INCLUDE_DIRS})
 endif()
 
 # Kernels (nvcc) and the backend's host code (the C++ compiler, CUDA runtime API only), as
@@ -32,11 +32,34 @@ add_library(gmm_mcl_cuda OBJECT
   cuda/membership_kernel.cu
   cuda/likelihood_kernel.cu
   cuda/frame_kernel.cu
+  cuda/normal_equations_kernel.cu
   cuda/cuda_backend.cpp
+  cuda/cuda_normal_equations.cpp
+  cuda/particle_filter_kernels.cu
+  cuda/cuda_particle_filter.cpp
 )
+# The device filter's cub sorts and scans (cuda/filter_sort.cu) in their own objects: CUDA 13's
+# cub refuses C++14, so this one file (C++14 code) is compiled as C++17 there; older toolkits
+# (the TX2's CUDA 10.2) compile it as C++14 like every other file.
+add_library(gmm_mcl_cuda_sort OBJECT cuda/filter_sort.cu)
+target_include_directories(gmm_mcl_cuda_sort PRIVATE
+  ${CMAKE_CURRENT_SOURCE_DIR} ${CMAKE_CURRENT_SOURCE_DIR}/include ${GMM_MCL_CUDA_INCLUDE})
+target_compile_definitions(gmm_mcl_cuda_sort PRIVATE CCCL_IGNORE_DEPRECATED_CPP_DIALECT)
+target_compile_options(gmm_mcl_cuda_sort PRIVATE -Xcompiler=-Wall)
+if(CMAKE_CUDA_COMPILER_VERSION VERSION_GREATER_EQUAL 13)
+  set_target_properties(gmm_mcl_cuda_sort PROPERTIES CUDA_STANDARD 17)
+endif()
+set_target_properties(gmm_mcl_cuda_sort PROPERTIES POSITION_INDEPENDENT_CODE ON)
+target_sources(gmm_mcl_core PRIVATE $<TARGET_OBJECTS:gmm_mcl_cuda_sort>)
 target_include_directories(gmm_mcl_cuda PRIVATE
   ${CMAKE_CURRENT_SOURCE_DIR} ${CMAKE_CURRENT_SOURCE_DIR}/include ${GMM_MCL_CUDA_INCLUDE})
-target_link_libraries(gmm_mcl_cuda PRIVATE ${GMM_MCL_EIGEN_TARGET} ${GMM_MCL_CUDART_TARGET})
+# Eigen's headers, and the core's definitions: EIGEN_MAX_STATIC_ALIGN_BYTES=0 gives Eigen objects
+# the same layout here as in the core. Not through target_link_libraries: CMake links OBJECT
+# libraries from 3.12 on (JetPack 4 has 3.10).
+target_include_directories(gmm_mcl_cuda SYSTEM PRIVATE
+  $<TARGET_PROPERTY:${GMM_MCL_EIGEN_TARGET},INTERFACE_INCLUDE_DIRECTORIES>)
+target_compile_definitions(gmm_mcl_cuda PRIVATE
+  $<TARGET_PROPERTY:gmm_mcl_core,INTERFACE_COMPILE_DEFINITIONS>)
 target_compile_options(gmm_mcl_cuda PRIVATE
   $<$<COMPILE_LANGUAGE:CXX>:-Wall -Wextra>
   $<$<COMPILE_LANGUAGE:CUDA>:-Xcompiler=-Wall --expt-relaxed-constexpr -lineinfo>)
@@ -54,4 +77,13 @@ if(GMM_MCL_BUILD_TESTS)
   target_link_libraries(test_cuda_backend PRIVATE gmm_mcl_test_utils gmm_mcl_bench_data GTest::gtest_main)
   add_test(NAME test_cuda_backend COMMAND test_cuda_backend)
   set_tests_properties(test_cuda_backend PROPERTIES SKIP_RETURN_CODE 77)
+  # The device particle filter against ParticleFilter, and the localizer with it (threads,
+  # rebuilds, host vs device filter): exit 77 with the reason when no device is present.
+  foreach(name test_cuda_particle_filter test_cuda_localizer)
+    add_executable(${name} test/filter/${name}.cpp)
+    target_include_directories(${name} PRIVATE ${CMAKE_CURRENT_SOURCE_DIR})
+    target_link_libraries(${name} PRIVATE gmm_mcl_test_utils gmm_mcl_bench_data GTest::gtest)
+    add_test(NAME ${name} COMMAND ${name})
+    set_tests_properties(${name} PROPERTIES SKIP_RETURN_CODE 77)
+  endforeach()
 endif()

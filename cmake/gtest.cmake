@@ -1,6 +1,12 @@
 # GoogleTest: an installed package, else sources (Debian's /usr/src/googletest, or a carried
 # copy named by GMM_MCL_GTEST_SRC on machines without it).
 find_package(GTest QUIET)
+if(NOT TARGET GTest::gtest AND TARGET gtest AND TARGET gtest_main)
+  # catkin with testing on built googletest from its sources already (ROS Melodic on Ubuntu
+  # 18.04, whose libgtest-dev has no libraries): a second add_subdirectory would clash.
+  add_library(GTest::gtest ALIAS gtest)
+  add_library(GTest::gtest_main ALIAS gtest_main)
+endif()
 if(NOT TARGET GTest::gtest)
   set(_gtest_src "")
   foreach(dir ${GMM_MCL_GTEST_SRC} /usr/src/googletest)

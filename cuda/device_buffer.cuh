@@ -41,6 +41,13 @@ class DeviceBuffer {
     ptr_ = static_cast<T*>(p);
     capacity_ = n;
   }
+  // reserve() after the work queued on `stream` (which may still use the old array) is done:
+  // cudaFree is not guaranteed to wait for it.
+  void reserve(size_t n, cudaStream_t stream) {
+    if (n <= capacity_) return;
+    GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(stream));
+    reserve(n);
+  }
   T* data() { return ptr_; }
   const T* data() const { return ptr_; }
   size_t capacity() const { return capacity_; }
@@ -89,6 +96,15 @@ class PinnedBuffer {
   }
   T* ptr_ = nullptr;
   size_t capacity_ = 0;
+};
+
+// Makes `device` the calling thread's current device for the scope (each entry point of the
+// backend and the device filter: a nodelet's callbacks arrive on any thread of a pool).
+class DeviceScope {
+ public:
+  explicit DeviceScope(int device) { GMM_MCL_CUDA_CHECK(cudaSetDevice(device)); }
+  DeviceScope(const DeviceScope&) = delete;
+  DeviceScope& operator=(const DeviceScope&) = delete;
 };
 
 class Stream {

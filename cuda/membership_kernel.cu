@@ -3,6 +3,8 @@
 // atomicOr and written out coalesced. Same math as the CPU (gmm_mcl/measurement/projection.h).
 #include <math.h>
 
+#include <mutex>
+
 #include "cuda/kernels.cuh"
 #include "gmm_mcl/measurement/depth_noise.h"
 #include "gmm_mcl/measurement/projection.h"
@@ -10,6 +12,8 @@
 namespace gmm_mcl {
 namespace cuda {
 namespace {
+
+constexpr int kMaxDevices = 64;  // devices with their own shared-memory limit
 
 constexpr int kMembershipThreads = 256;
 // Survivors of the cull queued per warp (at most 31 waiting + 32 new).
@@ -131,8 +135,20 @@ size_t membershipSharedBytes(int patches, int words) {
 }
 
 cudaError_t setMembershipSharedLimit(size_t bytes) {
-  return cudaFuncSetAttribute(membershipKernel, cudaFuncAttributeMaxDynamicSharedMemorySize,
-                              static_cast<int>(bytes));
+  // The limit is the kernel's, shared by every backend of the process on a device: raised only,
+  // so that one localizer never lowers the limit another one's frames need.
+  static std::mutex mutex;
+  static size_t limit_bytes[kMaxDevices] = {};
+  int device = 0;
+  cudaError_t err = cudaGetDevice(&device);
+  if (err != cudaSuccess) return err;
+  const int slot = device < kMaxDevices ? device : kMaxDevices - 1;
+  std::lock_guard<std::mutex> lock(mutex);
+  if (bytes <= limit_bytes[slot] && device < kMaxDevices) return cudaSuccess;
+  err = cudaFuncSetAttribute(membershipKernel, cudaFuncAttributeMaxDynamicSharedMemorySize,
+                             static_cast<int>(bytes));
+  if (err == cudaSuccess) limit_bytes[slot] = bytes;
+  return err;
 }
 
 cudaError_t preferSharedMemoryForMembership() {

@@ -8,6 +8,8 @@
 #   OUTPUT_MAP    default $GMM_MCL_MAP_DIR/7scenes_redkitchen_m1000.gmm (GMM_MCL_MAP_DIR
 #                 defaults to build/maps); the stitched cloud is written next to it (.pcd)
 #   GMM_FIT       the gmm_fit binary (default: build-fit/gmm_fit, build/gmm_fit, or on PATH)
+# The benchmark's `large` workload map (M=4000 of the same frames; a later -m wins):
+#   scripts/build_map_7scenes.sh "" build/maps/7scenes_redkitchen_m4000.gmm -m 4000
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 DATASETS="${1:-${GMM_MCL_DATASETS:-$ROOT/../shared/datasets}}"

@@ -7,10 +7,13 @@
 #   GPU_CHECK_STEPS="build test bench" scripts/gpu_check.sh
 #   GPU_CHECK_STEPS="build ncu" scripts/gpu_check.sh   # Nsight Compute counters of the kernels
 #
-# Inputs (optional, else the synthetic scene): $GMM_MCL_MAP (7-Scenes M=1000 map) and
-# $GMM_MCL_7SCENES_FRAMES (raw frames from `gmm_mcl_bench --export-frames`); by default the
-# files .deps/7scenes_redkitchen_m1000.gmm and .deps/7scenes_frames30.bin when present. Eigen and
-# googletest are taken from .deps/eigen3 and .deps/googletest when the system has none.
+# Inputs (optional, else the synthetic scene): $GMM_MCL_MAP (7-Scenes M=1000 map),
+# $GMM_MCL_LARGE_MAP (the M=4000 map of the `large` workload) and $GMM_MCL_7SCENES_FRAMES (raw
+# frames from `gmm_mcl_bench --export-frames`); by default the files
+# .deps/7scenes_redkitchen_m1000.gmm, .deps/7scenes_redkitchen_m4000.gmm and
+# .deps/7scenes_frames30.bin when present. Eigen and googletest are taken from .deps/eigen3 and
+# .deps/googletest when the system has none. Prebuilt binaries: GMM_MCL_GPU_BUILD_DIR=DIR and
+# the steps without `build`.
 set -uo pipefail
 ROOT="$(cd "$(dirname "$0")/.." && pwd)"
 cd "$ROOT"
@@ -26,6 +29,7 @@ nvidia-smi --query-gpu=name,compute_cap,driver_version,clocks.max.sm --format=cs
 ARCH="${CUDA_ARCH:-$(nvidia-smi --query-gpu=compute_cap --format=csv,noheader 2>/dev/null | head -1 | tr -d ' .')}"
 ARCH="${ARCH:-75}"
 [[ -z "${GMM_MCL_MAP:-}" && -f .deps/7scenes_redkitchen_m1000.gmm ]] && export GMM_MCL_MAP="$ROOT/.deps/7scenes_redkitchen_m1000.gmm"
+[[ -z "${GMM_MCL_LARGE_MAP:-}" && -f .deps/7scenes_redkitchen_m4000.gmm ]] && export GMM_MCL_LARGE_MAP="$ROOT/.deps/7scenes_redkitchen_m4000.gmm"
 [[ -z "${GMM_MCL_7SCENES_FRAMES:-}" && -f .deps/7scenes_frames30.bin ]] && export GMM_MCL_7SCENES_FRAMES="$ROOT/.deps/7scenes_frames30.bin"
 
 if step build; then
@@ -61,42 +65,56 @@ for tool in memcheck racecheck; do
 done
 
 if step ncu; then
-  # Hardware counters of one membership and one likelihood launch (paper workload, after the
-  # warm-up): duration, issue activity, and the FP32 instructions actually executed, from
+  # Hardware counters of every kernel of one update per workload (NCU_WORKLOADS, after the
+  # warm-up): duration, registers, issue activity, warps active, threads per instruction, DRAM
+  # traffic, shared-memory bank conflicts, and the FP32 instructions actually executed, from
   # which ncu_flops.txt gives the measured FP32 FLOP rate (FFMA counts 2, FADD and FMUL 1).
-  echo "== ncu (${NCU_WORKLOAD:-paper})"
-  args=(--backend cuda --workload "${NCU_WORKLOAD:-paper}" --frames 2 --warmup 3 --min-timed 1)
-  [[ -n "${GMM_MCL_MAP:-}" ]] && args+=(--map "$GMM_MCL_MAP")
-  [[ -n "${GMM_MCL_7SCENES_FRAMES:-}" ]] && args+=(--frames-raw "$GMM_MCL_7SCENES_FRAMES")
   metrics=gpu__time_duration.sum,sm__inst_executed.sum,smsp__issue_active.avg.pct_of_peak_sustained_active
   metrics+=,sm__warps_active.avg.pct_of_peak_sustained_active,smsp__thread_inst_executed_per_inst_executed.ratio
   metrics+=,sm__sass_thread_inst_executed_op_ffma_pred_on.sum,sm__sass_thread_inst_executed_op_fadd_pred_on.sum
   metrics+=,sm__sass_thread_inst_executed_op_fmul_pred_on.sum,sm__cycles_elapsed.avg.per_second
-  timeout 300 ncu --clock-control none --kernel-name regex:"likelihoodKernel|membershipKernel" \
-    --launch-skip 6 --launch-count 2 --metrics "$metrics" --csv "$BUILD/gmm_mcl_bench" "${args[@]}" \
-    > "$LOGS/ncu.csv" 2> "$LOGS/ncu.err" || { echo "ncu failed"; tail -5 "$LOGS/ncu.err"; }
-  python3 - "$LOGS/ncu.csv" <<'PY' | tee "$LOGS/ncu_flops.txt"
+  metrics+=,dram__bytes_read.sum,dram__bytes_write.sum,launch__registers_per_thread
+  metrics+=,l1tex__data_bank_conflicts_pipe_lsu_mem_shared.sum
+  : > "$LOGS/ncu_flops.txt"
+  for wl in ${NCU_WORKLOADS:-paper cpu full scale large}; do
+    echo "== ncu ($wl)"
+    args=(--backend cuda --workload "$wl" --frames 2 --warmup 3 --min-timed 1 --exact 0)
+    [[ -n "${GMM_MCL_MAP:-}" ]] && args+=(--map "$GMM_MCL_MAP")
+    [[ -n "${GMM_MCL_LARGE_MAP:-}" ]] && args+=(--large-map "$GMM_MCL_LARGE_MAP")
+    [[ -n "${GMM_MCL_7SCENES_FRAMES:-}" ]] && args+=(--frames-raw "$GMM_MCL_7SCENES_FRAMES")
+    timeout 300 ncu --clock-control none \
+      --kernel-name regex:"likelihoodKernel|membershipKernel|reduceKernel|frame" --launch-skip 8 \
+      --launch-count 6 --metrics "$metrics" --csv "$BUILD/gmm_mcl_bench" "${args[@]}" \
+      > "$LOGS/ncu_$wl.csv" 2> "$LOGS/ncu_$wl.err" || { echo "ncu failed"; tail -5 "$LOGS/ncu_$wl.err"; }
+    python3 - "$LOGS/ncu_$wl.csv" "$wl" <<'PY' | tee -a "$LOGS/ncu_flops.txt"
 import csv, sys, collections
 rows = [r for r in csv.reader(open(sys.argv[1])) if len(r) > 10]
 hdr = rows[0]; idx = {h: i for i, h in enumerate(hdr)}
 k = collections.defaultdict(dict)
 for r in rows[1:]:
-    name = r[idx["Kernel Name"]].split("(")[0][-40:]
+    name = r[idx["Kernel Name"]].split("(")[0].split("::")[-1][-32:]
     unit = r[idx["Metric Unit"]].lower()
     scale = {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0, "nsecond": 1e-9, "usecond": 1e-6, "msecond": 1e-3, "second": 1.0, "cycle/nsecond": 1e9,
-             "cycle/usecond": 1e6, "cycle/second": 1.0, "ghz": 1e9, "mhz": 1e6, "hz": 1.0}.get(unit, 1.0)
-    k[(r[idx["ID"]], name)][r[idx["Metric Name"]]] = float(r[idx["Metric Value"]].replace(",", "")) * scale
-for (i, name), m in sorted(k.items()):
+             "cycle/usecond": 1e6, "cycle/second": 1.0, "ghz": 1e9, "mhz": 1e6, "hz": 1.0, "byte": 1.0, "kbyte": 1e3, "mbyte": 1e6, "gbyte": 1e9}.get(unit, 1.0)
+    try:
+        k[(r[idx["ID"]], name)][r[idx["Metric Name"]]] = float(r[idx["Metric Value"]].replace(",", "")) * scale
+    except ValueError:
+        pass
+for (i, name), m in sorted(k.items(), key=lambda x: int(x[0][0])):
     t = m["gpu__time_duration.sum"]  # s
     flops = 2 * m["sm__sass_thread_inst_executed_op_ffma_pred_on.sum"] + \
         m["sm__sass_thread_inst_executed_op_fadd_pred_on.sum"] + m["sm__sass_thread_inst_executed_op_fmul_pred_on.sum"]
     clk = m["sm__cycles_elapsed.avg.per_second"]
     peak = 2 * 128 * 132 * clk  # H100 SXM: 132 SMs x 128 FP32 lanes, at the measured clock
-    print(f"{name}: {t*1e6:.1f} us, issue active {m['smsp__issue_active.avg.pct_of_peak_sustained_active']:.1f}%, "
+    print(f"{sys.argv[2]} {name}: {t*1e6:.1f} us, {m['launch__registers_per_thread']:.0f} registers, "
+          f"issue active {m['smsp__issue_active.avg.pct_of_peak_sustained_active']:.1f}%, "
           f"warps active {m['sm__warps_active.avg.pct_of_peak_sustained_active']:.1f}%, "
           f"threads/inst {m['smsp__thread_inst_executed_per_inst_executed.ratio']:.1f}, "
-          f"FP32 FLOP executed {flops:.3e} = {flops/t*1e-12:.2f} TFLOP/s = {100*flops/t/peak:.1f}% of peak at {clk*1e-9:.2f} GHz")
+          f"FP32 FLOP executed {flops:.3e} = {flops/t*1e-12:.2f} TFLOP/s = {100*flops/t/peak:.1f}% of peak at {clk*1e-9:.2f} GHz, "
+          f"DRAM read {m['dram__bytes_read.sum']*1e-6:.1f} MB write {m['dram__bytes_write.sum']*1e-6:.1f} MB, "
+          f"shared bank conflicts {m['l1tex__data_bank_conflicts_pipe_lsu_mem_shared.sum']:.3g}")
 PY
+  done
 fi
 
 if step bench; then
@@ -104,6 +122,7 @@ if step bench; then
   args=(--backend "${BENCH_BACKEND:-cuda}" --workload "${BENCH_WORKLOAD:-all}" --frames "${BENCH_FRAMES:-100}"
         --warmup 3 --budget-s "${BENCH_BUDGET_S:-10}")
   [[ -n "${GMM_MCL_MAP:-}" ]] && args+=(--map "$GMM_MCL_MAP")
+  [[ -n "${GMM_MCL_LARGE_MAP:-}" ]] && args+=(--large-map "$GMM_MCL_LARGE_MAP")
   [[ -n "${GMM_MCL_7SCENES_FRAMES:-}" ]] && args+=(--frames-raw "$GMM_MCL_7SCENES_FRAMES")
   "$BUILD/gmm_mcl_bench" "${args[@]}" 2>&1 | tee "$LOGS/bench.txt"
   [[ ${PIPESTATUS[0]} -eq 0 ]] || status=1

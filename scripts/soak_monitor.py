@@ -8,7 +8,11 @@ frame accounting (publisher's sent count, the nodelet's received / processed / d
 from ~status and /diagnostics); NaN in ~pose and its covariance; frames/s; the position error
 against /ground_truth (reported, not a target). Exits 0 when every target is met, 1 otherwise,
 2 on a setup problem (no data, timeout).
+
+Python 2.7 (ROS Melodic's rospy) and 3.
 """
+
+from __future__ import division, print_function
 
 import argparse
 import csv
@@ -25,6 +29,12 @@ from std_msgs.msg import UInt64
 from tf2_msgs.msg import TFMessage
 
 from gmm_mcl.msg import FilterStatus
+
+# Python 2.7 (ROS Melodic) has neither; wall time serves for the periods measured here.
+if not hasattr(time, "monotonic"):
+    time.monotonic = time.time
+if not hasattr(math, "isfinite"):
+    math.isfinite = lambda v: not (math.isinf(v) or math.isnan(v))
 
 # Counter fields of FilterStatus and the /diagnostics keys that carry the same numbers.
 DIAG_KEYS = {

@@ -2,8 +2,9 @@
 # Every test: installs what is missing (apt), builds the core, the backends, the tools, the ROS
 # nodelet and all tests, and runs them with ctest (gtest suites, rostests, the package installed
 # into a temporary prefix and run from there, fuzz corpus replays);
-# then compiles the CUDA backend with nvcc (its tests skip without a GPU); then builds the core's
-# unit tests with ASan and UBSan in their own folder and runs them. Data-set tests read
+# then compiles the CUDA backend with nvcc (its tests skip without a GPU); then the Jetson TX2
+# proxies (docs/tx2.md); then builds the core's unit tests with ASan and UBSan in their own
+# folder and runs them. Data-set tests read
 # ../shared/datasets (or $GMM_MCL_DATASETS) and skip with a printed reason when it is absent.
 set -euo pipefail
 source "$(dirname "$0")/common.sh"
@@ -13,7 +14,8 @@ ensure_packages "${CORE_PACKAGES[@]}" "${ROS_PACKAGES[@]}" python3 python3-numpy
 BUILD="${GMM_MCL_BUILD_DIR:-$GMM_MCL_ROOT/build/test}"
 mkdir -p "$BUILD"
 cmake -S "$GMM_MCL_ROOT" -B "$BUILD" -DGMM_MCL_BUILD_ROS=ON -DGMM_MCL_BUILD_TESTS=ON \
-  -DCMAKE_BUILD_TYPE=Release > "$BUILD/cmake.log" 2>&1 || { cat "$BUILD/cmake.log"; exit 1; }
+  -DCMAKE_BUILD_TYPE=Release -DCMAKE_EXPORT_COMPILE_COMMANDS=ON > "$BUILD/cmake.log" 2>&1 \
+  || { cat "$BUILD/cmake.log"; exit 1; }
 start=$(date +%s)
 cmake --build "$BUILD" -j2
 echo "== build took $(( $(date +%s) - start )) s"
@@ -32,12 +34,28 @@ if [ -x "$NVCC" ]; then
     -DCMAKE_CUDA_COMPILER="$NVCC" -DCMAKE_BUILD_TYPE=Release > "$CUDA_BUILD/cmake.log" 2>&1 \
     || { cat "$CUDA_BUILD/cmake.log"; exit 1; }
   start=$(date +%s)
-  cmake --build "$CUDA_BUILD" -j2 --target test_cuda_backend gmm_mcl_bench
+  cmake --build "$CUDA_BUILD" -j2 --target test_cuda_backend test_cuda_particle_filter \
+    test_cuda_localizer gmm_mcl_bench
   echo "== CUDA build took $(( $(date +%s) - start )) s"
-  (cd "$CUDA_BUILD" && ctest --output-on-failure -R test_cuda_backend) | tee "$CUDA_BUILD/ctest.log"
+  (cd "$CUDA_BUILD" && ctest --output-on-failure -R 'test_cuda_(backend|particle_filter|localizer)') \
+    | tee "$CUDA_BUILD/ctest.log"
 else
   echo "== nvcc not found: CUDA backend not compiled"
 fi
+
+# Jetson TX2 proxies (docs/tx2.md): every package source as strict C++14 (the main build's
+# compile commands), the ROS Melodic checks, the CUDA backend by nvcc 11.8 for sm_62 when
+# scripts/tx2_cuda_compile.sh has installed it, and the core's unit tests cross-built for
+# aarch64 and run under qemu (less three cases that take minutes emulated).
+start=$(date +%s)
+"$GMM_MCL_ROOT/scripts/tx2_cxx14_check.sh" "$BUILD"
+"$GMM_MCL_ROOT/scripts/tx2_melodic_check.sh"
+"$GMM_MCL_ROOT/scripts/tx2_cuda_compile.sh" --if-installed
+echo "== TX2 compile checks took $(( $(date +%s) - start )) s"
+AARCH64_BUILD="${GMM_MCL_AARCH64_BUILD_DIR:-${BUILD}-aarch64}"
+start=$(date +%s)
+GMM_MCL_AARCH64_BUILD_DIR="$AARCH64_BUILD" "$GMM_MCL_ROOT/scripts/tx2_cross_test.sh" --ci
+echo "== TX2 aarch64 stage took $(( $(date +%s) - start )) s"
 
 # Sanitizers: the core's gtest suites (map, camera, measurement, filter), the input-validation
 # cases and the fuzz corpus replays, built with -fsanitize=address,undefined
@@ -86,7 +104,8 @@ echo "== sanitizer tests took $(( $(date +%s) - start )) s"
 # One closing line over all ctest runs (set -e has already stopped on any failure).
 passed=0
 skipped=0
-for log in "$BUILD/ctest.log" "${CUDA_BUILD:-/nonexistent}/ctest.log" "$SAN_BUILD/ctest.log"; do
+for log in "$BUILD/ctest.log" "${CUDA_BUILD:-/nonexistent}/ctest.log" "$AARCH64_BUILD/ctest.log" \
+           "$SAN_BUILD/ctest.log"; do
   [ -f "$log" ] || continue
   passed=$((passed + $(grep -cE 'Test +#[0-9]+: .* Passed' "$log" || true)))
   skipped=$((skipped + $(grep -cE 'Test +#[0-9]+: .*\*\*\*Skipped' "$log" || true)))

@@ -5,7 +5,7 @@ usage: scripts/unseen_table.py OUT_DIR
 
 Reads OUT_DIR/<run>/trial_<seed>_metrics.csv (gmm_mcl_replay --out) and
 OUT_DIR/<run>/kidnap_<seed>.csv (gmm_mcl_kidnap --out). Runs: start_seg<first>, map_seg<first>,
-kidnap_seg<first>, 7s-disjoint, 7s. Convergence (replay): the first frame after which the error
+kidnap_seg<first>, 7s-disjoint, 7s, 7s-m4000. Convergence (replay): the first frame after which the error
 stays under 10 cm for 30 frames; success: converged and the last 100 frames under 10 cm; the
 whole-map start counts convergence within 10 s, the others within 5 s. ATE pooled over the
 frames after convergence of every converged trial (RMSE), for the particle mean and the refined
@@ -24,13 +24,17 @@ PROTOCOLS = [
     ("kidnap", "unseen scene (Replica), kidnap", 5.0),
     ("7s-disjoint", "7-Scenes, map from disjoint frames", 5.0),
     ("7s", "7-Scenes, DESIGN.md protocol", 5.0),
+    ("7s-m4000", "7-Scenes, DESIGN.md protocol with an M=4000 map", 5.0),
 ]
 
 
-def rows(pattern):
+def rows(pattern, skip=None):
+    """Rows of every file matching pattern, by seed; names ending in `skip` left out (the
+    kidnap tool's per-frame files beside its per-trial ones)."""
     out = []
     seed = lambda p: int(re.sub(r"\D", "", os.path.basename(p)) or 0)
-    for path in sorted(glob.glob(pattern), key=seed):
+    paths = [p for p in glob.glob(pattern) if not (skip and p.endswith(skip))]
+    for path in sorted(paths, key=seed):
         with open(path) as f:
             out.extend(csv.DictReader(f))
     return out
@@ -80,7 +84,7 @@ def main():
         if not dirs:
             continue
         if key == "kidnap":
-            trials = [r for d in dirs for r in rows(os.path.join(d, "kidnap_*.csv"))]
+            trials = [r for d in dirs for r in rows(os.path.join(d, "kidnap_*.csv"), skip="_frames.csv")]
             if not trials:
                 continue
             rec = [t for t in trials if t["recovered"] == "1"]
@@ -95,7 +99,7 @@ def main():
             details.append("\n%s:\n\n| run | seed | jump (m) | recovered in (s) | final error (cm) | "
                            "lost events |\n|---|---|---|---|---|---|" % label)
             for d in dirs:
-                for t in rows(os.path.join(d, "kidnap_*.csv")):
+                for t in rows(os.path.join(d, "kidnap_*.csv"), skip="_frames.csv"):
                     details.append("| %s | %s | %.2f | %s | %.1f | %s |" % (
                         os.path.basename(d), t["seed"], float(t["jump_m"]),
                         "%.2f" % float(t["recovery_s"]) if t["recovered"] == "1" else "never",

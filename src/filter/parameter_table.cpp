@@ -313,6 +313,14 @@ const ParamTable<LocalizerParams>& localizerParamTable() {
       p.choices = {"cpu", "cuda"};
       add(p);
     }
+    add(paramSpec<P>("device_filter", GMM_MCL_PARAM_FIELD(P, device_filter), "", g, {}, kStartup,
+                     "With the cuda backend the whole filter step runs on the GPU (the particle "
+                     "set lives there); false: the set stays on the host and only the likelihood "
+                     "runs on the GPU. No effect with the cpu backend"));
+    add(paramSpec<P>("cpu_fallback", GMM_MCL_PARAM_FIELD(P, cpu_fallback), "", g, {}, kRuntime,
+                     "When the cuda backend fails at run time (a CUDA error, the GPU out of "
+                     "memory), switch to the cpu backend keeping the particles instead of failing "
+                     "every frame (reported in /diagnostics)"));
     return t;
   }();
   return table;

@@ -6,6 +6,8 @@
 #include <numeric>
 #include <stdexcept>
 
+#include "gmm_mcl/filter/particle_math.h"
+
 namespace gmm_mcl {
 
 ParticleFilter::ParticleFilter(const ParticleFilterParams& params)
@@ -136,9 +138,7 @@ int ParticleFilter::occupiedBins(const std::vector<int>& indices) const {
   const double ib = 1.0 / params_.kld_bin_m, ia = 1.0 / params_.kld_bin_rad;
   for (size_t k = 0; k < indices.size(); ++k) {
     const Particle& p = particles_[indices[k]];
-    auto q = [](double v) { return static_cast<uint64_t>(static_cast<int64_t>(std::floor(v)) & 0xffff); };
-    keys_[k] = q(p.x_m * ib) | (q(p.y_m * ib) << 16) | (q(p.z_m * ib) << 32) |
-               (q((p.yaw_rad + M_PI) * ia) << 48);
+    keys_[k] = kldBinKey(ParticleState{p.x_m, p.y_m, p.z_m, p.yaw_rad}, ib, ia);
   }
   std::sort(keys_.begin(), keys_.end());
   return static_cast<int>(std::unique(keys_.begin(), keys_.end()) - keys_.begin());
@@ -157,6 +157,7 @@ void ParticleFilter::resample() {
   for (size_t i = 0; i < indices_.size(); ++i) swap_[i] = particles_[indices_[i]];
   particles_.swap(swap_);
   weights_.assign(n_out, 1.0 / n_out);
+  resampled_since_evaluation_ = true;
 }
 
 bool ParticleFilter::resampleIfNeeded() {
@@ -287,17 +288,24 @@ PoseEstimate ParticleFilter::estimate() const {
                             wrapAngle(particles_[i].yaw_rad - e.mean.yaw_rad));
     c += weights_[i] * d * d.transpose();
   }
+  return poseEstimateFromMoments(e.mean, c, params_);
+}
+
+PoseEstimate poseEstimateFromMoments(const Particle& mean, const Eigen::Matrix4d& c,
+                                     const ParticleFilterParams& params) {
+  PoseEstimate e;
+  e.mean = mean;
   const int idx[4] = {0, 1, 2, 5};
   for (int r = 0; r < 4; ++r) {
     for (int k = 0; k < 4; ++k) e.covariance(idx[r], idx[k]) = c(r, k);
   }
   // Floor: one step of process noise, so that a collapsed set (every particle a copy of one)
   // still reports a positive-definite covariance instead of a singular one.
-  const double var_t = params_.sigma_translation_m * params_.sigma_translation_m;
-  const double var_yaw = params_.sigma_yaw_rad * params_.sigma_yaw_rad;
+  const double var_t = params.sigma_translation_m * params.sigma_translation_m;
+  const double var_yaw = params.sigma_yaw_rad * params.sigma_yaw_rad;
   for (int r = 0; r < 3; ++r) e.covariance(r, r) += std::max(var_t, kMinVariance);
   e.covariance(5, 5) += std::max(var_yaw, kMinVariance);
-  const double att = params_.attitude_sigma_rad * params_.attitude_sigma_rad;
+  const double att = params.attitude_sigma_rad * params.attitude_sigma_rad;
   e.covariance(3, 3) = att;
   e.covariance(4, 4) = att;
   return e;
@@ -312,6 +320,130 @@ void ParticleFilter::setParticles(const std::vector<Particle>& particles,
   const double total = std::accumulate(weights.begin(), weights.end(), 0.0);
   weights_.resize(weights.size());
   for (size_t i = 0; i < weights.size(); ++i) weights_[i] = weights[i] / total;
+}
+
+// ---- ParticleFilterBase: frame likelihoods and the candidate pool ---------------------------
+
+void ParticleFilter::evaluatePoses(const MeasurementContext& ctx,
+                                   const std::vector<Particle>& particles, BackendOutput* out) {
+  if (ctx.backend == nullptr || ctx.frame == nullptr || ctx.params == nullptr) {
+    throw std::invalid_argument("host particle filter: a backend, a host frame and parameters "
+                                "are needed to score particles");
+  }
+  poses_.resize(particles.size());
+  for (size_t i = 0; i < particles.size(); ++i) {
+    poses_[i] = toRigidF(particleToPose(particles[i], ctx.roll_rad, ctx.pitch_rad) * ctx.T_base_cam);
+  }
+  ctx.backend->evaluate(*ctx.frame, poses_, *ctx.params, out);
+}
+
+void ParticleFilter::evaluateFrame(const MeasurementContext& ctx, EvaluationStats* stats) {
+  evaluatePoses(ctx, particles_, &output_);
+  resampled_since_evaluation_ = false;
+  if (stats) {
+    stats->evaluations = output_.evaluations;
+    stats->relevant_pairs = output_.relevant_pairs;
+    stats->patches_with_pixels = output_.patches_with_pixels;
+    stats->projection_membership_ms = output_.projection_membership_ms;
+    stats->likelihood_ms = output_.likelihood_ms;
+  }
+}
+
+void ParticleFilter::setFrameLogLikelihoods(const std::vector<double>& log_likelihood,
+                                            const std::vector<int>& floor_hits) {
+  if (log_likelihood.size() != floor_hits.size()) {
+    throw std::invalid_argument("setFrameLogLikelihoods: one floor-hit count per likelihood");
+  }
+  output_ = BackendOutput();
+  output_.log_likelihood = log_likelihood;
+  output_.floor_hits = floor_hits;
+  resampled_since_evaluation_ = false;
+}
+
+bool ParticleFilter::weighFrame(int pixels, FrameScores* scores) {
+  const std::vector<double>& ll = output_.log_likelihood;
+  if (!updateWeights(ll, pixels)) return false;
+  // The best particle (the first of the largest) and the weighted mean, over the new weights.
+  size_t best = 0;
+  double mean_ll = 0.0;
+  for (size_t i = 0; i < weights_.size(); ++i) {
+    if (ll[i] > ll[best]) best = i;
+    if (weights_[i] > 0.0) mean_ll += weights_[i] * ll[i];
+  }
+  scores->best_loglik = ll[best];
+  scores->mean_loglik = mean_ll;
+  scores->best_floor_hits = output_.floor_hits[best];
+  scores->beta_fraction = last_beta_fraction_;
+  return true;
+}
+
+int ParticleFilter::recoverFrame(int pixels, const InitRegion& region) {
+  return recover(output_.log_likelihood, pixels, region);
+}
+
+void ParticleFilter::clearCandidates() {
+  scored_.clear();
+  pending_.clear();
+}
+
+void ParticleFilter::drawUniformCandidates(const InitRegion& region, int n) {
+  const size_t first = pending_.size();
+  pending_.resize(first + std::max(0, n));
+  for (size_t k = first; k < pending_.size(); ++k) pending_[k] = sampleUniform(region);
+}
+
+void ParticleFilter::scoreCandidates(const MeasurementContext& ctx) {
+  if (pending_.empty()) return;
+  evaluatePoses(ctx, pending_, &candidate_output_);
+  for (size_t i = 0; i < pending_.size(); ++i) {
+    const double ll = candidate_output_.log_likelihood[i];
+    scored_.emplace_back(std::isfinite(ll) ? ll : -std::numeric_limits<double>::infinity(),
+                         pending_[i]);
+  }
+  pending_.clear();
+}
+
+namespace {
+bool byScore(const std::pair<double, Particle>& a, const std::pair<double, Particle>& b) {
+  return a.first > b.first;
+}
+}  // namespace
+
+void ParticleFilter::selectCandidateCentres(int elites, bool clear_pool) {
+  elites = std::max(0, std::min(elites, static_cast<int>(scored_.size())));
+  std::partial_sort(scored_.begin(), scored_.begin() + elites, scored_.end(), byScore);
+  centres_.resize(elites);
+  for (int e = 0; e < elites; ++e) centres_[e] = scored_[e].second;
+  if (clear_pool) scored_.clear();
+}
+
+void ParticleFilter::drawCandidatesAroundCentres(double sigma_m, double sigma_rad, int n) {
+  std::vector<Particle> drawn;
+  sampleAround(centres_, sigma_m, sigma_rad, n, &drawn);
+  pending_.insert(pending_.end(), drawn.begin(), drawn.end());
+}
+
+std::vector<Particle> ParticleFilter::bestCandidates(int count) {
+  std::vector<Particle> best;
+  count = std::min(count, static_cast<int>(scored_.size()));
+  if (count <= 0) return best;
+  std::nth_element(scored_.begin(), scored_.begin() + (count - 1), scored_.end(), byScore);
+  best.reserve(count);
+  for (int i = 0; i < count; ++i) best.push_back(scored_[i].second);
+  return best;
+}
+
+void ParticleFilter::replaceAllByBestCandidates() { replaceAll(bestCandidates(size())); }
+
+void ParticleFilter::replaceWorstByBestCandidates(int keep, int count) {
+  // Each particle's likelihood on this frame: after a resampling, its source's.
+  const std::vector<double>& ll = output_.log_likelihood;
+  ll_scratch_ = ll;
+  if (resampled_since_evaluation_) {
+    ll_scratch_.resize(indices_.size());
+    for (size_t i = 0; i < indices_.size(); ++i) ll_scratch_[i] = ll[indices_[i]];
+  }
+  replaceWorst(ll_scratch_, bestCandidates(count), keep);
 }
 
 }  // namespace gmm_mcl

@@ -5,21 +5,17 @@
 #include <chrono>
 #include <cmath>
 #include <sstream>
+#include <stdexcept>
 
 #include "gmm_mcl/measurement/likelihood.h"
+#include "gmm_mcl/measurement/normal_equations.h"
 
 namespace gmm_mcl {
 namespace {
 
-// Responsibility below which a (pixel, component) pair is left out of the normal equations.
-constexpr double kMinResponsibility = 1e-6;
 // Steps after which the membership and the noise-convolved forms are recomputed.
 constexpr double kRelineariseM = 0.01;
 constexpr double kRelineariseRad = 0.01;
-// Work split of the pixel loop: patches in this many chunks; per chunk the log-likelihood, the
-// 21 entries of the upper triangle of H and the 6 of g.
-constexpr int kChunks = 64;
-constexpr int kPartial = 28;
 
 // A 6-DoF pose: the particle state plus the roll and pitch the refinement may adjust.
 struct Pose6 {
@@ -36,17 +32,30 @@ struct Linearisation {
   Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();
 };
 
+// The objective: membership and evaluation forms on the host, the pixel sums in `sums` (the
+// host's, or a backend's on its device).
 class Objective {
  public:
-  Objective(const std::vector<ComponentF>& components, const DepthFrame& frame,
-            const Eigen::Isometry3d& T_base_cam, const MeasurementParams& params)
-      : components_(components), frame_(frame), T_base_cam_(T_base_cam), params_(params) {
+  Objective(const std::vector<ComponentF>& components, const RefinementFrame& frame,
+            const Eigen::Isometry3d& T_base_cam, const MeasurementParams& params,
+            NormalEquationsEvaluator* sums)
+      : components_(components), frame_(frame), T_base_cam_(T_base_cam), params_(params),
+        sums_(sums) {
     makeEvalComponents(components_, &base_eval_);
-    // Base-frame points; the map point of a pose is R(roll, pitch, yaw) p_base + t.
-    p_base_.resize(frame.size());
-    for (size_t i = 0; i < frame.size(); ++i) {
-      p_base_[i] = T_base_cam * Eigen::Vector3d(frame.x_m[i], frame.y_m[i], frame.z_m[i]);
+    if (frame.points == nullptr) {  // on the evaluator's device already
+      sums_->setPointsFromBackendFrame(T_base_cam);
+      return;
     }
+    // Base-frame points; the map point of a pose is R(roll, pitch, yaw) p_base + t.
+    const DepthFrame& f = *frame.points;
+    std::vector<double> x(f.size()), y(f.size()), z(f.size());
+    for (size_t i = 0; i < f.size(); ++i) {
+      const Eigen::Vector3d p = T_base_cam * Eigen::Vector3d(f.x_m[i], f.y_m[i], f.z_m[i]);
+      x[i] = p.x();
+      y[i] = p.y();
+      z[i] = p.z();
+    }
+    sums_->setPoints(x, y, z, f.patch_begin);
   }
 
   // Membership and evaluation forms (with the depth noise) at `pose`; kept for the iterations
@@ -57,14 +66,14 @@ class Objective {
     const RigidTransformF T_cam_map = toRigidF(T_map_cam.inverse());
     computeMembership(components_, T_cam_map, frame_.intrinsics, frame_.grid, params_, &projected_,
                       &valid_, &membership_);
-    eval_ = noisyEvalComponents(components_, base_eval_, valid_, T_cam_map, params_.depth_noise,
-                                &noisy_);
+    const EvalComponentF* eval = noisyEvalComponents(components_, base_eval_, valid_, T_cam_map,
+                                                     params_.depth_noise, &noisy_);
+    sums_->setLinearisation(eval == base_eval_.data() ? base_eval_ : noisy_, membership_);
   }
 
   Linearisation evaluate(const Pose6& pose, bool linearise) {
-    const EvalComponentF* eval = eval_;
+    PoseDerivatives d;
     const Eigen::Matrix3d R = rotationFromRpy(pose.roll, pose.pitch, pose.p.yaw_rad);
-    const Eigen::Vector3d t(pose.p.x_m, pose.p.y_m, pose.p.z_m);
     // dR / d(roll, pitch, yaw) for R = Rz(yaw) Ry(pitch) Rx(roll).
     const double cr = std::cos(pose.roll), sr = std::sin(pose.roll);
     const double cp = std::cos(pose.pitch), sp = std::sin(pose.pitch);
@@ -77,113 +86,33 @@ class Objective {
     dRy << -sp, 0, cp, 0, 0, 0, -cp, 0, -sp;
     dRz << -sy, -cy, 0, cy, -sy, 0, 0, 0, 0;
     const Eigen::Matrix3d D[3] = {Rz * Ry * dRx, Rz * dRy * Rx, dRz * Ry * Rx};
-    const double floor = params_.floor_log_density;
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) {
+        d.R[3 * r + c] = R(r, c);
+        for (int a = 0; a < 3; ++a) d.dR[a][3 * r + c] = D[a](r, c);
+      }
+    }
+    d.t[0] = pose.p.x_m;
+    d.t[1] = pose.p.y_m;
+    d.t[2] = pose.p.z_m;
+    NormalEquationSums s;
+    sums_->evaluate(d, params_.floor_log_density, linearise, &s);
     Linearisation out;
-    // Patches in fixed chunks, one partial sum per chunk, added in chunk order: the result does
-    // not depend on the thread count.
-    const int patches = frame_.grid.count();
-    const int chunks = std::min(patches, kChunks);
-    partial_.assign(static_cast<size_t>(chunks) * kPartial, 0.0);
-#pragma omp parallel for schedule(dynamic, 1)
-    for (int ch = 0; ch < chunks; ++ch) {
-      double* acc = partial_.data() + static_cast<size_t>(ch) * kPartial;  // loglik, h[21], g[6]
-      std::vector<double>& t_ = scratch_t();
-      std::vector<double>& y_ = scratch_y();
-      for (int p = ch * patches / chunks; p < (ch + 1) * patches / chunks; ++p) {
-        const int b = frame_.patch_begin[p], e = frame_.patch_begin[p + 1];
-        if (b == e) continue;
-        const int k = membership_.countFor(p);
-        if (k == 0) {
-          acc[0] += floor * (e - b);
-          continue;
-        }
-        const int* members = membership_.comps.data() + membership_.begin[p];
-        t_.resize(k);
-        y_.resize(3 * k);
-        for (int i = b; i < e; ++i) {
-          const Eigen::Vector3d q = R * p_base_[i] + t;
-          double mx = floor;
-          for (int j = 0; j < k; ++j) {
-            const EvalComponentF& ev = eval[members[j]];
-            const double y0 = ev.u00 * q.x() + ev.u01 * q.y() + ev.u02 * q.z() + ev.c[0];
-            const double y1 = ev.u11 * q.y() + ev.u12 * q.z() + ev.c[1];
-            const double y2 = ev.u22 * q.z() + ev.c[2];
-            y_[3 * j] = y0;
-            y_[3 * j + 1] = y1;
-            y_[3 * j + 2] = y2;
-            t_[j] = ev.log_norm - (y0 * y0 + y1 * y1 + y2 * y2);
-            mx = std::max(mx, t_[j]);
-          }
-          double sum = std::exp(floor - mx);
-          for (int j = 0; j < k; ++j) {
-            t_[j] = std::exp(t_[j] - mx);
-            sum += t_[j];
-          }
-          acc[0] += mx + std::log(sum);
-          if (!linearise) continue;
-          // dq / d(roll, pitch, yaw).
-          const Eigen::Vector3d m[3] = {D[0] * p_base_[i], D[1] * p_base_[i], D[2] * p_base_[i]};
-          const double inv_sum = 1.0 / sum;
-          for (int j = 0; j < k; ++j) {
-            const double gamma = t_[j] * inv_sum;
-            if (gamma < kMinResponsibility) continue;
-            const EvalComponentF& ev = eval[members[j]];
-            // Columns of J = U [I | dq/droll | dq/dpitch | dq/dyaw] (U upper triangular).
-            double col[6][3] = {
-                {ev.u00, 0.0, 0.0}, {ev.u01, ev.u11, 0.0}, {ev.u02, ev.u12, ev.u22}};
-            for (int a = 0; a < 3; ++a) {
-              col[3 + a][0] = ev.u00 * m[a].x() + ev.u01 * m[a].y() + ev.u02 * m[a].z();
-              col[3 + a][1] = ev.u11 * m[a].y() + ev.u12 * m[a].z();
-              col[3 + a][2] = ev.u22 * m[a].z();
-            }
-            const double y[3] = {y_[3 * j], y_[3 * j + 1], y_[3 * j + 2]};
-            double* h = acc + 1;
-            double* g = acc + 22;
-            for (int r = 0, idx = 0; r < 6; ++r) {
-              for (int c = r; c < 6; ++c, ++idx) {
-                h[idx] +=
-                    gamma * (col[r][0] * col[c][0] + col[r][1] * col[c][1] + col[r][2] * col[c][2]);
-              }
-              g[r] += gamma * (col[r][0] * y[0] + col[r][1] * y[1] + col[r][2] * y[2]);
-            }
-          }
-        }
-      }
-    }
-    double h[6][6] = {{0}};
-    double g[6] = {0};
-    for (int ch = 0; ch < chunks; ++ch) {
-      const double* acc = partial_.data() + static_cast<size_t>(ch) * kPartial;
-      out.loglik += acc[0];
-      for (int r = 0, idx = 0; r < 6; ++r) {
-        for (int c = r; c < 6; ++c, ++idx) h[r][c] += acc[1 + idx];
-        g[r] += acc[22 + r];
-      }
-    }
-    for (int r = 0; r < 6; ++r) {
-      for (int c = r; c < 6; ++c) out.H(r, c) = out.H(c, r) = h[r][c];
-      out.g(r) = g[r];
+    out.loglik = s.loglik;
+    for (int r = 0, idx = 0; r < 6; ++r) {
+      for (int c = r; c < 6; ++c, ++idx) out.H(r, c) = out.H(c, r) = s.h[idx];
+      out.g(r) = s.g[r];
     }
     return out;
   }
 
  private:
   const std::vector<ComponentF>& components_;
-  const DepthFrame& frame_;
+  const RefinementFrame& frame_;
   Eigen::Isometry3d T_base_cam_;
   MeasurementParams params_;
+  NormalEquationsEvaluator* sums_;
   std::vector<EvalComponentF> base_eval_, noisy_;
-  const EvalComponentF* eval_ = nullptr;
-  std::vector<Eigen::Vector3d> p_base_;
-  std::vector<double> partial_;  // [chunks][kPartial]
-  static std::vector<double>& scratch_t() {
-    static thread_local std::vector<double> v;
-    return v;
-  }
-  static std::vector<double>& scratch_y() {
-    static thread_local std::vector<double> v;
-    return v;
-  }
   std::vector<ProjectedComponent> projected_;
   std::vector<char> valid_;
   PatchMembership membership_;
@@ -206,21 +135,26 @@ std::string RefinementParams::validate() const {
   return err.str();
 }
 
-RefinementResult refinePose(const std::vector<ComponentF>& components, const DepthFrame& frame,
+RefinementResult refinePose(const std::vector<ComponentF>& components, const RefinementFrame& frame,
                             const Particle& start, double roll_rad, double pitch_rad,
                             const Eigen::Isometry3d& T_base_cam, const MeasurementParams& params,
-                            const RefinementParams& refinement) {
+                            const RefinementParams& refinement, NormalEquationsEvaluator* sums) {
   const auto t0 = std::chrono::steady_clock::now();
   RefinementResult r;
   r.pose = start;
   r.roll_rad = roll_rad;
   r.pitch_rad = pitch_rad;
-  if (frame.empty()) {
+  if (frame.pixels <= 0) {
     r.why = "no pixels";
     return r;
   }
-  Objective objective(components, frame, T_base_cam, params);
-  const double px = static_cast<double>(frame.size());
+  if (frame.points == nullptr && (sums == nullptr || !sums->hasBackendFrame())) {
+    throw std::invalid_argument("refinePose: the frame's points are neither on the host nor on "
+                                "the backend's device");
+  }
+  HostNormalEquations host_sums;
+  Objective objective(components, frame, T_base_cam, params, sums ? sums : &host_sums);
+  const double px = static_cast<double>(frame.pixels);
   // Roll and pitch: free with a Gaussian prior at the attitude input (sigma > 0), else fixed.
   const double sigma_att = refinement.attitude_prior_sigma_rad;
   const bool six_dof = sigma_att > 0.0;

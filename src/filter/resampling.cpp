@@ -16,6 +16,18 @@ void stratifiedLowVarianceResample(const std::vector<double>& weights, int group
   std::shuffle(order.begin(), order.end(), *rng);
   groups = std::max(1, std::min(groups, n_out));
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  std::vector<double> offsets(groups);
+  for (double& o : offsets) o = uniform(*rng);
+  stratifiedLowVarianceIndices(weights, order, offsets, n_out, indices);
+}
+
+void stratifiedLowVarianceIndices(const std::vector<double>& weights, const std::vector<int>& order,
+                                  const std::vector<double>& offsets, int n_out,
+                                  std::vector<int>* indices) {
+  const int n = static_cast<int>(weights.size());
+  indices->resize(n_out);
+  if (n == 0 || n_out == 0) return;
+  const int groups = static_cast<int>(offsets.size());
   // Cumulative mass in the shuffled order, scaled to [0, n_out).
   double total = 0.0;
   for (double w : weights) total += w;
@@ -25,7 +37,7 @@ void stratifiedLowVarianceResample(const std::vector<double>& weights, int group
   int out = 0;
   for (int g = 0; g < groups; ++g) {
     const int count = n_out / groups + (g < n_out % groups ? 1 : 0);
-    const double offset = uniform(*rng);
+    const double offset = offsets[g];
     for (int k = 0; k < count; ++k, ++out) {
       const double u = out + offset;  // in [out, out + 1): this draw's own slice
       while (cumulative <= u && src < n - 1) cumulative += weights[order[++src]] * scale;

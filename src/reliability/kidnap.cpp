@@ -212,6 +212,17 @@ KidnapResult runKidnapTrial(const FrameSource& src, const KidnapParams& params, 
                        Eigen::AngleAxisd(params.odom_sigma_yaw_rad * g(rng),
                                          Eigen::Vector3d::UnitZ()).toRotationMatrix();
       odom = odom * delta;
+      if (k == params.track_frames) {
+        // The odometry's tilt stays the body's own: a visual-inertial or wheel-and-IMU odometry
+        // takes roll and pitch from gravity, so a kidnap leaves its position and yaw wrong but
+        // not its attitude. Composing the new trajectory's body-frame steps onto the old pose's
+        // tilt would report them tilted by the difference (tens of degrees between two places
+        // of a hand-held sequence), a drift no real odometry has.
+        double r_true, p_true, y_true, r_odom, p_odom, y_odom;
+        rpyFromRotation(src.truthBase(i).linear(), &r_true, &p_true, &y_true);
+        rpyFromRotation(odom.linear(), &r_odom, &p_odom, &y_odom);
+        odom.linear() = rotationFromRpy(r_true, p_true, y_odom);
+      }
     }
     const DepthImage depth = src.depth(i, &rng);
     double roll, pitch, yaw;
@@ -235,6 +246,20 @@ KidnapResult runKidnapTrial(const FrameSource& src, const KidnapParams& params, 
       r.any_non_finite = true;
     }
     errors[k] = distance(est, poseToParticle(src.truthBase(i)));
+    KidnapFrame f;
+    f.source_frame = i;
+    f.error_m = errors[k];
+    if (step.refinement.refined) {
+      f.refined_error_m = distance(step.refinement.pose, poseToParticle(src.truthBase(i)));
+    }
+    f.best_loglik_px = step.best_loglik_per_pixel;
+    f.reference_px = step.reference_loglik_per_pixel;
+    f.particles = step.particles;
+    f.lost_redrawn = step.lost_reinitialised;
+    const Eigen::Matrix<double, 6, 6>& C = step.estimate.covariance;
+    f.position_sigma_m = std::sqrt(std::max({C(0, 0), C(1, 1), C(2, 2)}));
+    f.neff = step.neff;
+    r.frames.push_back(f);
     r.final_best_loglik_px = step.best_loglik_per_pixel;
     r.final_reference_px = step.reference_loglik_per_pixel;
   }

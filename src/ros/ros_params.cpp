@@ -439,7 +439,7 @@ void initialPose(const RosOptions& o, Eigen::Isometry3d* T, Eigen::Matrix<double
 
 std::string dynamicReconfigureCfg() {
   std::ostringstream s;
-  s << "#!/usr/bin/env python3\n"
+  s << "#!/usr/bin/env python\n"
        "# dynamic_reconfigure: every parameter that can change while running. Generated from the\n"
        "# parameter tables (include/gmm_mcl/filter/parameter_table.h, src/ros/ros_params.cpp) by\n"
        "# `gmm_mcl_params --cfg > cfg/Localizer.cfg`; test_ros_params checks that they agree.\n"

@@ -28,7 +28,7 @@ void usage() {
       "                      [--trials N] [--first-seed S] [--frames N] [--stride PX]\n"
       "                      [--particles MAX] [--min-particles MIN] [--weighting paper|tempered]\n"
       "                      [--temperature T]\n"
-      "                      [--backend cpu|cuda]\n"
+      "                      [--backend cpu|cuda] [--host-filter]\n"
       "                      [--neff-floor F] [--init-half-extent M] [--init-yaw-half-range RAD]\n"
       "                      [--init cube|map] [--depth-noise A,B,Z0] [--min-range M]\n"
       "                      [--max-range M] [--floor NATS]\n"
@@ -46,6 +46,8 @@ void usage() {
       "MAP is in the data set's world frame; it is rotated into the gravity-aligned frame.\n"
       "Particles: between MIN and MAX, adapted by KLD-sampling (default 1068..3000 on the CPU,\n"
       "1068..100000 with CUDA; MIN = MAX: a fixed count).\n"
+      "--host-filter keeps the particle set on the host with the CUDA backend (by default the\n"
+      "whole filter step runs on the GPU there).\n"
       "--init map starts uniform over the whole map (its bounds, full yaw) instead of the cube\n"
       "around the true start. --depth-noise: the camera's depth noise sigma(z) = A + B (z - Z0)^2\n"
       "in metres (default 0.0012,0.0019,0.4, a Kinect v1; 0,0,0 turns it off).\n"
@@ -117,6 +119,7 @@ int main(int argc, char** argv) {
   SequenceOptions so;
   int hold_frames = -1, tail_frames = -1;
   bool quiet = false;
+  bool host_filter = false;
   std::string init = "cube";
   MeasurementParams measurement;
   FrameParams frame_params;
@@ -179,6 +182,7 @@ int main(int argc, char** argv) {
       fixture_dir = next();
     }
     else if (a == "--quiet") quiet = true;
+    else if (a == "--host-filter") host_filter = true;
     else {
       usage();
       return a == "--help" || a == "-h" ? 0 : 2;
@@ -238,6 +242,7 @@ int main(int argc, char** argv) {
     rp.localizer.filter.num_particles = particles;
     rp.localizer.filter.min_particles = min_particles;
     rp.localizer.backend = backend;
+    rp.localizer.device_filter = !host_filter;
     rp.localizer.measurement = measurement;
     rp.localizer.frame = frame_params;
     rp.localizer.frame.pixel_stride = stride;
@@ -254,14 +259,16 @@ int main(int argc, char** argv) {
     std::printf("gmm_mcl replay: %s (%s), %d frames %dx%d (fx %.1f fy %.1f cx %.1f cy %.1f), "
                 "gravity: %s; map %s (%zu components), %d particles (min %d), start %s, "
                 "depth noise %.4g + %.4g (z - %.2g)^2 m, "
-                "stride %d, %s weighting (T %.3g, Neff floor %.2f), %d trials from seed %llu\n",
+                "stride %d, %s weighting (T %.3g, Neff floor %.2f), %s backend with the particle "
+                "set %s, %d trials from seed %llu\n",
                 dataset.c_str(), seq.format(), seq.size(), K.width_px, K.height_px, K.fx_px,
                 K.fy_px, K.cx_px, K.cy_px, seq.gravitySource().c_str(), map_path.c_str(),
                 map.size(), particles, min_particles > 0 ? min_particles : particles,
                 init == "map" ? "whole map" : "cube", measurement.depth_noise.a_m,
                 measurement.depth_noise.b_per_m, measurement.depth_noise.z0_m, stride,
                 weighting.c_str(), rp.localizer.filter.temperature,
-                rp.localizer.filter.neff_floor_fraction, trials,
+                rp.localizer.filter.neff_floor_fraction, backend.c_str(),
+                backend == "cuda" && !host_filter ? "on the GPU" : "on the host", trials,
                 static_cast<unsigned long long>(first_seed));
     std::fflush(stdout);
     // Every frame is decoded once up front, so that trials time the filter only.

@@ -3,15 +3,19 @@
 // floor hits, the relevant components per patch and the level the map and the depth-noise model
 // predict for a correct pose (the lost detector's starting reference); per pixel on request.
 // The answer to "does the true pose score near the map's own level with these settings?".
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <memory>
+#include <random>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "gmm_mcl/filter/lost_detector.h"
+#include "gmm_mcl/filter/pose_refinement.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/measurement/likelihood.h"
@@ -26,12 +30,20 @@ void usage() {
       "usage: gmm_mcl_score --map MAP.gmm [--format 7scenes|tum|stanford] [--dataset DIR]\n"
       "                     [--frame I] [--pose X,Y,Z,YAW] [--stride PX] [--depth-noise A,B,Z0]\n"
       "                     [--floor NATS] [--min-range M] [--max-range M] [--gravity G]\n"
-      "                     [--per-pixel OUT.csv]\n"
+      "                     [--per-pixel OUT.csv] [--refine] [--frames FIRST:LAST:STEP]\n"
+      "                     [--attitude-noise DEG]\n"
       "The pose is the base in the gravity-aligned map frame (as gmm_mcl_replay's estimates),\n"
       "with the frame's true roll and pitch; default: the frame's ground truth. MAP is in the "
       "data\n"
       "set's world frame. --per-pixel writes u, v, depth and the exact log-likelihood of every\n"
-      "used pixel. DIR defaults to the 7-Scenes folder under $GMM_MCL_DATASETS.\n");
+      "used pixel. DIR defaults to the 7-Scenes folder under $GMM_MCL_DATASETS.\n"
+      "--refine also maximises the likelihood from the pose (the filter's refinement, 6-DoF with\n"
+      "the prior on roll and pitch at the true attitude) and prints how far the maximum lies from\n"
+      "the ground truth. --frames scores every STEP-th frame of FIRST..LAST at its ground truth\n"
+      "(with --refine: where the likelihood's own maximum lies, per frame as CSV on stdout and\n"
+      "summarised on stderr): the accuracy that the map and the ground truth allow together.\n"
+      "--attitude-noise: with --frames --refine, the refinement's attitude prior at the true roll\n"
+      "and pitch plus this much Gaussian noise (the DESIGN.md protocol's IMU: 0.5).\n");
 }
 
 bool parseNumbers(const char* text, int n, double* out) {
@@ -49,11 +61,98 @@ bool parseNumbers(const char* text, int n, double* out) {
   return s.empty();
 }
 
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+// Every step-th frame of first..last at its ground truth: the frame's log-likelihood there and,
+// with refine, where the likelihood's maximum near it lies. CSV on stdout, summary on stderr.
+int scoreRange(const Sequence& seq, const GmmMap& map, const Eigen::Isometry3d& T_base_cam,
+               const FrameParams& fp, const MeasurementParams& measurement, int first, int last,
+               int step, bool refine, double attitude_noise_rad) {
+  const std::vector<Eigen::Isometry3d> truth = alignedBaseTrajectory(seq, last + 1);
+  const RefinementParams rp;
+  std::printf("frame,pixels,loglik_per_px_truth,floor_hit_fraction%s\n",
+              refine ? ",refined,loglik_per_px_refined,offset_m,offset_x_m,offset_y_m,offset_z_m,"
+                       "offset_yaw_deg,offset_roll_deg,offset_pitch_deg,iterations"
+                     : "");
+  std::vector<double> lls, offsets;
+  double sum_sq = 0.0, sum_sq_yaw = 0.0;
+  Eigen::Vector3d mean_offset = Eigen::Vector3d::Zero();
+  int refined = 0;
+  LikelihoodScratch scratch;
+  for (int i = first; i <= last; i += step) {
+    const DepthFrame frame = prepareFrame(seq.loadDepth(i), seq.intrinsics(), fp);
+    if (frame.empty()) {
+      std::fprintf(stderr, "frame %d: no usable pixel, skipped\n", i);
+      continue;
+    }
+    double roll, pitch, yaw;
+    rpyFromRotation(truth[i].linear(), &roll, &pitch, &yaw);
+    const Particle p = poseToParticle(truth[i]);
+    const FrameLikelihood l = poseLogLikelihood(
+        map.packed(), frame, toRigidF(particleToPose(p, roll, pitch) * T_base_cam), measurement,
+        &scratch);
+    const double px = frame.size();
+    lls.push_back(l.log_likelihood / px);
+    std::printf("%d,%d,%.5f,%.4f", i, static_cast<int>(px), l.log_likelihood / px,
+                l.floor_hits / px);
+    if (refine) {
+      // The refinement's attitude prior at the IMU's roll and pitch: the truth, or the truth
+      // with the protocol's attitude noise (seeded per frame).
+      double roll_in = roll, pitch_in = pitch;
+      if (attitude_noise_rad > 0.0) {
+        std::mt19937_64 rng(1000003ULL * (i + 1));
+        std::normal_distribution<double> g(0.0, attitude_noise_rad);
+        roll_in += g(rng);
+        pitch_in += g(rng);
+      }
+      const RefinementResult r =
+          refinePose(map.packed(), frame, p, roll_in, pitch_in, T_base_cam, measurement, rp);
+      const Eigen::Vector3d d(r.pose.x_m - p.x_m, r.pose.y_m - p.y_m, r.pose.z_m - p.z_m);
+      const double dyaw = wrapAngle(r.pose.yaw_rad - p.yaw_rad);
+      std::printf(",%d,%.5f,%.5f,%.5f,%.5f,%.5f,%.4f,%.4f,%.4f,%d", r.refined ? 1 : 0,
+                  r.loglik_refined, d.norm(), d.x(), d.y(), d.z(), dyaw * 180.0 / M_PI,
+                  (r.roll_rad - roll) * 180.0 / M_PI, (r.pitch_rad - pitch) * 180.0 / M_PI,
+                  r.iterations);
+      if (r.refined) {
+        ++refined;
+        offsets.push_back(d.norm());
+        sum_sq += d.squaredNorm();
+        sum_sq_yaw += dyaw * dyaw;
+        mean_offset += d;
+      }
+    }
+    std::printf("\n");
+  }
+  if (lls.empty()) {
+    std::fprintf(stderr, "gmm_mcl_score: no frame with usable pixels in %d..%d\n", first, last);
+    return 1;
+  }
+  std::fprintf(stderr, "%zu frames: median log-likelihood at the ground truth %.4f nats/px\n",
+               lls.size(), median(lls));
+  if (refine && refined > 0) {
+    mean_offset /= refined;
+    std::fprintf(stderr,
+                 "likelihood maximum vs ground truth over %d refined frames: RMSE %.2f cm, median "
+                 "%.2f cm, yaw RMSE %.3f deg; mean offset (%.2f, %.2f, %.2f) cm\n",
+                 refined, 100.0 * std::sqrt(sum_sq / refined), 100.0 * median(offsets),
+                 std::sqrt(sum_sq_yaw / refined) * 180.0 / M_PI, 100.0 * mean_offset.x(),
+                 100.0 * mean_offset.y(), 100.0 * mean_offset.z());
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   std::string map_path, format = "7scenes", dataset, per_pixel_path;
   int frame_index = 0;
+  int range_first = -1, range_last = -1, range_step = 1;
+  bool refine = false;
+  double attitude_noise_rad = 0.0;
   bool have_pose = false;
   double pose[4] = {0, 0, 0, 0};
   MeasurementParams measurement;
@@ -65,6 +164,10 @@ int main(int argc, char** argv) {
     if (a == "--help" || a == "-h") {
       usage();
       return 0;
+    }
+    if (a == "--refine") {
+      refine = true;
+      continue;
     }
     if (i + 1 >= argc) {
       std::fprintf(stderr, "gmm_mcl_score: %s needs a value\n", a.c_str());
@@ -91,6 +194,24 @@ int main(int argc, char** argv) {
     else if (a == "--frame") {
       number(num);
       frame_index = static_cast<int>(num[0]);
+    } else if (a == "--attitude-noise") {
+      number(num);
+      attitude_noise_rad = num[0] * M_PI / 180.0;
+    } else if (a == "--frames") {
+      const std::string r(v);
+      const size_t c1 = r.find(':'), c2 = r.find(':', c1 == std::string::npos ? c1 : c1 + 1);
+      double a3[3];
+      if (c1 == std::string::npos || c2 == std::string::npos ||
+          !parseNumbers(r.substr(0, c1).c_str(), 1, &a3[0]) ||
+          !parseNumbers(r.substr(c1 + 1, c2 - c1 - 1).c_str(), 1, &a3[1]) ||
+          !parseNumbers(r.substr(c2 + 1).c_str(), 1, &a3[2]) || a3[0] < 0 || a3[1] < a3[0] ||
+          a3[2] < 1) {
+        std::fprintf(stderr, "gmm_mcl_score: --frames: expected FIRST:LAST:STEP (got '%s')\n", v);
+        return 2;
+      }
+      range_first = static_cast<int>(a3[0]);
+      range_last = static_cast<int>(a3[1]);
+      range_step = static_cast<int>(a3[2]);
     } else if (a == "--stride") {
       number(num);
       fp.pixel_stride = static_cast<int>(num[0]);
@@ -133,15 +254,20 @@ int main(int argc, char** argv) {
       const char* env = std::getenv("GMM_MCL_DATASETS");
       dataset = std::string(env && *env ? env : "../shared/datasets") + "/7scenes_redkitchen/data";
     }
-    so.max_frames = frame_index + 1;
+    so.max_frames = (range_first >= 0 ? range_last : frame_index) + 1;
     const std::unique_ptr<Sequence> seq = openSequence(format, dataset, so);
-    if (frame_index < 0 || frame_index >= seq->size()) {
-      throw std::invalid_argument("--frame " + std::to_string(frame_index) + ": the sequence has " +
+    const int last_needed = range_first >= 0 ? range_last : frame_index;
+    if (frame_index < 0 || last_needed >= seq->size()) {
+      throw std::invalid_argument("frame " + std::to_string(last_needed) + ": the sequence has " +
                                   std::to_string(seq->size()) + " frames");
     }
     const GmmMap map =
         rotateMap(loadMap(map_path), seq->R_aligned_world(), map_path + " (gravity-aligned)");
     const Eigen::Isometry3d T_base_cam = opticalToBase();
+    if (range_first >= 0) {
+      return scoreRange(*seq, map, T_base_cam, fp, measurement, range_first, range_last,
+                        range_step, refine, attitude_noise_rad);
+    }
     const Eigen::Isometry3d truth = alignedBaseTrajectory(*seq, frame_index + 1)[frame_index];
     double roll, pitch, yaw;
     rpyFromRotation(truth.linear(), &roll, &pitch, &yaw);
@@ -182,6 +308,20 @@ int main(int argc, char** argv) {
         mapSelfLogDensity(map, measurement.floor_log_density, measurement.depth_noise),
         measurement.depth_noise.a_m, measurement.depth_noise.b_per_m, measurement.depth_noise.z0_m,
         mapSelfLogDensity(map, measurement.floor_log_density));
+    if (refine) {
+      const RefinementResult r =
+          refinePose(map.packed(), frame, p, roll, pitch, T_base_cam, measurement, RefinementParams());
+      const Particle truth_p = poseToParticle(truth);
+      std::printf(
+          "refined: %s, x %.4f y %.4f z %.4f yaw %.5f roll %.5f pitch %.5f, %.4f nats/px "
+          "(from %.4f), %d iterations; %.2f mm and %.3f deg from the ground truth\n",
+          r.refined ? "yes" : r.why.c_str(), r.pose.x_m, r.pose.y_m, r.pose.z_m, r.pose.yaw_rad,
+          r.roll_rad, r.pitch_rad, r.loglik_refined, r.loglik_start, r.iterations,
+          1000.0 * std::sqrt(std::pow(r.pose.x_m - truth_p.x_m, 2) +
+                             std::pow(r.pose.y_m - truth_p.y_m, 2) +
+                             std::pow(r.pose.z_m - truth_p.z_m, 2)),
+          std::abs(wrapAngle(r.pose.yaw_rad - truth_p.yaw_rad)) * 180.0 / M_PI);
+    }
     if (!per_pixel_path.empty()) {
       std::ofstream out(per_pixel_path);
       if (!out) throw std::runtime_error(per_pixel_path + ": cannot open for writing");

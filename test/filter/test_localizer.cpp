@@ -133,6 +133,126 @@ TEST(LocalizerTest, BadFramesKeepTheStateAndSayWhy) {
   EXPECT_NE(r.message.find("exceeds"), std::string::npos);
 }
 
+// Scores like the CPU backend until it fails as a GPU that faults or runs out of memory would,
+// then throws on every call.
+class FailingBackend : public LikelihoodBackend {
+ public:
+  explicit FailingBackend(int good_calls) : good_calls_(good_calls) {}
+  std::string name() const override { return "fake-gpu"; }
+  void setMap(const GmmMap& map) override { cpu_.setMap(map); }
+  void evaluate(const DepthFrame& frame, const std::vector<RigidTransformF>& T_map_cam,
+                const MeasurementParams& params, BackendOutput* out) override {
+    if (calls_++ >= good_calls_) {
+      throw BackendError("fake-gpu: an illegal memory access was encountered (injected)");
+    }
+    cpu_.evaluate(frame, T_map_cam, params, out);
+  }
+  void membership(const DepthFrame& frame, const RigidTransformF& T_map_cam,
+                  const MeasurementParams& params, PatchMembership* out) override {
+    cpu_.membership(frame, T_map_cam, params, out);
+  }
+
+ private:
+  CpuBackend cpu_;
+  int good_calls_;
+  int calls_ = 0;
+};
+
+// Steps a localizer along the synthetic trajectory from frame `first` (odometry = truth).
+StepResult stepSynthetic(Localizer* loc, int f) {
+  const auto& w = test::world();
+  const Intrinsics K = test::smallCamera();
+  const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(f + 1);
+  const DepthImage depth = sim::renderDepth(w.scene, K, truth[f] * w.T_base_cam,
+                                            DepthEncoding::kMono16Millimetres, 9.0);
+  double roll, pitch, yaw;
+  rpyFromRotation(truth[f].linear(), &roll, &pitch, &yaw);
+  StepInput in;
+  in.stamp_s = f / 30.0;
+  in.has_odometry = true;
+  in.T_odom_base = truth[f];
+  in.has_attitude = true;
+  in.roll_rad = roll;
+  in.pitch_rad = pitch;
+  in.depth = &depth;
+  in.intrinsics = K;
+  return loc->step(in);
+}
+
+double syntheticError(const StepResult& r, int f) {
+  const Particle gt = poseToParticle(sim::makeTrajectory(f + 1)[f]);
+  const Particle& e = r.estimate.mean;
+  return std::sqrt(std::pow(e.x_m - gt.x_m, 2) + std::pow(e.y_m - gt.y_m, 2) +
+                   std::pow(e.z_m - gt.z_m, 2));
+}
+
+TEST(LocalizerTest, BackendFailureFallsBackToTheCpuBackendKeepingTheParticles) {
+  const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(1);
+  LocalizerParams params = syntheticParams(truth[0]);
+  params.filter.num_particles = 200;
+  params.frame.pixel_stride = 8;
+  constexpr int kGoodFrames = 3;
+  Localizer loc(params, test::world().map,
+                std::unique_ptr<LikelihoodBackend>(new FailingBackend(kGoodFrames)));
+  loc.resetToPose(poseToParticle(truth[0]), Eigen::Vector4d(0.05, 0.05, 0.05, 0.05));
+  int f = 0;
+  for (; f < kGoodFrames; ++f) {
+    const StepResult r = stepSynthetic(&loc, f);
+    ASSERT_EQ(r.status, StepStatus::kOk) << r.message;
+    EXPECT_FALSE(r.backend_fallback);
+  }
+  EXPECT_EQ(loc.backend().name(), "fake-gpu");
+  EXPECT_TRUE(loc.backendWarning().empty());
+  const std::vector<double> weights_before = loc.filter().weights();
+
+  const StepResult failed = stepSynthetic(&loc, f++);
+  EXPECT_EQ(failed.status, StepStatus::kBackendError);
+  EXPECT_TRUE(failed.backend_fallback);
+  EXPECT_NE(failed.message.find("illegal memory access"), std::string::npos) << failed.message;
+  EXPECT_NE(failed.message.find("fell back to the CPU backend"), std::string::npos)
+      << failed.message;
+  EXPECT_EQ(loc.backend().name(), "cpu");
+  EXPECT_NE(loc.backendWarning().find("fake-gpu backend failed"), std::string::npos)
+      << loc.backendWarning();
+  EXPECT_NE(loc.backendFault().find("injected"), std::string::npos);
+  // The belief is kept: the weights of before the failed frame, the converged spread (a
+  // re-initialisation would spread the particles over the 4 m cube: sigma 1.15 m).
+  EXPECT_EQ(loc.filter().weights(), weights_before);
+  EXPECT_TRUE(failed.estimate.covariance.allFinite());
+  EXPECT_LT(std::sqrt(failed.estimate.covariance(0, 0)), 0.1);
+  EXPECT_LT(syntheticError(failed, f - 1), 0.1);
+
+  // Every later frame runs on the CPU backend and keeps tracking.
+  StepResult r;
+  for (int k = 0; k < 8; ++k, ++f) {
+    r = stepSynthetic(&loc, f);
+    ASSERT_EQ(r.status, StepStatus::kOk) << r.message;
+    EXPECT_FALSE(r.backend_fallback);
+  }
+  const double error = syntheticError(r, f - 1);
+  std::printf("[ measured ] error %.3f m eight frames after the fallback\n", error);
+  EXPECT_LT(error, 0.1);  // still tracking (200 particles, stride 8)
+}
+
+TEST(LocalizerTest, BackendFailureWithoutFallbackFailsEveryFrame) {
+  const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(1);
+  LocalizerParams params = syntheticParams(truth[0]);
+  params.filter.num_particles = 100;
+  params.frame.pixel_stride = 8;
+  params.cpu_fallback = false;
+  Localizer loc(params, test::world().map,
+                std::unique_ptr<LikelihoodBackend>(new FailingBackend(1)));
+  loc.resetToPose(poseToParticle(truth[0]), Eigen::Vector4d(0.05, 0.05, 0.05, 0.05));
+  EXPECT_EQ(stepSynthetic(&loc, 0).status, StepStatus::kOk);
+  for (int f = 1; f < 3; ++f) {
+    const StepResult r = stepSynthetic(&loc, f);
+    EXPECT_EQ(r.status, StepStatus::kBackendError);
+    EXPECT_FALSE(r.backend_fallback);
+    EXPECT_NE(r.message.find("injected"), std::string::npos) << r.message;
+  }
+  EXPECT_EQ(loc.backend().name(), "fake-gpu");
+}
+
 TEST(LocalizerTest, InvalidParametersAreRejectedAtConstruction) {
   LocalizerParams p;
   p.filter.num_particles = -3;
@@ -267,6 +387,9 @@ TEST(LocalizerTest, SetParamsKeepsTheBelief) {
   EXPECT_THROW(loc.setParams(bad), std::invalid_argument);
   bad = q;
   bad.filter.seed = 99;
+  EXPECT_THROW(loc.setParams(bad), std::invalid_argument);
+  bad = q;
+  bad.device_filter = !q.device_filter;  // where the set lives is fixed at construction
   EXPECT_THROW(loc.setParams(bad), std::invalid_argument);
 }
 

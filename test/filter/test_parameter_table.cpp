@@ -114,7 +114,7 @@ TEST(ParameterTableTest, RuntimeParametersAreAcceptedBySetParams) {
     if (p.runtime) {
       EXPECT_NO_THROW(loc.setParams(q)) << p.name;
       EXPECT_EQ(p.get(loc.params()), p.get(q)) << p.name;
-    } else if (p.name == "backend" || p.name == "seed") {
+    } else if (p.name == "backend" || p.name == "seed" || p.name == "device_filter") {
       EXPECT_THROW(loc.setParams(q), std::invalid_argument) << p.name;
     }
   }

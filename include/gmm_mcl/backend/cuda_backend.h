@@ -10,6 +10,7 @@
 #include <string>
 
 #include "gmm_mcl/backend/likelihood_backend_base.h"
+#include "gmm_mcl/camera/depth_image.h"
 
 namespace gmm_mcl {
 
@@ -23,6 +24,7 @@ struct CudaDeviceInfo {
   double clock_ghz = 0.0;         // peak SM clock
   double fp32_peak_gflops = 0.0;  // 2 (FMA) x lanes x SMs x clock
   size_t shared_per_block_bytes = 0;
+  size_t total_memory_bytes = 0;
 };
 
 // Floating-point operations the likelihood kernel executes per Gaussian evaluation, counted
@@ -48,6 +50,8 @@ class CudaBackend : public LikelihoodBackend {
                 const MeasurementParams& params, BackendOutput* out) override;
   void membership(const DepthFrame& frame, const RigidTransformF& T_map_cam,
                   const MeasurementParams& params, PatchMembership* out) override;
+  // The pose refinement's pixel sums on this backend's device and stream.
+  NormalEquationsEvaluator* normalEquations() override;
 
   // evaluate() with the frame prepared on the GPU from the raw image: uploads the image (not
   // the points) and builds prepareFrame's points, in its order and with its arithmetic.
@@ -55,6 +59,32 @@ class CudaBackend : public LikelihoodBackend {
   void evaluateImage(const DepthImage& image, const Intrinsics& K, const FrameParams& frame_params,
                      const std::vector<RigidTransformF>& T_map_cam, const MeasurementParams& params,
                      BackendOutput* out);
+
+  // The frame kept on the device for evaluateDevicePoses() (the device particle filter): the
+  // raw image uploaded (only the rows on the stride grid) and prepared on the GPU as
+  // evaluateImage() does, or a host frame's points uploaded. Synchronises once, for the pixel
+  // count. Throws std::invalid_argument for what prepareFrame rejects.
+  struct DeviceFrameInfo {
+    int pixels = 0;
+    long long patches_with_pixels = 0;
+  };
+  DeviceFrameInfo prepareDeviceFrame(const DepthImage& image, const Intrinsics& K,
+                                     const FrameParams& frame_params);
+  DeviceFrameInfo uploadDeviceFrame(const DepthFrame& frame);
+  bool hasDeviceFrame() const;
+  // Per-particle log-likelihoods of n camera poses already on the device (T_map_cam and its
+  // inverse, [n] each) on the device frame, written to device arrays [n]. Queued on the
+  // backend's stream; nothing is synchronised. After the stream has been synchronised,
+  // deviceStageMs() gives the stage times of the last call (events).
+  void evaluateDevicePoses(int n, const RigidTransformF* T_map_cam,
+                           const RigidTransformF* T_cam_map, const MeasurementParams& params,
+                           double* log_likelihood, int* floor_hits, long long* evaluations,
+                           long long* relevant_pairs);
+  void deviceStageMs(double* projection_membership_ms, double* likelihood_ms) const;
+  // The device this backend (and everything using its stream) runs on, and its stream (a
+  // cudaStream_t), for work that must be ordered with its evaluations (the device filter).
+  int deviceOrdinal() const;
+  void* streamHandle() const;
 
   const CudaDeviceInfo& deviceInfo() const;
   // Of the last evaluate()/evaluateImage(): upload + download time (ms, events), GPU frame

@@ -12,6 +12,7 @@
 #include "gmm_mcl/map/gmm_map.h"
 #include "gmm_mcl/measurement/measurement_params.h"
 #include "gmm_mcl/measurement/membership.h"
+#include "gmm_mcl/measurement/normal_equations.h"
 
 namespace gmm_mcl {
 
@@ -43,6 +44,9 @@ class LikelihoodBackend {
   // Membership table of one pose (debug image, parity tests).
   virtual void membership(const DepthFrame& frame, const RigidTransformF& T_map_cam,
                           const MeasurementParams& params, PatchMembership* out) = 0;
+  // Where the pose refinement's pixel sums run with this backend (owned by it); nullptr: on the
+  // host (HostNormalEquations).
+  virtual NormalEquationsEvaluator* normalEquations() { return nullptr; }
 };
 
 // "cpu" or "cuda". When CUDA is asked for but not built or no device is usable, returns the CPU

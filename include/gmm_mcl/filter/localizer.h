@@ -9,6 +9,7 @@
 #include "gmm_mcl/camera/depth_image.h"
 #include "gmm_mcl/filter/lost_detector.h"
 #include "gmm_mcl/filter/particle_filter.h"
+#include "gmm_mcl/filter/particle_filter_base.h"
 
 namespace gmm_mcl {
 
@@ -18,7 +19,8 @@ enum class StepStatus {
   kNoValidPixels,      // frame had no usable pixel: predicted only, weights kept
   kBadFrame,           // frame could not be used (size mismatch, layout): predicted only
   kDegenerateWeights,  // every likelihood non-finite or every weight zero: weights kept
-  kBackendError,       // the backend failed: weights kept
+  kBackendError,       // the backend failed (message names the fault): weights kept; with
+                       // LocalizerParams::cpu_fallback the CPU backend takes over from here
   kTimeJumpBack,       // stamp went backwards: filter re-initialised from the initial region
 };
 const char* stepStatusName(StepStatus status);
@@ -47,6 +49,9 @@ struct StepResult {
   StepStatus status = StepStatus::kOk;
   std::string message;        // why, for any status but kOk
   bool odometry_jump = false;  // an odometry step over max_odometry_step_m was ignored
+  // The backend failed on this frame and the localizer switched to the CPU backend (the
+  // particles kept); Localizer::backendWarning() says why from now on.
+  bool backend_fallback = false;
   bool resampled = false;
   int reinitialised = 0;      // augmented-MCL reinitialised particles
   bool lost = false;          // the LostDetector fired on this frame (see message)
@@ -95,11 +100,19 @@ class Localizer {
   // The map's bounding box (means, padded by 3 sigma) with the full yaw range.
   InitRegion mapBounds() const;
 
-  const ParticleFilter& filter() const { return filter_; }
+  // The particle set (with the device filter, particles() and weights() copy it down from the
+  // GPU when called).
+  const ParticleFilterBase& filter() const { return *filter_; }
   const GmmMap& map() const { return map_; }
   const LocalizerParams& params() const { return params_; }
   LikelihoodBackend& backend() { return *backend_; }
+  // Why the backend or the particle filter is not the one asked for (no device, a fallback after
+  // a failure); empty when it is.
   const std::string& backendWarning() const { return backend_warning_; }
+  // The last backend failure at run time (empty when none).
+  const std::string& backendFault() const { return backend_fault_; }
+  // Where the particle set lives: "host" or "cuda".
+  std::string filterName() const { return filter_->name(); }
   Eigen::Isometry3d meanPose() const;
   double rollRad() const { return roll_rad_; }
   // The map's own expected per-point log-density (the LostDetector's starting reference).
@@ -107,13 +120,15 @@ class Localizer {
   double pitchRad() const { return pitch_rad_; }
 
  private:
-  // The `count` best-scoring of count * lost.candidates_per_particle draws scored on `frame` in
-  // batches of the particle count: uniform from the recovery region, and with local_stage a
-  // fraction (lost.local_candidate_fraction) around the best uniform ones instead.
-  std::vector<Particle> screenCandidates(const DepthFrame& frame, int count,
-                                         bool local_stage = false);
-  void evaluateParticles(const DepthFrame& frame, const std::vector<Particle>& particles,
-                         BackendOutput* out);
+  // Fills the filter's candidate pool with count * lost.candidates_per_particle draws scored on
+  // the frame in batches of the particle count: uniform from the recovery region, and with
+  // local_stage a fraction (lost.local_candidate_fraction) around the best uniform ones instead.
+  void screenCandidates(const MeasurementContext& context, int count, bool local_stage = false);
+  void stepOnce(const StepInput& input, StepResult* res);
+  // The host frame of this step (prepared here when the filter prepared it on the device).
+  const DepthFrame& hostFrame(const StepInput& input);
+  // A backend failure: the status, and with cpu_fallback the switch to the CPU backend.
+  void backendFailed(const std::string& what, StepResult* res);
   // What the map and the measurement parameters determine: the backend's map, the blurred map
   // of lost redraws and the map's expected per-point log-density (the lost detector's start).
   void prepareMap();
@@ -123,22 +138,22 @@ class Localizer {
   GmmMap blurred_map_;  // map_ with lost.redraw_blur_m^2 on every covariance (redraws)
   std::unique_ptr<LikelihoodBackend> backend_;
   std::string backend_warning_;
-  ParticleFilter filter_;
+  std::string backend_fault_;
+  std::unique_ptr<ParticleFilterBase> filter_;
   InitRegion region_;
   double map_self_ll_ = 0.0;
   LostDetector lost_;
-  std::vector<double> ll_scratch_;
   bool screen_pending_ = true;  // after a uniform (re)initialisation: screen the next frame
-  std::vector<Particle> candidates_;
-  BackendOutput candidate_output_;
+  DepthFrame host_frame_;
+  bool host_frame_ready_ = false;
+  bool have_estimate_ = false;  // last_estimate_: the last step's (a fallback's belief)
+  PoseEstimate last_estimate_;
   bool have_odometry_ = false;
   Eigen::Isometry3d last_odom_ = Eigen::Isometry3d::Identity();
   bool have_stamp_ = false;
   double last_stamp_s_ = 0.0;
   double roll_rad_ = 0.0;
   double pitch_rad_ = 0.0;
-  std::vector<RigidTransformF> poses_;
-  BackendOutput output_;
   bool have_refined_ = false;  // last_refined_: the last frame's refined pose, moved by odometry
   Particle last_refined_;
 };

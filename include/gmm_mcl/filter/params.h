@@ -134,6 +134,13 @@ struct LocalizerParams {
   // An odometry step longer than this (per update) is treated as a jump: not applied, reported.
   double max_odometry_step_m = 1.0;
   std::string backend = "cpu";
+  // With the CUDA backend the particle set lives on the GPU and the whole filter step runs
+  // there (CudaParticleFilter); false keeps it on the host (ParticleFilter, the reference), the
+  // backend scoring uploaded poses. No effect with the CPU backend.
+  bool device_filter = true;
+  // When the backend fails at run time (a CUDA error, the GPU out of memory), switch to the CPU
+  // backend keeping the particles (copied down from the GPU) instead of failing every frame.
+  bool cpu_fallback = true;
 
   std::string validate() const;
 };

@@ -16,6 +16,7 @@
 #include "gmm_mcl/camera/depth_frame.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/measurement/measurement_params.h"
+#include "gmm_mcl/measurement/normal_equations.h"
 
 namespace gmm_mcl {
 
@@ -52,11 +53,41 @@ struct RefinementResult {
   double ms = 0.0;
 };
 
+// The frame a refinement maximises over: its intrinsics, patch grid and pixel count, with the
+// points on the host (`points`) or, with points == nullptr, on the evaluator's device
+// (NormalEquationsEvaluator::setPointsFromBackendFrame: the backend's current frame).
+struct RefinementFrame {
+  Intrinsics intrinsics;
+  PatchGrid grid;
+  int pixels = 0;
+  const DepthFrame* points = nullptr;
+
+  static RefinementFrame of(const DepthFrame& frame) {
+    RefinementFrame f;
+    f.intrinsics = frame.intrinsics;
+    f.grid = frame.grid;
+    f.pixels = static_cast<int>(frame.size());
+    f.points = &frame;
+    return f;
+  }
+};
+
 // Maximises the frame's log-likelihood around `start` (a base pose; roll and pitch shared as in
-// the filter). `components`: the map's packed components.
-RefinementResult refinePose(const std::vector<ComponentF>& components, const DepthFrame& frame,
+// the filter). `components`: the map's packed components. `sums`: where the pixel sums run (a
+// backend's evaluator, LikelihoodBackend::normalEquations()); nullptr: on the host.
+RefinementResult refinePose(const std::vector<ComponentF>& components, const RefinementFrame& frame,
                             const Particle& start, double roll_rad, double pitch_rad,
                             const Eigen::Isometry3d& T_base_cam, const MeasurementParams& params,
-                            const RefinementParams& refinement);
+                            const RefinementParams& refinement,
+                            NormalEquationsEvaluator* sums = nullptr);
+inline RefinementResult refinePose(const std::vector<ComponentF>& components,
+                                   const DepthFrame& frame, const Particle& start, double roll_rad,
+                                   double pitch_rad, const Eigen::Isometry3d& T_base_cam,
+                                   const MeasurementParams& params,
+                                   const RefinementParams& refinement,
+                                   NormalEquationsEvaluator* sums = nullptr) {
+  return refinePose(components, RefinementFrame::of(frame), start, roll_rad, pitch_rad,
+                    T_base_cam, params, refinement, sums);
+}
 
 }  // namespace gmm_mcl

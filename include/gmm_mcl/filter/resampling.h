@@ -14,6 +14,12 @@ namespace gmm_mcl {
 // than `groups` + 1 away from it. `weights` must be normalised. Fills `indices` (size n_out).
 void stratifiedLowVarianceResample(const std::vector<double>& weights, int groups, int n_out,
                                    std::mt19937_64* rng, std::vector<int>* indices);
+// The same with the random order and the groups' offsets given: order is a permutation of the
+// particles, offsets[g] in [0, 1) for each of max(1, min(groups, n_out)) groups. The arithmetic
+// that the device filter reproduces (and is tested against).
+void stratifiedLowVarianceIndices(const std::vector<double>& weights, const std::vector<int>& order,
+                                  const std::vector<double>& offsets, int n_out,
+                                  std::vector<int>* indices);
 
 // Augmented MCL (Thrun et al., Probabilistic Robotics, Table 8.3) on the average per-pixel
 // likelihood of a frame. Reinitialisation fraction: max(0, 1 - w_fast / (threshold * w_slow)),

@@ -1,5 +1,6 @@
 // Kidnapped-robot trials: the filter tracks a sequence from its true start, then the sensor is
-// teleported to another part of the sequence while odometry keeps reporting the old motion;
+// teleported to another part of the sequence while odometry misses the jump (it reports the old
+// motion across it, then the new motion with the body's true tilt, as a gravity-aware odometry);
 // the trial measures whether and when the estimate comes back (DESIGN.md's convergence rule:
 // error below 10 cm for 30 frames). Sources: the built-in synthetic scene and 7-Scenes.
 #pragma once
@@ -65,6 +66,19 @@ struct KidnapParams {
   double max_recovery_s = 5.0;
 };
 
+// One frame of a trial, for the per-frame CSV (gmm_mcl_kidnap --out).
+struct KidnapFrame {
+  int source_frame = 0;
+  double error_m = 0.0;             // particle mean vs truth
+  double refined_error_m = -1.0;    // refined pose vs truth; -1: not refined
+  double best_loglik_px = 0.0;
+  double reference_px = 0.0;
+  int particles = 0;
+  int lost_redrawn = 0;
+  double position_sigma_m = 0.0;    // largest standard deviation of x, y, z
+  double neff = 0.0;
+};
+
 struct KidnapResult {
   uint64_t seed = 0;
   int start_frame = 0, from_frame = 0, to_frame = 0;  // source indices
@@ -82,6 +96,7 @@ struct KidnapResult {
   // reference (a settled wrong mode shows as a best score within the margin of the reference).
   double final_best_loglik_px = 0.0;
   double final_reference_px = 0.0;
+  std::vector<KidnapFrame> frames;  // every frame of the trial, the kidnap at track_frames
 };
 
 // Picks, for `seed`, a start frame, the kidnap frame (start + track_frames) and a destination

@@ -1,0 +1,37 @@
+#include <stdexcept>
+
+#include "gmm_mcl/filter/particle_filter.h"
+
+namespace gmm_mcl {
+
+#if defined(GMM_MCL_HAVE_CUDA)
+// Defined in cuda/: the device filter on the CUDA backend's device and stream; nullptr when the
+// backend is not the CUDA backend. Throws BackendError when the device cannot hold the set.
+std::unique_ptr<ParticleFilterBase> makeCudaParticleFilter(const ParticleFilterParams& params,
+                                                           LikelihoodBackend* backend);
+#endif
+
+std::unique_ptr<ParticleFilterBase> makeParticleFilter(const ParticleFilterParams& params,
+                                                       LikelihoodBackend* backend, bool device,
+                                                       std::string* warning) {
+  if (warning) warning->clear();
+#if defined(GMM_MCL_HAVE_CUDA)
+  if (device && backend != nullptr) {
+    try {
+      std::unique_ptr<ParticleFilterBase> f = makeCudaParticleFilter(params, backend);
+      if (f) return f;
+    } catch (const BackendError& e) {
+      if (warning) {
+        *warning = std::string("device particle filter unavailable (") + e.what() +
+                   "); the particle set stays on the host";
+      }
+    }
+  }
+#else
+  (void)backend;
+  (void)device;
+#endif
+  return std::unique_ptr<ParticleFilterBase>(new ParticleFilter(params));
+}
+
+}  // namespace gmm_mcl
