@@ -5,12 +5,16 @@
 - `roslaunch --dump-params localization.launch config:=config/tx2.yaml` shows the config's
   values (the backend, image_transport and depth_input arguments override them only when given);
 - replay.launch and cow_and_lady.launch with rviz:=true do not end with the bag (rviz stays);
-  without rviz the bag player ends the launch.
+  without rviz the bag player ends the launch;
+- package.xml: nothing of the ground station (rviz, matplotlib) on the drone, message_generation
+  a build dependency, every ROS package the sources include declared.
 Run in the package's environment (catkin's env_cached.sh): test_launch_files.py SOURCE_DIR."""
 import os
+import re
 import subprocess
 import sys
 import unittest
+import xml.etree.ElementTree as ElementTree
 
 import roslaunch.config
 import roslaunch.xmlloader
@@ -71,6 +75,53 @@ class LaunchFiles(unittest.TestCase):
             nodes = [n.type for n in load(launch, ["bag:=/x.bag", "map:=/x.gmm"]).nodes]
             self.assertIn("restore_wall_time.py", nodes, launch)
 
+
+class PackageXml(unittest.TestCase):
+    def setUp(self):
+        root = ElementTree.parse(os.path.join(SOURCE, "package.xml")).getroot()
+        self.deps = {}
+        for element in root:
+            self.deps.setdefault(element.tag, set()).add((element.text or "").strip())
+        self.runtime = self.deps.get("depend", set()) | self.deps.get("exec_depend", set())
+        self.build = self.deps.get("depend", set()) | self.deps.get("build_depend", set())
+
+    def test_no_ground_station_packages_on_the_drone(self):
+        for name in ("rviz", "python3-matplotlib", "rqt_reconfigure"):
+            self.assertNotIn(name, self.runtime, name + " is the ground station's")
+
+    def test_message_generation_is_a_build_dependency(self):
+        self.assertIn("message_generation", self.deps.get("build_depend", set()))
+        self.assertNotIn("message_generation", self.deps.get("exec_depend", set()))
+        self.assertIn("message_runtime", self.runtime)
+
+    def test_every_included_ros_package_is_declared(self):
+        # The ROS packages whose headers the ROS sources include (rosdep installs from this list).
+        known = {"ros": "roscpp", "nodelet": "nodelet", "pluginlib": "pluginlib", "sensor_msgs": "sensor_msgs",
+                 "geometry_msgs": "geometry_msgs", "nav_msgs": "nav_msgs", "std_msgs": "std_msgs",
+                 "std_srvs": "std_srvs", "diagnostic_msgs": "diagnostic_msgs",
+                 "diagnostic_updater": "diagnostic_updater", "visualization_msgs": "visualization_msgs",
+                 "tf2": "tf2", "tf2_ros": "tf2_ros", "tf2_eigen": "tf2_eigen",
+                 "tf2_geometry_msgs": "tf2_geometry_msgs", "image_transport": "image_transport",
+                 "message_filters": "message_filters", "dynamic_reconfigure": "dynamic_reconfigure",
+                 "rosbag": "rosbag", "image_geometry": "image_geometry", "cv_bridge": "cv_bridge",
+                 "tf2_msgs": "tf2_msgs", "rosgraph_msgs": "rosgraph_msgs", "topic_tools": "topic_tools"}
+        used = {}  # package -> where it is included
+        for folder in ("src/ros", "include/gmm_mcl/ros", "test/ros"):
+            for dirpath, _, files in os.walk(os.path.join(SOURCE, folder)):
+                for name in files:
+                    if name.endswith((".cpp", ".h")):
+                        with open(os.path.join(dirpath, name)) as f:
+                            for match in re.finditer(r'#include [<"]([a-z0-9_]+)/', f.read()):
+                                if match.group(1) in known:
+                                    used.setdefault(known[match.group(1)], set()).add(folder)
+        self.assertIn("tf2_eigen", used, "tf2_eigen is declared: the conversions should use it")
+        self.assertIn("message_filters", used)
+        tests = self.deps.get("test_depend", set())
+        for package, folders in sorted(used.items()):
+            if folders == {"test/ros"}:
+                self.assertIn(package, self.build | tests, package + " is included by a test but not declared")
+            else:
+                self.assertIn(package, self.build & self.runtime, package + " is included but not a build and run dependency")
 
 if __name__ == "__main__":
     unittest.main(argv=sys.argv[:1], verbosity=2)
