@@ -59,6 +59,10 @@ void fillStatus(const StepResult& r, const FrameCounters& c, const std::string& 
   s->resets = static_cast<int32_t>(c.resets);
   s->resampled = r.resampled;
   s->odometry_jump = r.odometry_jump;
+  s->backend_fallback = r.backend_fallback;
+  s->refined = r.refinement.refined;
+  s->refine_why = r.refinement.why;
+  s->refined_loglik_per_pixel = r.refinement.refined ? r.refinement.loglik_refined : 0.0;
   s->predict_ms = r.timings.predict_ms;
   s->frame_prep_ms = r.timings.frame_prep_ms;
   s->projection_membership_ms = r.timings.projection_membership_ms;
@@ -66,6 +70,7 @@ void fillStatus(const StepResult& r, const FrameCounters& c, const std::string& 
   s->weights_ms = r.timings.weights_ms;
   s->resample_ms = r.timings.resample_ms;
   s->estimate_ms = r.timings.estimate_ms;
+  s->refine_ms = r.timings.refine_ms;
   s->total_ms = r.timings.total_ms;
   s->callback_ms = callback_ms;
   s->frames_received = c.received;
@@ -99,6 +104,8 @@ void recordFrame(const StepResult& r, bool gated, bool sent_tf, double now_s,
   }
   fillStatus(r, c, backend, backend_warning, callback_ms, warnings, status);
   if (gated) status->step_status = "no_motion";
+  h->backend = backend;  // the backend can change at run time (a CPU fallback)
+  h->backend_warning = backend_warning;
   h->last_used_s = now_s;
   h->have_step = true;
   h->last_step = r.status;

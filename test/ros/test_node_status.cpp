@@ -154,6 +154,28 @@ TEST(NodeStatusTest, BackendWarningAndErrorShown) {
   EXPECT_NE(d.message.find("out of memory"), std::string::npos) << d.message;
 }
 
+// The CUDA backend fails at run time and the core falls back to the CPU: ~status marks the
+// frame, and /diagnostics shows the backend now running and why from then on.
+TEST(NodeStatusTest, RunTimeFallbackShown) {
+  NodeHealth h = tracking(10.0);
+  h.backend = "cuda";
+  StepResult failed = converged();
+  failed.status = StepStatus::kBackendError;
+  failed.backend_fallback = true;
+  failed.message = "likelihood backend: an illegal memory access; fell back to the CPU backend";
+  const std::string why = "the cuda backend failed (an illegal memory access): fell back to the CPU backend, particles kept";
+  FilterStatus s;
+  recordFrame(failed, false, true, 10.0, LostDetectionParams(), "cpu", why, 1.0, "", &h, &s);
+  EXPECT_TRUE(s.backend_fallback);
+  EXPECT_EQ(s.backend, "cpu");
+  recordFrame(converged(), false, true, 10.1, LostDetectionParams(), "cpu", why, 1.0, "", &h, &s);
+  EXPECT_FALSE(s.backend_fallback);
+  const Diagnosis d = diagnose(h);
+  EXPECT_EQ(d.level, S::WARN) << d.message;
+  EXPECT_NE(d.message.find("fell back to the CPU backend"), std::string::npos) << d.message;
+  EXPECT_EQ(value(d, "backend"), "cpu");
+}
+
 TEST(NodeStatusTest, BadConfigurationIsAnError) {
   NodeHealth h;
   h.config_error = "~num_particles must be in [1, 1e+07] (got -5)";
