@@ -13,10 +13,14 @@ set -euo pipefail
 BUILD="$1"
 MAP="$2"
 TMP="$(mktemp -d)"
-PREFIX="$TMP/install"
+# Installed under DESTDIR into the prefix the build was configured with: catkin writes its
+# setup files to the configured CMAKE_INSTALL_PREFIX whatever `cmake --install --prefix` says
+# (they would land in /usr/local), and setup.bash finds its own folder when sourced.
+CONFIGURED_PREFIX="$(sed -n 's/^CMAKE_INSTALL_PREFIX:PATH=//p' "$BUILD/CMakeCache.txt")"
+PREFIX="$TMP/root${CONFIGURED_PREFIX:-/usr/local}"
 PIDS=()
 cleanup() {
-  for pid in "${PIDS[@]}"; do kill -INT "$pid" 2> /dev/null || true; done
+  for pid in "${PIDS[@]}"; do kill -TERM "$pid" 2> /dev/null || true; done
   for pid in "${PIDS[@]}"; do wait "$pid" 2> /dev/null || true; done
   rm -rf "$TMP"
 }
@@ -27,7 +31,10 @@ fail() {
   exit 1
 }
 
-cmake --install "$BUILD" --prefix "$PREFIX" > "$TMP/install.log" 2>&1 || fail "cmake --install"
+DESTDIR="$TMP/root" cmake --install "$BUILD" > "$TMP/install.log" 2>&1 || fail "cmake --install"
+if grep -v "^-- .*$TMP/root/" "$TMP/install.log" | grep -q "^-- \(Installing\|Up-to-date\)"; then
+  fail "files installed outside the install space: $(grep -v "$TMP/root/" "$TMP/install.log" | head -3)"
+fi
 echo "installed into $PREFIX: $(find "$PREFIX" -type f | wc -l) files"
 
 PORT=$(python3 -c 'import socket; s = socket.socket(); s.bind(("", 0)); print(s.getsockname()[1])')
@@ -36,6 +43,14 @@ run() {
   env -i HOME="$TMP" PATH=/usr/bin:/bin ROS_MASTER_URI="http://localhost:$PORT" \
     ROS_HOME="$TMP/ros_home" PREFIX="$PREFIX" MAP="$MAP" TMP="$TMP" \
     bash -c "set +u; source '$PREFIX/setup.bash'; set -u; $1"
+}
+# A long-running command in the background, its PID the command's own (so that TERM reaches
+# it), its output unbuffered into LOG (the nodelet's start-up line is checked there).
+start() {
+  env -i HOME="$TMP" PATH=/usr/bin:/bin ROS_MASTER_URI="http://localhost:$PORT" \
+    ROS_HOME="$TMP/ros_home" PREFIX="$PREFIX" MAP="$MAP" TMP="$TMP" PYTHONUNBUFFERED=1 \
+    bash -c "set +u; source '$PREFIX/setup.bash'; set -u; exec stdbuf -oL -eL $2" > "$1" 2>&1 &
+  PIDS+=($!)
 }
 
 # The environment points at the install space only.
@@ -49,15 +64,13 @@ for tool in gmm_fit gmm_inspect gmm_mcl_replay gmm_mcl_bench make_sim_bag gmm_mc
 done
 echo "tools: gmm_fit gmm_inspect gmm_mcl_replay gmm_mcl_bench make_sim_bag gmm_mcl_params run"
 
-run 'roscore -p "${ROS_MASTER_URI##*:}"' > "$TMP/roscore.log" 2>&1 &
-PIDS+=($!)
+start "$TMP/roscore.log" 'roscore -p "${ROS_MASTER_URI##*:}"'
 for _ in $(seq 1 120); do run 'rosparam get /run_id' > /dev/null 2>&1 && break; sleep 0.5; done
 run 'rosparam get /run_id' > /dev/null 2>&1 || fail "roscore did not start"
 
 # The nodelet from the install space, in its manager.
-run 'roslaunch gmm_mcl localization.launch map:="$MAP"' > "$TMP/localization.log" 2>&1 &
-LAUNCH=$!
-PIDS+=($LAUNCH)
+start "$TMP/localization.log" 'roslaunch gmm_mcl localization.launch map:="$MAP"'
+LAUNCH=${PIDS[-1]}
 run 'timeout 120 rosservice call --wait /gmm_mcl/global_localization' > "$TMP/service.log" 2>&1 ||
   fail "rosservice call /gmm_mcl/global_localization (std_srvs from Python, the nodelet loaded)"
 run 'rostopic type /gmm_mcl/status' | grep -q '^gmm_mcl/FilterStatus$' || fail "rostopic type /gmm_mcl/status"
@@ -65,7 +78,7 @@ run 'rosmsg show gmm_mcl/FilterStatus' | grep -q 'frames_received' || fail "rosm
 run 'rosservice type /gmm_mcl/reload_map' | grep -q '^gmm_mcl/LoadMap$' || fail "rosservice type /gmm_mcl/reload_map"
 grep -q "gmm_mcl: .* components from" "$TMP/localization.log" || fail "the nodelet did not start"
 echo "localization.launch: the nodelet loaded from $PREFIX/lib and answered ~global_localization"
-kill -INT "$LAUNCH"
+kill -TERM "$LAUNCH"
 wait "$LAUNCH" || true
 
 # replay.launch with a bag from the installed make_sim_bag; /use_sim_time is gone afterwards.
