@@ -78,6 +78,7 @@ void LocalizationNodelet::advertise() {
   inputs_->setOptions(opts_);
   it_.reset(new image_transport::ImageTransport(pnh));
   pose_pub_ = pnh.advertise<geometry_msgs::PoseWithCovarianceStamped>("pose", 10);
+  refined_pose_pub_ = pnh.advertise<geometry_msgs::PoseWithCovarianceStamped>("refined_pose", 10);
   particles_pub_ = pnh.advertise<geometry_msgs::PoseArray>("particles", 2);
   status_pub_ = pnh.advertise<FilterStatus>("status", 10);
   markers_.advertise(pnh, "gmm_markers");
@@ -119,8 +120,6 @@ void LocalizationNodelet::advertise() {
   reset_srv_ = pnh.advertiseService("reset_to_pose", &LocalizationNodelet::onResetToPose, this);
   map_srv_ = pnh.advertiseService("reload_map", &LocalizationNodelet::onLoadMap, this);
 }
-
-// ---- depth frames ---------------------------------------------------------------------------
 
 void LocalizationNodelet::onDrop(FrameDrop reason, const std::string& why) {
   health_.dropped(reason);
@@ -200,6 +199,11 @@ void LocalizationNodelet::publish(const std_msgs::Header& header, const StepResu
                                   const std::string& warnings, bool gated) {
   pose_pub_.publish(ros_conv::poseWithCovarianceStamped(T_map_base, r.estimate.covariance,
                                                         opts_.map_frame, header.stamp));
+  const RefinementResult& rf = r.refinement;  // with the particles' covariance
+  if (!gated && rf.refined)
+    refined_pose_pub_.publish(
+        ros_conv::poseWithCovarianceStamped(particleToPose(rf.pose, rf.roll_rad, rf.pitch_rad),
+                                            r.estimate.covariance, opts_.map_frame, header.stamp));
   // map -> odom, future-dated by transform_tolerance from the frame stamp (never now()), monotonic.
   const ros::Time tf_stamp = header.stamp + ros::Duration(opts_.transform_tolerance_s);
   const bool send_tf = opts_.tf_broadcast && have_map_odom_ &&
@@ -272,7 +276,7 @@ bool LocalizationNodelet::resetTo(const PoseResetRequest& r, const std::string& 
 
 void LocalizationNodelet::onInitialPose(
     const geometry_msgs::PoseWithCovarianceStampedConstPtr& msg) {
-  std::string message;
+  std::string message;  // logged by applyPose
   applyPose(*msg, &message);
 }
 

@@ -15,12 +15,15 @@
 //                                odom frame is transformed
 //   DiagnosticsWarn              not converged (after global localization), lost
 //   MarkersAgainAfterAJumpBack   ~gmm_markers republished after a jump back and periodically
+//   RefinedPoseAndDebugImage     ~refined_pose of a converged frame; ~debug_image through
+//                                image_transport, rendered for the frame that was used
 //   MotionGating, TfBroadcastOff, SavePose, ReloadMap, SinglePoseStartAndCpuFallback
 #include <cmath>
 #include <functional>
 #include <map>
 
 #include <dynamic_reconfigure/Reconfigure.h>
+#include <image_transport/image_transport.h>
 #include <dynamic_reconfigure/config_tools.h>
 #include <gtest/gtest.h>
 #include <std_srvs/Empty.h>
@@ -445,6 +448,33 @@ TEST(Nodelet, ReloadMap) {
   ASSERT_NE(s, nullptr);
   EXPECT_EQ(s->step_status, "ok");
   EXPECT_LT(errorOfFrame(t, w->k), kTrackedM) << "the particles were not kept across the reload";
+}
+
+TEST(Nodelet, RefinedPoseAndDebugImage) {
+  ASSERT_TRUE(ensureTracking());
+  std::vector<geometry_msgs::PoseWithCovarianceStamped> refined;
+  std::vector<sensor_msgs::Image> debug;
+  ros::Subscriber refined_sub = w->nh.subscribe<geometry_msgs::PoseWithCovarianceStamped>(
+      "/gmm_mcl/refined_pose", 100, [&](const geometry_msgs::PoseWithCovarianceStampedConstPtr& m) { refined.push_back(*m); });
+  image_transport::ImageTransport it(w->nh);
+  image_transport::Subscriber debug_sub = it.subscribe(
+      "/gmm_mcl/debug_image", 10, [&](const sensor_msgs::ImageConstPtr& m) { debug.push_back(*m); },
+      ros::VoidPtr(), image_transport::TransportHints("raw"));
+  ASSERT_TRUE(waitFor([&] { return refined_sub.getNumPublishers() > 0 && debug_sub.getNumPublishers() > 0; }));
+  ros::Time t;
+  const FilterStatus* s = sendFrame(++w->k, SyntheticRobot::Frame(), &t);
+  ASSERT_NE(s, nullptr);
+  ASSERT_EQ(s->step_status, "ok");
+  EXPECT_TRUE(s->refined) << "converged, yet not refined: " << s->refine_why;
+  EXPECT_GE(s->refine_ms, 0.0);
+  ASSERT_TRUE(waitFor([&] { return !refined.empty() && refined.back().header.stamp == t; })) << "no ~refined_pose of the frame";
+  const double err = positionError(refined.back(), w->robot.truth(w->k));
+  std::printf("[ measured ] refined pose error %.4f m, particle mean %.4f m\n", err, errorOfFrame(t, w->k));
+  EXPECT_LT(err, kTrackedM);
+  EXPECT_EQ(refined.back().header.frame_id, "map");
+  ASSERT_TRUE(waitFor([&] { return !debug.empty() && debug.back().header.stamp == t; })) << "no ~debug_image of the frame";
+  EXPECT_EQ(debug.back().width, 160u);
+  EXPECT_EQ(debug.back().height, 120u);
 }
 
 // A second nodelet in the same manager starts from ~initial_pose_* (far from its initial

@@ -80,7 +80,7 @@ class LocalizationNodelet : public nodelet::Nodelet {
   std::unique_ptr<image_transport::ImageTransport> it_;
   std::unique_ptr<DepthInput> input_;
   ros::Subscriber imu_sub_, odom_sub_, initialpose_sub_;
-  ros::Publisher pose_pub_, particles_pub_, status_pub_;
+  ros::Publisher pose_pub_, refined_pose_pub_, particles_pub_, status_pub_;
   MapMarkers markers_;
   image_transport::Publisher debug_image_pub_;
   ros::ServiceServer global_srv_, reset_srv_, map_srv_;
