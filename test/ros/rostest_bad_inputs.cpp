@@ -125,15 +125,23 @@ TEST(BadInputs, NodeSaysWhatIsWrongAndRecovers) {
   ASSERT_NE(s, nullptr);
   EXPECT_NE(s->message.find("IMU attitude"), std::string::npos) << s->message;
 
-  // No odometry tf at a frame's stamp: it waits; the next frame's odometry brackets it and both
-  // are used (odometry interpolated at the stamp, as amcl does).
+  // No odometry tf at a frame's stamp: it waits; the next stamp's odometry brackets it and it is
+  // used (odometry interpolated at the stamp, as amcl does), then the next frame. One frame in
+  // flight at a time: had the next image come before its odometry, it would have taken the
+  // waiting frame's place (queue_size 1), which is what happens on a loaded machine.
   f = good;
   f.odom_tf = false;
+  const long long received_before_gap = obs.statuses.back().frames_received;
   const ros::Time t_gap = send(f);
-  const ros::Time t_next = send(good);
+  ASSERT_TRUE(diagUntil([&](const lockstep::Diag& d) { return d.number("frames received") > received_before_gap; }));
+  const ros::Time t_next = robot.stamp(step);
+  robot.publishOdometry(t_next, robot.truth(k));
   s = obs.statusAt(t_gap);
   ASSERT_NE(s, nullptr);
   EXPECT_EQ(s->message.find("odometry"), std::string::npos) << s->message;
+  SyntheticRobot::Frame next = good;
+  next.odom_tf = false;  // its odometry is out already
+  ASSERT_EQ(send(next), t_next);
   ASSERT_NE(obs.statusAt(t_next), nullptr);
 
   // Good data again: used, and once the problems are 5 s old the diagnostics return to OK.
