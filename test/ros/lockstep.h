@@ -227,9 +227,20 @@ class BagPlayer {
   ros::Time frameStamp(int i) const {
     return frameHeaderStamp(messages_[frames_[i]]);
   }
-  // Waits until the nodelet listens to the frame topic.
+  // Waits until the nodelet listens to the frame topic and every node the master lists as
+  // subscribing one of the bag's topics is connected to its publisher: /tf is not latched, so a
+  // frame's odometry sent before the nodelet's tf listener connected (a loaded machine) never
+  // arrives and the frame waits for it for good.
   bool waitForSubscribers() {
-    return waitFor([&] { return publishers_[frame_topic_].getNumSubscribers() > 0; });
+    return waitFor([&] {
+      if (publishers_[frame_topic_].getNumSubscribers() == 0) return false;
+      std::map<std::string, int> listed;
+      if (!subscribersOnMaster(&listed)) return false;
+      for (auto& p : publishers_) {
+        if (static_cast<int>(p.second.getNumSubscribers()) < listed[p.first]) return false;
+      }
+      return true;
+    });
   }
   // Publishes the messages after the previous frame up to frame i, and those recorded at the
   // frame's bag time after it (its CameraInfo).
@@ -248,6 +259,18 @@ class BagPlayer {
   }
 
  private:
+  // Subscriber nodes per topic, as the master lists them.
+  static bool subscribersOnMaster(std::map<std::string, int>* count) {
+    XmlRpc::XmlRpcValue request, response, payload;
+    request[0] = ros::this_node::getName();
+    if (!ros::master::execute("getSystemState", request, response, payload, false)) return false;
+    if (payload.getType() != XmlRpc::XmlRpcValue::TypeArray || payload.size() < 2) return false;
+    XmlRpc::XmlRpcValue& subscribers = payload[1];
+    for (int i = 0; i < subscribers.size(); ++i) {
+      (*count)[static_cast<std::string>(subscribers[i][0])] = subscribers[i][1].size();
+    }
+    return true;
+  }
   static ros::Time frameHeaderStamp(const rosbag::MessageInstance& m) {
     if (auto image = m.instantiate<sensor_msgs::Image>()) return image->header.stamp;
     if (auto cloud = m.instantiate<sensor_msgs::PointCloud2>()) return cloud->header.stamp;
