@@ -330,6 +330,27 @@ CudaParticleFilter::~CudaParticleFilter() {
 }
 
 const ParticleFilterParams& CudaParticleFilter::params() const { return impl_->params; }
+
+void CudaParticleFilter::setParams(const ParticleFilterParams& params) {
+  const std::string err = params.validate();
+  if (!err.empty()) throw std::invalid_argument("particle filter parameters: " + err);
+  Impl& d = *impl_;
+  const uint64_t seed = d.params.seed;  // the generator's counter stream stays
+  d.params = params;
+  d.params.seed = seed;
+  d.augmented.setRates(params.alpha_slow, params.alpha_fast, params.recovery_threshold);
+  const int n_out = d.params.adaptive()
+                        ? std::max(d.params.min_particles, std::min(d.params.num_particles, d.n))
+                        : d.params.num_particles;
+  if (n_out == d.n) return;
+  // ParticleFilter::setParams's resampling to the allowed count, on the device.
+  const cuda::DeviceScope scope(d.device);
+  const int groups = d.groupsFor(n_out);
+  d.randomOrder(d.n);
+  d.drawOffsets(groups);
+  d.stratifiedIndices(n_out, groups);
+  d.gatherResampled(n_out);
+}
 int CudaParticleFilter::size() const { return impl_->n; }
 
 const std::vector<Particle>& CudaParticleFilter::particles() const {

@@ -20,7 +20,10 @@ export ROS_HOME="${ROS_HOME:-$BUILD/ros_home}"
 mkdir -p "$BUILD"
 cmake -S "$GMM_MCL_ROOT" -B "$BUILD" -DGMM_MCL_BUILD_ROS=ON -DCMAKE_BUILD_TYPE=Release \
   > "$BUILD/cmake.log" 2>&1 || { cat "$BUILD/cmake.log"; exit 1; }
-cmake --build "$BUILD" -j2 --target gmm_mcl_ros gmm_mcl_node make_sim_bag evaluate_pose_bag
+# The nodelet, its tools, and the generated messages and services (C++ and Python: rostopic,
+# rosservice and rqt read the Python ones).
+cmake --build "$BUILD" -j2 --target gmm_mcl_ros gmm_mcl_node make_sim_bag evaluate_pose_bag \
+  gmm_mcl_generate_messages gmm_mcl_gencfg
 set +u
 source "$BUILD/devel/setup.bash"
 set -u

@@ -6,7 +6,8 @@ ROS_PACKAGES=(ros-base-dev catkin libnodeletlib-dev libnodeletlib-tools libtf2-r
   libdiagnostic-msgs-dev libdynamic-reconfigure-config-init-mutex-dev python3-tf2-msgs
   python3-dynamic-reconfigure libstd-srvs-dev libnav-msgs-dev libvisualization-msgs-dev
   ros-message-generation python3-gencpp python3-genpy python3-rospy python3-diagnostic-msgs
-  python3-geometry-msgs python3-std-msgs)
+  python3-geometry-msgs python3-std-msgs python3-std-srvs python3-nav-msgs python3-sensor-msgs
+  python3-rostopic python3-rosservice python3-rosmsg python3-rosbag python3-yaml)
 
 ROS_MASTER_PID=""
 # ros_start_master LOG: a roscore on $ROS_MASTER_URI's port, waits until it answers.

@@ -40,6 +40,8 @@ if not hasattr(math, "isfinite"):
 DIAG_KEYS = {
     "frames received": "frames_received",
     "frames used": "frames_processed",
+    "frames not used: no motion": "frames_gated",
+    "frames waiting": "frames_waiting",
     "dropped: conversion": "dropped_conversion",
     "dropped: camera info": "dropped_camera_info",
     "dropped: no extrinsics": "dropped_extrinsics",
@@ -247,6 +249,8 @@ class Monitor:
             received = counters.get("frames_received", 0)
             processed = counters.get("frames_processed", 0)
             dropped = sum(counters.get(f, 0) for f in DROP_FIELDS)
+            gated = counters.get("frames_gated", 0)
+            waiting = counters.get("frames_waiting", 0)
             missed = counters.get("frames_missed_seq", 0)
             tf_skipped = counters.get("tf_skipped", 0)
 
@@ -258,8 +262,10 @@ class Monitor:
             row("frames dropped", "%d (conversion %d, camera info %d, extrinsics %d)" %
                 (dropped, counters.get("dropped_conversion", 0), counters.get("dropped_camera_info", 0),
                  counters.get("dropped_extrinsics", 0)))
-            row("received == processed + dropped", "%d == %d" % (received, processed + dropped),
-                "equal", received == processed + dropped)
+            row("frames not used (no motion) / waiting", "%d / %d" % (gated, waiting))
+            row("received == processed + not used + dropped + waiting",
+                "%d == %d" % (received, processed + gated + dropped + waiting), "equal",
+                received == processed + gated + dropped + waiting)
             row("missed before a callback (seq gaps)", "%d" % missed)
             row("sent == received + missed", "%d == %d" % (sent, received + missed), "equal",
                 sent == received + missed)

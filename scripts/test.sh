@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Every test: installs what is missing (apt), builds the core, the backends, the tools, the ROS
-# nodelet and all tests, and runs them with ctest (gtest suites, rostests, fuzz corpus replays);
+# nodelet and all tests, and runs them with ctest (gtest suites, rostests, the package installed
+# into a temporary prefix and run from there, fuzz corpus replays);
 # then compiles the CUDA backend with nvcc (its tests skip without a GPU); then the Jetson TX2
 # proxies (docs/tx2.md); then builds the core's unit tests with ASan and UBSan in their own
 # folder and runs them. Data-set tests read
@@ -73,6 +74,7 @@ echo "== TX2 aarch64 stage took $(( $(date +%s) - start )) s"
 SAN_BUILD="${GMM_MCL_SANITIZE_BUILD_DIR:-${BUILD}-asan}"
 SANITIZE_TESTS=(test_gmm_map test_depth_frame test_projection test_membership test_likelihood
   test_depth_noise test_params test_resampling test_particle_filter test_localizer test_pose_refinement test_lost_detector test_backend_threads
+  test_parameter_table test_stamped_buffer test_pose_reset
   test_input_validation fuzz_replay_map_loader fuzz_replay_depth_frame fuzz_replay_compressed_depth)
 mkdir -p "$SAN_BUILD"
 # -O1 without NDEBUG: a third less compile time than -O3 (most of this stage), and assert()

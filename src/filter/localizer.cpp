@@ -45,20 +45,54 @@ Localizer::Localizer(const LocalizerParams& params, GmmMap map,
       region_(params.init) {
   if (map_.empty()) throw std::invalid_argument("localizer: the map is empty");
   if (!backend_) backend_ = makeBackend(params_.backend, &backend_warning_);
+  prepareMap();
+  std::string why;
+  filter_ = makeParticleFilter(params_.filter, backend_.get(), params_.device_filter, &why);
+  if (!why.empty()) backend_warning_ += (backend_warning_.empty() ? "" : "; ") + why;
+  filter_->initialiseUniform(region_);
+  lost_ = LostDetector(params_.lost, map_self_ll_);
+}
+
+void Localizer::prepareMap() {
   backend_->setMap(map_);
+  blurred_map_ = GmmMap();
   if (params_.lost.redraw_blur_m > 0.0 && params_.lost.local_candidate_fraction > 0.0) {
     std::vector<GaussianComponent> blurred = map_.components();
     const double b2 = params_.lost.redraw_blur_m * params_.lost.redraw_blur_m;
     for (GaussianComponent& c : blurred) c.cov_m2 += b2 * Eigen::Matrix3d::Identity();
     blurred_map_ = GmmMap(std::move(blurred), "blurred map");
   }
-  std::string why;
-  filter_ = makeParticleFilter(params_.filter, backend_.get(), params_.device_filter, &why);
-  if (!why.empty()) backend_warning_ += (backend_warning_.empty() ? "" : "; ") + why;
-  filter_->initialiseUniform(region_);
   map_self_ll_ = gmm_mcl::mapSelfLogDensity(map_, params_.measurement.floor_log_density,
                                             params_.measurement.depth_noise);
+}
+
+void Localizer::setParams(const LocalizerParams& params) {
+  validated(params);
+  if (params.backend != params_.backend || params.filter.seed != params_.filter.seed ||
+      params.device_filter != params_.device_filter) {
+    throw std::invalid_argument(
+        "localizer parameters: backend, device_filter and seed are fixed at construction");
+  }
+  const MeasurementParams& m = params.measurement;
+  const MeasurementParams& m0 = params_.measurement;
+  const bool map_terms = m.floor_log_density != m0.floor_log_density ||
+                         m.depth_noise.a_m != m0.depth_noise.a_m ||
+                         m.depth_noise.b_per_m != m0.depth_noise.b_per_m ||
+                         m.depth_noise.z0_m != m0.depth_noise.z0_m ||
+                         params.lost.redraw_blur_m != params_.lost.redraw_blur_m ||
+                         params.lost.local_candidate_fraction != params_.lost.local_candidate_fraction;
+  filter_->setParams(params.filter);
+  params_ = params;
+  if (map_terms) prepareMap();
+  lost_.setParams(params_.lost, map_self_ll_);
+}
+
+void Localizer::setMap(GmmMap map) {
+  if (map.empty()) throw std::invalid_argument("localizer: the map is empty");
+  map_ = std::move(map);
+  prepareMap();
   lost_ = LostDetector(params_.lost, map_self_ll_);
+  have_refined_ = false;
 }
 
 void Localizer::reset(const InitRegion& region) {
@@ -233,6 +267,14 @@ void Localizer::stepOnce(const StepInput& in, StepResult* res_out) {
   }
   have_stamp_ = true;
   last_stamp_s_ = in.stamp_s;
+  if (in.has_T_base_cam) {
+    if (in.T_base_cam.matrix().allFinite()) {
+      params_.T_base_cam = in.T_base_cam;
+    } else {
+      res.message += std::string(res.message.empty() ? "" : "; ") +
+                     "base -> camera transform not finite: the previous one used";
+    }
+  }
 
   // Attitude shared by all particles.
   if (in.has_attitude) {

@@ -69,6 +69,12 @@ LostDetector::LostDetector(const LostDetectionParams& params, double initial_ref
       reference_(initial_reference),
       floor_(initial_reference - params.reference_max_drop_nats) {}
 
+void LostDetector::setParams(const LostDetectionParams& params, double initial_reference) {
+  params_ = params;
+  floor_ = initial_reference - params.reference_max_drop_nats;
+  reference_ = std::max(reference_, floor_);
+}
+
 void LostDetector::restart() {
   frames_below_ = 0;
   frames_since_restart_ = 0;

@@ -18,6 +18,24 @@ ParticleFilter::ParticleFilter(const ParticleFilterParams& params)
   weights_.assign(params.num_particles, 1.0 / params.num_particles);
 }
 
+void ParticleFilter::setParams(const ParticleFilterParams& params) {
+  const std::string err = params.validate();
+  if (!err.empty()) throw std::invalid_argument("particle filter parameters: " + err);
+  const uint64_t seed = params_.seed;
+  params_ = params;
+  params_.seed = seed;
+  augmented_.setRates(params.alpha_slow, params.alpha_fast, params.recovery_threshold);
+  const int n = params_.adaptive()
+                    ? std::max(params_.min_particles, std::min(params_.num_particles, size()))
+                    : params_.num_particles;
+  if (n == size()) return;
+  stratifiedLowVarianceResample(weights_, std::min(params_.resample_groups, n), n, &rng_, &indices_);
+  swap_.resize(n);
+  for (int i = 0; i < n; ++i) swap_[i] = particles_[indices_[i]];
+  particles_.swap(swap_);
+  weights_.assign(n, 1.0 / n);
+}
+
 Particle ParticleFilter::sampleUniform(const InitRegion& r) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   Particle p;

@@ -1,5 +1,6 @@
 #include "gmm_mcl/ros/conversions.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -7,6 +8,8 @@
 
 #include <Eigen/Eigenvalues>
 #include <sensor_msgs/image_encodings.h>
+#include <tf2_eigen/tf2_eigen.h>
+#include <tf2_geometry_msgs/tf2_geometry_msgs.h>
 
 #include "gmm_mcl/filter/pose.h"
 
@@ -34,9 +37,49 @@ bool depthImageFromMsg(const sensor_msgs::Image& msg, DepthImage* out, std::stri
 }
 
 bool intrinsicsFromCameraInfo(const sensor_msgs::CameraInfo& msg, int expected_width,
-                              int expected_height, Intrinsics* out, std::string* error) {
-  return intrinsicsFromCameraMatrix(msg.K.data(), msg.width, msg.height, expected_width,
-                                    expected_height, out, error);
+                              int expected_height, Intrinsics* out, std::string* error,
+                              std::string* note) {
+  bool distorted = false;
+  for (double d : msg.D) distorted = distorted || d != 0.0;
+  const bool has_p = msg.P[0] != 0.0 || msg.P[5] != 0.0;
+  if (distorted && !has_p) {
+    *error = "CameraInfo has distortion (D non-zero, model '" + msg.distortion_model +
+             "') and no projection matrix P: rectify the depth image first";
+    return false;
+  }
+  if (distorted && note) {
+    *note =
+        "CameraInfo has distortion (D non-zero): the depth image is taken to be the rectified "
+        "one (image_rect) and its intrinsics come from P";
+  }
+  // The rectified image's projection (P, as depth_image_proc uses it), else K; then binning and
+  // region of interest, as image_geometry's PinholeCameraModel applies them.
+  double K[9] = {msg.K[0], msg.K[1], msg.K[2], msg.K[3], msg.K[4],
+                 msg.K[5], msg.K[6], msg.K[7], msg.K[8]};
+  if (has_p) {
+    const double P[9] = {msg.P[0], msg.P[1], msg.P[2], msg.P[4], msg.P[5], msg.P[6], 0.0, 0.0, 1.0};
+    std::copy(P, P + 9, K);
+  }
+  const uint32_t bx = std::max<uint32_t>(1, msg.binning_x),
+                 by = std::max<uint32_t>(1, msg.binning_y);
+  const bool roi = msg.roi.width > 0 && msg.roi.height > 0;
+  if (roi && (msg.roi.x_offset + msg.roi.width > msg.width ||
+              msg.roi.y_offset + msg.roi.height > msg.height)) {
+    std::ostringstream s;
+    s << "CameraInfo's region of interest (" << msg.roi.width << "x" << msg.roi.height << " at "
+      << msg.roi.x_offset << ", " << msg.roi.y_offset << ") exceeds its " << msg.width << "x"
+      << msg.height << " image";
+    *error = s.str();
+    return false;
+  }
+  K[2] = (K[2] - (roi ? msg.roi.x_offset : 0)) / bx;
+  K[5] = (K[5] - (roi ? msg.roi.y_offset : 0)) / by;
+  K[0] /= bx;
+  K[1] /= bx;
+  K[4] /= by;
+  const uint32_t width = (roi ? msg.roi.width : msg.width) / bx;
+  const uint32_t height = (roi ? msg.roi.height : msg.height) / by;
+  return intrinsicsFromCameraMatrix(K, width, height, expected_width, expected_height, out, error);
 }
 
 bool depthImageFromCloud(const sensor_msgs::PointCloud2& msg, DepthImage* out, Intrinsics* K,
@@ -64,46 +107,38 @@ bool attitudeFromImu(const sensor_msgs::Imu& msg, double* roll_rad, double* pitc
   return true;
 }
 
+namespace {
+// An unset (all zero) quaternion is the identity; any other is normalised.
+geometry_msgs::Quaternion normalised(const geometry_msgs::Quaternion& q) {
+  Eigen::Quaterniond e;
+  tf2::fromMsg(q, e);
+  return tf2::toMsg(e.norm() > 1e-9 ? e.normalized() : Eigen::Quaterniond::Identity());
+}
+}  // namespace
+
 Eigen::Isometry3d isometryFromPose(const geometry_msgs::Pose& msg) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  Eigen::Quaterniond q(msg.orientation.w, msg.orientation.x, msg.orientation.y, msg.orientation.z);
-  if (q.norm() > 1e-9) q.normalize();
-  else q = Eigen::Quaterniond::Identity();
-  T.linear() = q.toRotationMatrix();
-  T.translation() = Eigen::Vector3d(msg.position.x, msg.position.y, msg.position.z);
+  geometry_msgs::Pose p = msg;
+  p.orientation = normalised(msg.orientation);
+  Eigen::Isometry3d T;
+  tf2::fromMsg(p, T);
   return T;
 }
 
 Eigen::Isometry3d isometryFromTransform(const geometry_msgs::Transform& msg) {
-  geometry_msgs::Pose p;
-  p.position.x = msg.translation.x;
-  p.position.y = msg.translation.y;
-  p.position.z = msg.translation.z;
-  p.orientation = msg.rotation;
-  return isometryFromPose(p);
+  geometry_msgs::Transform t = msg;
+  t.rotation = normalised(msg.rotation);
+  return tf2::transformToEigen(t);
 }
 
 geometry_msgs::Pose poseFromIsometry(const Eigen::Isometry3d& T) {
-  geometry_msgs::Pose p;
-  p.position.x = T.translation().x();
-  p.position.y = T.translation().y();
-  p.position.z = T.translation().z();
-  Eigen::Quaterniond q(T.linear());
-  q.normalize();
-  p.orientation.w = q.w();
-  p.orientation.x = q.x();
-  p.orientation.y = q.y();
-  p.orientation.z = q.z();
+  geometry_msgs::Pose p = tf2::toMsg(T);
+  p.orientation = normalised(p.orientation);
   return p;
 }
 
 geometry_msgs::Transform transformFromIsometry(const Eigen::Isometry3d& T) {
-  const geometry_msgs::Pose p = poseFromIsometry(T);
-  geometry_msgs::Transform t;
-  t.translation.x = p.position.x;
-  t.translation.y = p.position.y;
-  t.translation.z = p.position.z;
-  t.rotation = p.orientation;
+  geometry_msgs::Transform t = tf2::eigenToTransform(T).transform;
+  t.rotation = normalised(t.rotation);
   return t;
 }
 
@@ -126,22 +161,56 @@ void poseArrayFromParticles(const std::vector<Particle>& particles, double roll_
   }
 }
 
-bool particleFromPoseWithCovariance(const geometry_msgs::PoseWithCovariance& msg,
-                                    const Eigen::Vector4d& min_sigma, Particle* pose,
-                                    Eigen::Vector4d* sigma) {
-  const auto& p = msg.pose.position;
-  const auto& q = msg.pose.orientation;
-  if (!(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z) && std::isfinite(q.x) &&
-        std::isfinite(q.y) && std::isfinite(q.z) && std::isfinite(q.w))) {
-    return false;
+geometry_msgs::PoseWithCovarianceStamped poseWithCovarianceStamped(
+    const Eigen::Isometry3d& T, const Eigen::Matrix<double, 6, 6>& covariance,
+    const std::string& frame, const ros::Time& stamp) {
+  geometry_msgs::PoseWithCovarianceStamped p;
+  p.header.stamp = stamp;
+  p.header.frame_id = frame;
+  p.pose.pose = poseFromIsometry(T);
+  for (int k = 0; k < 36; ++k) p.pose.covariance[k] = covariance(k / 6, k % 6);
+  return p;
+}
+
+geometry_msgs::TransformStamped transformStamped(const Eigen::Isometry3d& T,
+                                                 const std::string& parent,
+                                                 const std::string& child, const ros::Time& stamp) {
+  geometry_msgs::TransformStamped t;
+  t.header.stamp = stamp;
+  t.header.frame_id = parent;
+  t.child_frame_id = child;
+  t.transform = transformFromIsometry(T);
+  return t;
+}
+
+bool poseResetRequestFromMsg(const geometry_msgs::PoseWithCovarianceStamped& msg,
+                             const tf2::BufferCore& tf, const std::string& map_frame,
+                             PoseResetRequest* out, std::string* why) {
+  out->planar =
+      isPlanarPose(isometryFromPose(msg.pose.pose), covarianceFromMsg(msg.pose.covariance));
+  geometry_msgs::PoseWithCovarianceStamped in_map = msg;
+  const std::string& frame = msg.header.frame_id.empty() ? map_frame : msg.header.frame_id;
+  if (frame != map_frame) {
+    try {
+      const ros::Time at =
+          tf.canTransform(map_frame, frame, msg.header.stamp) ? msg.header.stamp : ros::Time(0);
+      tf2::doTransform(msg, in_map, tf.lookupTransform(map_frame, frame, at));
+    } catch (const tf2::TransformException& e) {
+      *why = "pose in frame '" + frame + "' not transformed to '" + map_frame + "': " + e.what();
+      return false;
+    }
   }
-  *pose = poseToParticle(isometryFromPose(msg.pose));
-  const int diag[4] = {0, 7, 14, 35};
-  for (int k = 0; k < 4; ++k) {
-    const double var = msg.covariance[diag[k]];
-    (*sigma)[k] = (std::isfinite(var) && var > 0.0) ? std::sqrt(var) : min_sigma[k];
-  }
+  out->T_map_base = isometryFromPose(in_map.pose.pose);
+  out->covariance = covarianceFromMsg(in_map.pose.covariance);
   return true;
+}
+
+Eigen::Matrix<double, 6, 6> covarianceFromMsg(const boost::array<double, 36>& c) {
+  Eigen::Matrix<double, 6, 6> m;
+  for (int r = 0; r < 6; ++r) {
+    for (int k = 0; k < 6; ++k) m(r, k) = c[6 * r + k];
+  }
+  return m;
 }
 
 void markersFromMap(const GmmMap& map, const std::string& frame_id,

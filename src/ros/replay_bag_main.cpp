@@ -27,6 +27,7 @@
 #include <sensor_msgs/PointCloud2.h>
 #include <tf2_msgs/TFMessage.h>
 
+#include "gmm_mcl/filter/stamped_buffer.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/replay/odometry_synthesizer.h"
 #include "gmm_mcl/replay/replay.h"
@@ -53,34 +54,10 @@ void usage() {
       "                  /kinect/vrpn_client/estimated_transform --odometry truth\n");
 }
 
-using PoseTrack = std::map<double, Eigen::Isometry3d>;  // stamp (s) -> pose
-
-// Pose at t by interpolation between the neighbours (slerp); false when t is outside the
-// track by more than tolerance_s.
-bool poseAt(const PoseTrack& track, double t, double tolerance_s, Eigen::Isometry3d* out) {
-  if (track.empty()) return false;
-  auto hi = track.lower_bound(t);
-  if (hi == track.end()) {
-    const auto last = std::prev(track.end());
-    if (t - last->first > tolerance_s) return false;
-    *out = last->second;
-    return true;
-  }
-  if (hi->first == t || hi == track.begin()) {
-    if (hi->first - t > tolerance_s) return false;
-    *out = hi->second;
-    return true;
-  }
-  const auto lo = std::prev(hi);
-  if (hi->first - lo->first > 1.0) return false;  // a gap: no interpolation across it
-  const double a = (t - lo->first) / (hi->first - lo->first);
-  *out = Eigen::Isometry3d::Identity();
-  out->linear() = Eigen::Quaterniond(lo->second.linear())
-                      .slerp(a, Eigen::Quaterniond(hi->second.linear()))
-                      .toRotationMatrix();
-  out->translation() = (1 - a) * lo->second.translation() + a * hi->second.translation();
-  return true;
-}
+// Stamped tracks of the whole bag (no age limit), looked up as the nodelet looks up its
+// buffers: interpolated between neighbours, else the nearest within a tolerance.
+using PoseTrack = StampedPoseBuffer;
+constexpr double kWholeBagS = 1e18;
 
 }  // namespace
 
@@ -155,8 +132,8 @@ int main(int argc, char** argv) {
   try {
     rosbag::Bag bag(bag_path, rosbag::bagmode::Read);
     // Pass 1: everything but the depth, indexed by header stamp.
-    PoseTrack odom_topic_track, odom_tf_track, truth_track;
-    std::map<double, Eigen::Vector2d> imu_track;
+    PoseTrack odom_topic_track(kWholeBagS), odom_tf_track(kWholeBagS), truth_track(kWholeBagS);
+    PoseTrack imu_track(kWholeBagS);  // roll and pitch
     std::map<double, sensor_msgs::CameraInfo> infos;
     Eigen::Isometry3d T_base_cam = opticalToBase();
     bool have_extrinsics = false;
@@ -170,26 +147,26 @@ int main(int argc, char** argv) {
           auto imu = m.instantiate<sensor_msgs::Imu>();
           double r, p;
           if (imu && ros_conv::attitudeFromImu(*imu, &r, &p)) {
-            imu_track[imu->header.stamp.toSec()] = Eigen::Vector2d(r, p);
+            imu_track.addAttitude(imu->header.stamp.toSec(), r, p);
           }
         } else if (topic == odom_topic) {
           if (auto od = m.instantiate<nav_msgs::Odometry>()) {
-            odom_topic_track[od->header.stamp.toSec()] = ros_conv::isometryFromPose(od->pose.pose);
+            odom_topic_track.add(od->header.stamp.toSec(), ros_conv::isometryFromPose(od->pose.pose));
           }
         } else if (topic == truth_topic) {
           if (auto ps = m.instantiate<geometry_msgs::PoseStamped>()) {
-            truth_track[ps->header.stamp.toSec()] = ros_conv::isometryFromPose(ps->pose);
+            truth_track.add(ps->header.stamp.toSec(), ros_conv::isometryFromPose(ps->pose));
           } else if (auto ts = m.instantiate<geometry_msgs::TransformStamped>()) {
             // The marker in the world; the base through the calibration (camera = base).
-            truth_track[ts->header.stamp.toSec()] = ros_conv::isometryFromTransform(ts->transform) *
-                                                    T_marker_cam * opticalToBase().inverse();
+            truth_track.add(ts->header.stamp.toSec(), ros_conv::isometryFromTransform(ts->transform) *
+                                                          T_marker_cam * opticalToBase().inverse());
           }
         } else if (topic == info_topic) {
           if (auto ci = m.instantiate<sensor_msgs::CameraInfo>()) infos[ci->header.stamp.toSec()] = *ci;
         } else if (auto tf = m.instantiate<tf2_msgs::TFMessage>()) {
           for (const geometry_msgs::TransformStamped& t : tf->transforms) {
             if (t.header.frame_id == odom_frame && t.child_frame_id == base_frame) {
-              odom_tf_track[t.header.stamp.toSec()] = ros_conv::isometryFromTransform(t.transform);
+              odom_tf_track.add(t.header.stamp.toSec(), ros_conv::isometryFromTransform(t.transform));
             } else if (topic == "/tf_static" && t.header.frame_id == base_frame) {
               T_base_cam = ros_conv::isometryFromTransform(t.transform);
               camera_frame = t.child_frame_id;
@@ -263,7 +240,7 @@ int main(int argc, char** argv) {
         why = "not an Image or PointCloud2";
       }
       Eigen::Isometry3d T_truth = Eigen::Isometry3d::Identity();
-      const bool has_truth = poseAt(truth_track, t, 0.05, &T_truth);
+      const bool has_truth = truth_track.at(t, 0.05, &T_truth);
       StepInput in;
       in.stamp_s = t;
       if (odometry_mode == "truth") {
@@ -272,18 +249,13 @@ int main(int argc, char** argv) {
           in.T_odom_base = synth.next(T_truth, last_t < 0 ? 1.0 : (t - last_t) * 30.0);
         }
       } else {
-        in.has_odometry = poseAt(odom_track, t, 0.05, &in.T_odom_base);
+        in.has_odometry = odom_track.at(t, 0.05, &in.T_odom_base);
       }
       if (synth_attitude) {
         in.has_attitude = has_truth;
         if (has_truth) synth.attitude(T_truth, &in.roll_rad, &in.pitch_rad);
       } else {
-        auto a = imu_track.lower_bound(t - 0.05);
-        in.has_attitude = a != imu_track.end() && std::abs(a->first - t) <= 0.05;
-        if (in.has_attitude) {
-          in.roll_rad = a->second.x();
-          in.pitch_rad = a->second.y();
-        }
+        in.has_attitude = imu_track.attitudeAt(t, 0.05, &in.roll_rad, &in.pitch_rad);
       }
       if (!ok || !in.has_odometry) {
         if (!quiet) {

@@ -1,161 +1,496 @@
 #include "gmm_mcl/ros/ros_params.h"
 
+#include <cmath>
+#include <set>
 #include <sstream>
-#include <vector>
+
+#include <XmlRpcValue.h>
+#include <dynamic_reconfigure/config_tools.h>
+#include <ros/param.h>
+
+#include "gmm_mcl/map/gmm_map_io.h"
 
 namespace gmm_mcl {
+
+bool RosOptions::hasInitialPose() const {
+  return std::isfinite(initial_pose_x_m) && std::isfinite(initial_pose_y_m) &&
+         std::isfinite(initial_pose_z_m) && std::isfinite(initial_pose_yaw_rad);
+}
+
+std::string RosOptions::validate() const {
+  std::string err;
+  if (map_path.empty()) err += "~map (the GMM map file) is required; ";
+  if (map_frame.empty()) err += "~map_frame is empty; ";
+  if (base_frame.empty()) err += "~base_frame is empty; ";
+  if (odometry_source == "tf" && odom_frame.empty())
+    err += "~odometry_source tf needs ~odom_frame; ";
+  if (image_transport.empty()) err += "~image_transport is empty; ";
+  const int pose_set = std::isfinite(initial_pose_x_m) + std::isfinite(initial_pose_y_m) +
+                       std::isfinite(initial_pose_z_m) + std::isfinite(initial_pose_yaw_rad);
+  if (pose_set != 0 && pose_set != 4) {
+    err += "~initial_pose_x, _y, _z and _yaw must be given together (a single-pose start); ";
+  }
+  return err;
+}
+
+const ParamTable<RosOptions>& rosOptionsTable() {
+  using R = RosOptions;
+  constexpr bool kRuntime = true, kStartup = false;
+  static const ParamTable<R> table = [] {
+    ParamTable<R> t;
+    auto add = [&t](ParamSpec<R> p, std::vector<std::string> choices = {}) {
+      p.choices = std::move(choices);
+      t.push_back(std::move(p));
+    };
+    const char* g = "node";
+    add(paramSpec<R>("map", GMM_MCL_PARAM_FIELD(R, map_path), "", g, {}, kStartup,
+                     "The GMM map file (gmm_fit's format); required. ~reload_map loads another one "
+                     "while running"));
+    add(paramSpec<R>("map_frame", GMM_MCL_PARAM_FIELD(R, map_frame), "", g, {}, kStartup,
+                     "Frame of the map, the pose and the published transform"));
+    add(paramSpec<R>("odom_frame", GMM_MCL_PARAM_FIELD(R, odom_frame), "", g, {}, kStartup,
+                     "Odometry frame; empty: the transform published is map -> base_frame"));
+    add(paramSpec<R>("base_frame", GMM_MCL_PARAM_FIELD(R, base_frame), "", g, {}, kStartup,
+                     "The robot's body frame (the particles' pose)"));
+    add(paramSpec<R>("odometry_source", GMM_MCL_PARAM_FIELD(R, odometry_source), "", g, {},
+                     kStartup,
+                     "tf: odom_frame -> base_frame at each frame's stamp (frames wait for it); "
+                     "topic: nav_msgs/Odometry on odom; none"),
+        {"tf", "topic", "none"});
+    add(paramSpec<R>("depth_input", GMM_MCL_PARAM_FIELD(R, depth_input), "", g, {}, kStartup,
+                     "image: depth/image + depth/camera_info; cloud: an organized PointCloud2 on "
+                     "depth/points"),
+        {"image", "cloud"});
+    add(paramSpec<R>("image_transport", GMM_MCL_PARAM_FIELD(R, image_transport), "", g, {},
+                     kStartup,
+                     "Transport of depth/image: raw, compressedDepth (decoded by the nodelet) or "
+                     "another installed plugin"));
+    add(paramSpec<R>("use_imu", GMM_MCL_PARAM_FIELD(R, use_imu), "", g, {}, kStartup,
+                     "Roll and pitch from sensor_msgs/Imu on imu at each frame's stamp; otherwise "
+                     "from odometry"));
+    add(paramSpec<R>("queue_size", GMM_MCL_PARAM_FIELD(R, queue_size), "", g, {1, 100}, kStartup,
+                     "Depth frames queued while an update runs (1: the newest; older ones are "
+                     "dropped and counted)"));
+    add(paramSpec<R>("odom_timeout", GMM_MCL_PARAM_FIELD(R, odom_timeout_s), "s", g, {1e-3, 10},
+                     kRuntime,
+                     "odometry_source topic: odometry farther than this from a frame's stamp is a "
+                     "gap (the frame predicts without motion)"));
+    add(paramSpec<R>("imu_timeout", GMM_MCL_PARAM_FIELD(R, imu_timeout_s), "s", g, {1e-3, 10},
+                     kRuntime,
+                     "IMU attitude farther than this from a frame's stamp is missing (roll and "
+                     "pitch from odometry, warned)"));
+    add(paramSpec<R>("update_min_d", GMM_MCL_PARAM_FIELD(R, update_min_d_m), "m", g, {0, 10},
+                     kRuntime,
+                     "Motion gate (amcl's): a frame updates the filter once the odometry moved more "
+                     "than this or turned more than update_min_a since the last update; both 0: "
+                     "every frame. Frames in between only carry the estimate by odometry"));
+    add(paramSpec<R>("update_min_a", GMM_MCL_PARAM_FIELD(R, update_min_a_rad), "rad", g, {0, 3.15},
+                     kRuntime,
+                     "Motion gate: the yaw turn that lets a frame update (see update_min_d)"));
+    g = "output";
+    add(paramSpec<R>("tf_broadcast", GMM_MCL_PARAM_FIELD(R, tf_broadcast), "", g, {}, kRuntime,
+                     "Publish map -> odom (false: only the pose, e.g. beside another localizer)"));
+    add(paramSpec<R>(
+        "transform_tolerance", GMM_MCL_PARAM_FIELD(R, transform_tolerance_s), "s", g, {0, 10},
+        kRuntime,
+        "map -> odom is stamped with the frame's stamp plus this (future-dated, as amcl)"));
+    add(paramSpec<R>("save_pose_rate", GMM_MCL_PARAM_FIELD(R, save_pose_rate_hz), "Hz", g, {0, 100},
+                     kRuntime,
+                     "Rate of writing the estimate back to ~initial_pose_* and ~initial_cov_* "
+                     "(amcl's; 0 = never): a restart resumes there"));
+    add(paramSpec<R>("diagnostics_period", GMM_MCL_PARAM_FIELD(R, diagnostics_period_s), "s", g,
+                     {1e-2, 60}, kStartup, "Period of /diagnostics (ROS time)"));
+    add(paramSpec<R>("markers_period", GMM_MCL_PARAM_FIELD(R, markers_period_s), "s", g, {0, 3600},
+                     kRuntime,
+                     "~gmm_markers is published again this often while subscribed, and after a "
+                     "time jump (rviz drops markers on a reset; 0 = once)"));
+    add(paramSpec<R>("warn_sigma_xy", GMM_MCL_PARAM_FIELD(R, warn_sigma_xy_m), "m", g, {1e-3, 100},
+                     kRuntime,
+                     "/diagnostics warns while the estimate's x or y standard deviation is above "
+                     "this (not converged)"));
+    add(paramSpec<R>(
+        "warn_sigma_yaw", GMM_MCL_PARAM_FIELD(R, warn_sigma_yaw_rad), "rad", g, {1e-3, 3.15},
+        kRuntime, "/diagnostics warns while the estimate's yaw standard deviation is above this"));
+    g = "start";
+    add(paramSpec<R>("init_from_map_bounds", GMM_MCL_PARAM_FIELD(R, init_from_map_bounds), "", g,
+                     {}, kStartup,
+                     "Start uniform over the whole map (its bounding box, any yaw) instead of "
+                     "init_centre / init_half_extent"));
+    add(paramSpec<R>(
+        "initial_pose_x", GMM_MCL_PARAM_FIELD(R, initial_pose_x_m), "m", g, {-1e6, 1e6}, kStartup,
+        "Single-pose start: x in the map frame (all of initial_pose_x, _y, _z, _yaw, or none)"));
+    add(paramSpec<R>("initial_pose_y", GMM_MCL_PARAM_FIELD(R, initial_pose_y_m), "m", g,
+                     {-1e6, 1e6}, kStartup, "Single-pose start: y"));
+    add(paramSpec<R>("initial_pose_z", GMM_MCL_PARAM_FIELD(R, initial_pose_z_m), "m", g,
+                     {-1e6, 1e6}, kStartup, "Single-pose start: z (the base's height)"));
+    add(paramSpec<R>("initial_pose_yaw", GMM_MCL_PARAM_FIELD(R, initial_pose_yaw_rad), "rad", g,
+                     {-7, 7}, kStartup, "Single-pose start: yaw"));
+    add(paramSpec<R>("initial_cov_xx", GMM_MCL_PARAM_FIELD(R, initial_cov_xx_m2), "m^2", g,
+                     {0, 1e4}, kStartup, "Single-pose start: variance in x"));
+    add(paramSpec<R>("initial_cov_yy", GMM_MCL_PARAM_FIELD(R, initial_cov_yy_m2), "m^2", g,
+                     {0, 1e4}, kStartup, "Single-pose start: variance in y"));
+    add(paramSpec<R>("initial_cov_zz", GMM_MCL_PARAM_FIELD(R, initial_cov_zz_m2), "m^2", g,
+                     {0, 1e4}, kStartup, "Single-pose start: variance in z"));
+    add(paramSpec<R>("initial_cov_yawyaw", GMM_MCL_PARAM_FIELD(R, initial_cov_yawyaw_rad2), "rad^2",
+                     g, {0, 100}, kStartup, "Single-pose start: variance in yaw"));
+    add(paramSpec<R>("initial_sigma_xy", GMM_MCL_PARAM_FIELD(R, initial_sigma_xy_m), "m", g,
+                     {1e-4, 100}, kRuntime,
+                     "x and y spread of a requested pose (initialpose, ~reset_to_pose) whose "
+                     "covariance gives none"));
+    add(paramSpec<R>("initial_sigma_z", GMM_MCL_PARAM_FIELD(R, initial_sigma_z_m), "m", g,
+                     {1e-4, 100}, kRuntime, "z spread of a requested pose whose covariance gives none"));
+    add(paramSpec<R>("initial_sigma_yaw", GMM_MCL_PARAM_FIELD(R, initial_sigma_yaw_rad), "rad", g,
+                     {1e-4, 3.15}, kRuntime, "yaw spread of a requested pose whose covariance gives none"));
+    return t;
+  }();
+  return table;
+}
+
 namespace {
 
-class Reader {
- public:
-  explicit Reader(const ros::NodeHandle& nh) : nh_(nh) {}
+// One XmlRpc value as a table value of `type`; false with why.
+bool fromXmlRpc(XmlRpc::XmlRpcValue& x, ParamType type, ParamValue* v) {
+  using X = XmlRpc::XmlRpcValue;
+  v->type = type;
+  auto number = [](X& e, double* d) {
+    if (e.getType() == X::TypeDouble)
+      *d = static_cast<double>(e);
+    else if (e.getType() == X::TypeInt)
+      *d = static_cast<int>(e);
+    else
+      return false;
+    return true;
+  };
+  switch (type) {
+    case ParamType::kBool:
+      if (x.getType() != X::TypeBoolean) return false;
+      v->b = static_cast<bool>(x);
+      return true;
+    case ParamType::kInt:
+      if (x.getType() != X::TypeInt) return false;
+      v->i = static_cast<int>(x);
+      return true;
+    case ParamType::kDouble:
+      return number(x, &v->d);
+    case ParamType::kString:
+      if (x.getType() != X::TypeString) return false;
+      v->s = static_cast<std::string>(x);
+      return true;
+    case ParamType::kVector3:
+      if (x.getType() != X::TypeArray || x.size() != 3) return false;
+      for (int k = 0; k < 3; ++k) {
+        if (!number(x[k], &v->v[k])) return false;
+      }
+      return true;
+  }
+  return false;
+}
 
-  template <typename T>
-  void get(const std::string& name, T* value) {
-    if (!nh_.hasParam(name)) return;
-    T v;
-    if (!nh_.getParam(name, v)) {
-      faults_ << "~" << name << " has the wrong type; ";
-      return;
+template <typename S>
+void loadTable(const ros::NodeHandle& pnh, const ParamTable<S>& table, S* out,
+               std::string* faults) {
+  for (const ParamSpec<S>& p : table) {
+    XmlRpc::XmlRpcValue x;
+    if (!pnh.getParam(p.name, x)) continue;
+    ParamValue v;
+    if (!fromXmlRpc(x, p.type, &v)) {
+      *faults += "~" + p.name + " must be a " + paramTypeName(p.type) +
+                 (p.type == ParamType::kVector3 ? " (a list of 3 numbers)" : "") + "; ";
+      continue;
     }
-    *value = v;
-  }
-  void getFloat(const std::string& name, float* value) {
-    double v = *value;
-    get(name, &v);
-    *value = static_cast<float>(v);
-  }
-  void getVector3(const std::string& name, Eigen::Vector3d* value) {
-    if (!nh_.hasParam(name)) return;
-    std::vector<double> v;
-    if (!nh_.getParam(name, v) || v.size() != 3) {
-      faults_ << "~" << name << " must be a list of 3 numbers; ";
-      return;
+    const std::string why = p.check(v);
+    if (!why.empty()) {
+      *faults += "~" + why + "; ";
+      continue;
     }
-    *value = Eigen::Vector3d(v[0], v[1], v[2]);
+    p.set(out, v);
   }
-  void fault(const std::string& what) { faults_ << what << "; "; }
-  std::string faults() const { return faults_.str(); }
+}
 
- private:
-  const ros::NodeHandle& nh_;
-  std::ostringstream faults_;
-};
+template <typename S>
+void toConfig(const ParamTable<S>& table, const S& values, dynamic_reconfigure::Config* msg) {
+  using dynamic_reconfigure::ConfigTools;
+  for (const ParamSpec<S>& p : table) {
+    if (!p.runtime) continue;
+    const ParamValue v = p.get(values);
+    switch (p.type) {
+      case ParamType::kBool:
+        ConfigTools::appendParameter(*msg, p.name, v.b);
+        break;
+      case ParamType::kInt:
+        ConfigTools::appendParameter(*msg, p.name, static_cast<int>(v.i));
+        break;
+      case ParamType::kDouble:
+        ConfigTools::appendParameter(*msg, p.name, v.d);
+        break;
+      case ParamType::kString:
+        ConfigTools::appendParameter(*msg, p.name, v.s);
+        break;
+      case ParamType::kVector3:
+        break;  // never changeable at run time
+    }
+  }
+}
+
+template <typename S>
+void fromConfig(const ParamTable<S>& table, const dynamic_reconfigure::Config& msg, S* out,
+                std::string* faults) {
+  using dynamic_reconfigure::ConfigTools;
+  for (const ParamSpec<S>& p : table) {
+    if (!p.runtime) continue;
+    ParamValue v = p.get(*out);
+    int i = 0;
+    bool found = false;
+    switch (p.type) {
+      case ParamType::kBool:
+        found = ConfigTools::getParameter(msg, p.name, v.b);
+        break;
+      case ParamType::kInt:
+        found = ConfigTools::getParameter(msg, p.name, i);
+        v.i = i;
+        break;
+      case ParamType::kDouble:
+        found = ConfigTools::getParameter(msg, p.name, v.d);
+        break;
+      case ParamType::kString:
+        found = ConfigTools::getParameter(msg, p.name, v.s);
+        break;
+      case ParamType::kVector3:
+        break;
+    }
+    if (!found) continue;
+    const std::string why = p.check(v);
+    if (!why.empty())
+      *faults += why + "; ";
+    else
+      p.set(out, v);
+  }
+}
+
+template <typename S>
+void cfgLines(const ParamTable<S>& table, std::set<std::string>* groups, std::ostringstream* s) {
+  auto quote = [](const std::string& text) {
+    std::string q = "\"";
+    for (char c : text) q += (c == '"' || c == '\\') ? std::string("\\") + c : std::string(1, c);
+    return q + "\"";
+  };
+  auto number = [](double x) {  // a Python float literal
+    ParamValue v;
+    v.d = x;
+    const std::string s = v.toString();
+    return s.find_first_of(".e") == std::string::npos ? s + ".0" : s;
+  };
+  for (const ParamSpec<S>& p : table) {
+    if (!p.runtime) continue;
+    if (groups->insert(p.group).second)
+      *s << p.group << " = gen.add_group(\"" << p.group << "\")\n";
+    const ParamValue d = p.defaultValue();
+    *s << p.group << ".add(\"" << p.name << "\", ";
+    switch (p.type) {
+      case ParamType::kBool:
+        *s << "bool_t, 0, " << quote(p.help) << ", " << (d.b ? "True" : "False");
+        break;
+      case ParamType::kInt:
+        *s << "int_t, 0, " << quote(p.help) << ", " << d.i << ", " << static_cast<long long>(p.min)
+           << ", " << static_cast<long long>(p.max);
+        break;
+      case ParamType::kDouble:
+        *s << "double_t, 0, " << quote(p.help) << ", " << number(d.d) << ", " << number(p.min)
+           << ", " << number(p.max);
+        break;
+      case ParamType::kString:
+        *s << "str_t, 0, " << quote(p.help) << ", " << quote(d.s);
+        if (!p.choices.empty()) {
+          *s << ",\n    edit_method=gen.enum([";
+          for (size_t i = 0; i < p.choices.size(); ++i) {
+            *s << (i ? ", " : "") << "gen.const(" << quote(p.choices[i]) << ", str_t, "
+               << quote(p.choices[i]) << ", " << quote(p.choices[i]) << ")";
+          }
+          *s << "], " << quote(p.name) << ")";
+        }
+        break;
+      case ParamType::kVector3:
+        break;
+    }
+    *s << ")\n";
+  }
+}
 
 }  // namespace
 
-std::string loadRosParams(const ros::NodeHandle& pnh, LocalizerParams* core, RosOptions* ros) {
-  Reader r(pnh);
-  r.get("map", &ros->map_path);
-  r.get("map_frame", &ros->map_frame);
-  r.get("odom_frame", &ros->odom_frame);
-  r.get("base_frame", &ros->base_frame);
-  r.get("odometry_source", &ros->odometry_source);
-  r.get("depth_input", &ros->depth_input);
-  r.get("image_transport", &ros->image_transport);
-  r.get("use_imu", &ros->use_imu);
-  r.get("transform_tolerance", &ros->transform_tolerance_s);
-  r.get("tf_timeout", &ros->tf_timeout_s);
-  r.get("odom_timeout", &ros->odom_timeout_s);
-  r.get("imu_timeout", &ros->imu_timeout_s);
-  r.get("queue_size", &ros->queue_size);
-  r.get("init_from_map_bounds", &ros->init_from_map_bounds);
-  r.get("initial_sigma_xy", &ros->initial_sigma_xy_m);
-  r.get("initial_sigma_z", &ros->initial_sigma_z_m);
-  r.get("initial_sigma_yaw", &ros->initial_sigma_yaw_rad);
-  r.get("diagnostics_period", &ros->diagnostics_period_s);
+std::string loadRosParams(const ros::NodeHandle& pnh, LocalizerParams* core, RosOptions* ros,
+                          std::vector<std::string>* unknown) {
+  std::string faults;
+  loadTable(pnh, localizerParamTable(), core, &faults);
+  loadTable(pnh, rosOptionsTable(), ros, &faults);
+  if (unknown) {
+    std::vector<std::string> names;
+    ros::param::getParamNames(names);
+    const std::string prefix = pnh.getNamespace() + "/";
+    for (const std::string& n : names) {
+      if (n.compare(0, prefix.size(), prefix) != 0) continue;
+      const std::string name = n.substr(prefix.size());
+      if (name.find('/') == std::string::npos && !findParam(localizerParamTable(), name) &&
+          !findParam(rosOptionsTable(), name)) {
+        unknown->push_back("~" + name);
+      }
+    }
+  }
+  return faults + ros->validate() + core->validate();
+}
 
-  ParticleFilterParams& f = core->filter;
-  r.get("num_particles", &f.num_particles);
-  r.get("sigma_translation_m", &f.sigma_translation_m);
-  r.get("sigma_yaw_rad", &f.sigma_yaw_rad);
-  r.get("alpha_slow", &f.alpha_slow);
-  r.get("alpha_fast", &f.alpha_fast);
-  r.get("recovery_threshold", &f.recovery_threshold);
-  std::string weighting = weightingModeName(f.weighting);
-  r.get("weighting", &weighting);
-  if (!parseWeightingMode(weighting, &f.weighting)) {
-    r.fault("~weighting '" + weighting + "' is not paper or tempered");
+std::unique_ptr<Localizer> makeLocalizer(LocalizerParams* core, const RosOptions& ros,
+                                         std::string* error) {
+  try {
+    GmmMap map = loadMap(ros.map_path);
+    if (ros.init_from_map_bounds) core->init = Localizer(*core, map).mapBounds();
+    return std::unique_ptr<Localizer>(new Localizer(*core, std::move(map)));
+  } catch (const std::exception& e) {
+    *error = e.what();
+    return nullptr;
   }
-  r.get("temperature", &f.temperature);
-  r.get("neff_floor_fraction", &f.neff_floor_fraction);
-  r.get("paper_min_nll_per_pixel", &f.paper_min_nll_per_pixel);
-  r.get("resample_groups", &f.resample_groups);
-  r.get("resample_neff_fraction", &f.resample_neff_fraction);
-  r.get("attitude_sigma_rad", &f.attitude_sigma_rad);
-  int seed = static_cast<int>(f.seed);
-  r.get("seed", &seed);
-  if (seed < 0) r.fault("~seed must be >= 0");
-  f.seed = static_cast<uint64_t>(seed);
+}
 
-  r.get("pixel_stride", &core->frame.pixel_stride);
-  r.get("patch_size_px", &core->frame.patch_size_px);
-  r.getFloat("min_range_m", &core->frame.min_range_m);
-  r.getFloat("max_range_m", &core->frame.max_range_m);
-  r.getFloat("min_component_depth_m", &core->measurement.min_component_depth_m);
-  r.getFloat("sigma_bound", &core->measurement.sigma_bound);
-  r.getFloat("floor_log_density", &core->measurement.floor_log_density);
+std::string describeParams(const LocalizerParams& core, const RosOptions& ros) {
+  return describeParams(rosOptionsTable(), ros) + "\n" +
+         describeParams(localizerParamTable(), core) + "\n(* differs from the default)";
+}
 
-  r.getVector3("init_centre", &core->init.centre_m);
-  r.getVector3("init_half_extent", &core->init.half_extent_m);
-  r.get("init_yaw_centre", &core->init.yaw_centre_rad);
-  r.get("init_yaw_half_range", &core->init.yaw_half_range_rad);
-  r.get("max_odometry_step_m", &core->max_odometry_step_m);
-  r.get("backend", &core->backend);
+void toReconfigure(const LocalizerParams& core, const RosOptions& ros,
+                   dynamic_reconfigure::Config* msg) {
+  toConfig(localizerParamTable(), core, msg);
+  toConfig(rosOptionsTable(), ros, msg);
+}
 
-  if (ros->map_path.empty()) r.fault("~map (the GMM map file) is required");
-  if (ros->map_frame.empty()) r.fault("~map_frame is empty");
-  if (ros->base_frame.empty()) r.fault("~base_frame is empty");
-  if (ros->odometry_source != "tf" && ros->odometry_source != "topic" &&
-      ros->odometry_source != "none") {
-    r.fault("~odometry_source '" + ros->odometry_source + "' is not tf, topic or none");
+LocalizerConfig toLocalizerConfig(const LocalizerParams& core, const RosOptions& ros) {
+  dynamic_reconfigure::Config msg;
+  toReconfigure(core, ros, &msg);
+  LocalizerConfig config = LocalizerConfig::__getDefault__();
+  config.__fromMessage__(msg);
+  return config;
+}
+
+std::string fromReconfigure(const dynamic_reconfigure::Config& msg, LocalizerParams* core,
+                            RosOptions* ros) {
+  LocalizerParams c = *core;
+  RosOptions r = *ros;
+  std::string faults;
+  fromConfig(localizerParamTable(), msg, &c, &faults);
+  fromConfig(rosOptionsTable(), msg, &r, &faults);
+  faults += c.validate() + r.validate();
+  if (faults.empty()) {
+    *core = c;
+    *ros = r;
   }
-  if (ros->odometry_source == "tf" && ros->odom_frame.empty()) {
-    r.fault("~odometry_source tf needs ~odom_frame");
-  }
-  if (ros->depth_input != "image" && ros->depth_input != "cloud") {
-    r.fault("~depth_input '" + ros->depth_input + "' is not image or cloud");
-  }
-  if (ros->image_transport.empty()) r.fault("~image_transport is empty");
-  if (core->backend != "cpu" && core->backend != "cuda") {
-    r.fault("~backend '" + core->backend + "' is not cpu or cuda");
-  }
-  if (!(ros->transform_tolerance_s >= 0.0)) r.fault("~transform_tolerance must be >= 0");
-  if (!(ros->tf_timeout_s >= 0.0)) r.fault("~tf_timeout must be >= 0");
-  if (!(ros->odom_timeout_s > 0.0)) r.fault("~odom_timeout must be > 0");
-  if (!(ros->imu_timeout_s > 0.0)) r.fault("~imu_timeout must be > 0");
-  if (ros->queue_size < 1) r.fault("~queue_size must be >= 1");
-  if (!(ros->initial_sigma_xy_m > 0.0 && ros->initial_sigma_z_m > 0.0 &&
-        ros->initial_sigma_yaw_rad > 0.0)) {
-    r.fault("~initial_sigma_* must be > 0");
-  }
-  if (!(ros->diagnostics_period_s > 0.0)) r.fault("~diagnostics_period must be > 0");
-  std::string faults = r.faults();
-  const std::string core_faults = core->validate();
-  if (!core_faults.empty()) faults += core_faults;
   return faults;
 }
 
-std::string describeParams(const LocalizerParams& c, const RosOptions& r) {
+std::string reconfigure(LocalizerConfig* config, LocalizerParams* core, RosOptions* ros,
+                        const std::function<void(const LocalizerParams&)>& apply,
+                        std::string* changes) {
+  dynamic_reconfigure::Config msg;
+  config->__toMessage__(msg);
+  LocalizerParams c = *core;
+  RosOptions r = *ros;
+  std::string error = fromReconfigure(msg, &c, &r);
+  if (error.empty()) {
+    try {
+      apply(c);
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+  }
+  if (!error.empty()) {
+    msg = dynamic_reconfigure::Config();
+    toReconfigure(*core, *ros, &msg);
+    config->__fromMessage__(msg);
+    return error;
+  }
+  const std::string a = describeChanges(localizerParamTable(), *core, c);
+  const std::string b = describeChanges(rosOptionsTable(), *ros, r);
+  *changes = a + (a.empty() || b.empty() ? "" : ", ") + b;
+  *core = c;
+  *ros = r;
+  return "";
+}
+
+void savePoseParams(const ros::NodeHandle& pnh, const Particle& m,
+                    const Eigen::Matrix<double, 6, 6>& c) {
+  pnh.setParam("initial_pose_x", m.x_m);
+  pnh.setParam("initial_pose_y", m.y_m);
+  pnh.setParam("initial_pose_z", m.z_m);
+  pnh.setParam("initial_pose_yaw", m.yaw_rad);
+  pnh.setParam("initial_cov_xx", c(0, 0));
+  pnh.setParam("initial_cov_yy", c(1, 1));
+  pnh.setParam("initial_cov_zz", c(2, 2));
+  pnh.setParam("initial_cov_yawyaw", c(5, 5));
+}
+
+void initialPose(const RosOptions& o, Eigen::Isometry3d* T, Eigen::Matrix<double, 6, 6>* cov) {
+  *T = particleToPose(
+      Particle{o.initial_pose_x_m, o.initial_pose_y_m, o.initial_pose_z_m, o.initial_pose_yaw_rad},
+      0, 0);
+  cov->setZero();
+  (*cov)(0, 0) = o.initial_cov_xx_m2;
+  (*cov)(1, 1) = o.initial_cov_yy_m2;
+  (*cov)(2, 2) = o.initial_cov_zz_m2;
+  (*cov)(5, 5) = o.initial_cov_yawyaw_rad2;
+}
+
+std::string dynamicReconfigureCfg() {
   std::ostringstream s;
-  s << "map " << r.map_path << ", frames " << r.map_frame << " / "
-    << (r.odom_frame.empty() ? "(no odom frame)" : r.odom_frame) << " / " << r.base_frame
-    << ", odometry " << r.odometry_source << ", depth " << r.depth_input << " (" << r.image_transport << "), imu "
-    << (r.use_imu ? "on" : "off") << "\n  particles " << c.filter.num_particles << ", sigma "
-    << c.filter.sigma_translation_m << " m / " << c.filter.sigma_yaw_rad << " rad, alpha slow "
-    << c.filter.alpha_slow << " fast " << c.filter.alpha_fast << ", recovery threshold "
-    << c.filter.recovery_threshold << ", weighting " << weightingModeName(c.filter.weighting)
-    << " (T " << c.filter.temperature << ", Neff floor " << c.filter.neff_floor_fraction
-    << "), seed " << c.filter.seed << "\n  stride " << c.frame.pixel_stride << " px, patch "
-    << c.frame.patch_size_px << " px, range [" << c.frame.min_range_m << ", "
-    << c.frame.max_range_m << "] m, floor " << c.measurement.floor_log_density
-    << ", backend " << c.backend << "\n  init "
-    << (r.init_from_map_bounds ? std::string("map bounds") : std::string("region"))
-    << " centre (" << c.init.centre_m.transpose() << ") half extent ("
-    << c.init.half_extent_m.transpose() << ") yaw " << c.init.yaw_centre_rad << " +- "
-    << c.init.yaw_half_range_rad << ", transform_tolerance " << r.transform_tolerance_s
-    << " s, queue " << r.queue_size;
+  s << "#!/usr/bin/env python\n"
+       "# dynamic_reconfigure: every parameter that can change while running. Generated from the\n"
+       "# parameter tables (include/gmm_mcl/filter/parameter_table.h, src/ros/ros_params.cpp) by\n"
+       "# `gmm_mcl_params --cfg > cfg/Localizer.cfg`; test_ros_params checks that they agree.\n"
+       "# Defaults are the core's; the node starts from its ROS parameters.\n"
+       "from dynamic_reconfigure.parameter_generator_catkin import ParameterGenerator, bool_t, "
+       "double_t, int_t, str_t\n\n"
+       "gen = ParameterGenerator()\n";
+  std::set<std::string> groups;
+  cfgLines(localizerParamTable(), &groups, &s);
+  cfgLines(rosOptionsTable(), &groups, &s);
+  s << "exit(gen.generate(\"gmm_mcl\", \"gmm_mcl\", \"Localizer\"))\n";
   return s.str();
+}
+
+namespace {
+template <typename S>
+void yamlLines(const ParamTable<S>& table, std::string* out) {
+  std::string group;
+  for (const ParamSpec<S>& p : table) {
+    if (p.group != group) *out += "# " + (group = p.group) + "\n";
+    const ParamValue v = p.defaultValue();
+    const std::string value = v.toString();
+    const bool unset = value == "unset" || (p.type == ParamType::kString && value.empty());
+    *out += (unset ? "# " : "") + p.name + ": " + (p.type == ParamType::kString ? "'" + value + "'" : value) +
+            (p.unit.empty() ? "" : "  # " + p.unit) + "\n";
+  }
+}
+}  // namespace
+
+std::string defaultsYaml() {
+  std::string out = "# Every parameter of the localization nodelet with its default (gmm_mcl_params --defaults).\n";
+  yamlLines(rosOptionsTable(), &out);
+  yamlLines(localizerParamTable(), &out);
+  return out;
+}
+
+std::string parameterReferenceMarkdown() {
+  return "# Parameters of the localization nodelet\n\n"
+         "Generated from the parameter tables (`include/gmm_mcl/filter/parameter_table.h`, "
+         "`src/ros/ros_params.cpp`) by `gmm_mcl_params --markdown > docs/parameters.md`; "
+         "`test_ros_params` checks that this file is current. Every parameter is a private "
+         "parameter of the nodelet (`~name`, e.g. `/gmm_mcl/num_particles`). *Run time*: "
+         "changeable while running through dynamic_reconfigure (`rosrun rqt_reconfigure "
+         "rqt_reconfigure`, `rosrun dynamic_reconfigure dynparam set /gmm_mcl NAME VALUE`), "
+         "keeping the particles; the others are read once at start-up. A value outside its "
+         "range, of the wrong type or failing a rule between parameters (e.g. `alpha_slow` < "
+         "`alpha_fast`) stops the nodelet with one message naming every fault. `unset`: no "
+         "default.\n\n"
+         "## The node\n\n" +
+         markdownReference(rosOptionsTable()) + "\n## The filter\n\n" +
+         markdownReference(localizerParamTable());
 }
 
 }  // namespace gmm_mcl

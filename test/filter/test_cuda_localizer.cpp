@@ -270,6 +270,44 @@ TEST(CudaLocalizerTest, LostDetectorRedrawsOnTheDevice) {
   }
 }
 
+// setParams with the particle set on the GPU: new values keep the particles and weights as they
+// are; a smaller count resamples the set to it on the device; tracking goes on.
+TEST(CudaLocalizerTest, SetParamsKeepsTheDeviceFiltersBelief) {
+  Localizer loc(cudaParams(1068, true), test::world().map);
+  ASSERT_EQ(loc.filterName(), "cuda") << loc.backendWarning();
+  run(&loc, 60);
+  const std::vector<Particle> particles = loc.filter().particles();
+  const std::vector<double> weights = loc.filter().weights();
+  LocalizerParams q = loc.params();
+  q.filter.sigma_translation_m = 0.01;
+  q.filter.temperature = 2.0;
+  q.measurement.floor_log_density = -9.0f;
+  loc.setParams(q);
+  ASSERT_EQ(loc.filterName(), "cuda");
+  EXPECT_EQ(loc.filter().params().temperature, 2.0);
+  ASSERT_EQ(loc.filter().particles().size(), particles.size());
+  for (size_t i = 0; i < particles.size(); ++i) {
+    ASSERT_EQ(loc.filter().particles()[i].x_m, particles[i].x_m) << i;
+    ASSERT_EQ(loc.filter().weights()[i], weights[i]) << i;
+  }
+  const Particle mean_before = loc.filter().estimate().mean;
+  q.filter.num_particles = 500;
+  loc.setParams(q);
+  EXPECT_EQ(loc.filter().size(), 500);
+  const Particle mean_after = loc.filter().estimate().mean;
+  EXPECT_LT(std::hypot(mean_after.x_m - mean_before.x_m, mean_after.y_m - mean_before.y_m), 0.05);
+  StepResult r;
+  for (int f = 60; f < 80; ++f) {
+    r = loc.step(inputAt(f));
+    ASSERT_EQ(r.status, StepStatus::kOk) << r.message;
+  }
+  EXPECT_EQ(r.particles, 500);
+  EXPECT_LT(errorAt(r, 79), kConvergedErrorM);
+  LocalizerParams bad = q;
+  bad.device_filter = false;
+  EXPECT_THROW(loc.setParams(bad), std::invalid_argument);
+}
+
 TEST(CudaLocalizerTest, ABackendFailureFallsBackToTheCpuKeepingTheParticles) {
   // A map whose membership bitmask exceeds the GPU's shared memory per block: the CUDA backend
   // refuses it on the first evaluation (a BackendError at run time); the localizer copies the

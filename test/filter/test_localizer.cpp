@@ -264,5 +264,150 @@ TEST(LocalizerTest, InvalidParametersAreRejectedAtConstruction) {
   }
 }
 
+double distanceM(const Particle& a, const Particle& b) {
+  return std::sqrt(std::pow(a.x_m - b.x_m, 2) + std::pow(a.y_m - b.y_m, 2) + std::pow(a.z_m - b.z_m, 2));
+}
+
+// Inputs of the synthetic trajectory's frame f (perfect odometry and attitude).
+StepInput syntheticInput(const std::vector<Eigen::Isometry3d>& truth, int f, const DepthImage& depth) {
+  double roll, pitch, yaw;
+  rpyFromRotation(truth[f].linear(), &roll, &pitch, &yaw);
+  StepInput in;
+  in.stamp_s = f / 30.0;
+  in.has_odometry = true;
+  in.T_odom_base = truth[f];
+  in.has_attitude = true;
+  in.roll_rad = roll;
+  in.pitch_rad = pitch;
+  in.depth = &depth;
+  in.intrinsics = test::smallCamera();
+  return in;
+}
+
+DepthImage syntheticDepth(const Eigen::Isometry3d& T_map_cam) {
+  return sim::renderDepth(test::world().scene, test::smallCamera(), T_map_cam,
+                          DepthEncoding::kMono16Millimetres, 9.0);
+}
+
+void expectSameParticles(const Localizer& a, const Localizer& b) {
+  ASSERT_EQ(a.filter().size(), b.filter().size());
+  for (int i = 0; i < a.filter().size(); ++i) {
+    ASSERT_EQ(a.filter().particles()[i].x_m, b.filter().particles()[i].x_m) << i;
+    ASSERT_EQ(a.filter().particles()[i].yaw_rad, b.filter().particles()[i].yaw_rad) << i;
+    ASSERT_EQ(a.filter().weights()[i], b.filter().weights()[i]) << i;
+  }
+}
+
+// Extrinsics given per frame (a gimbal, a moving joint) are used for that frame and leave the
+// belief alone: the same frames give bit-identical particles to a localizer constructed with
+// those extrinsics.
+TEST(LocalizerTest, PerFrameExtrinsicsEnterWithoutTouchingTheBelief) {
+  const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(8);
+  LocalizerParams with = syntheticParams(truth[0]);
+  with.filter.num_particles = 200;
+  with.frame.pixel_stride = 8;
+  with.init.half_extent_m.setConstant(0.3);
+  LocalizerParams without = with;
+  without.T_base_cam = Eigen::Isometry3d::Identity();
+  Localizer a(with, test::world().map), b(without, test::world().map);
+  for (int f = 0; f < 5; ++f) {
+    const DepthImage depth = syntheticDepth(truth[f] * with.T_base_cam);
+    StepInput in = syntheticInput(truth, f, depth);
+    a.step(in);
+    in.has_T_base_cam = true;
+    in.T_base_cam = with.T_base_cam;
+    b.step(in);
+    expectSameParticles(a, b);
+  }
+  EXPECT_TRUE(b.params().T_base_cam.isApprox(with.T_base_cam));
+
+  // Extrinsics that change every frame (0.5 deg about a random axis): each frame is scored
+  // with its own, the particles are untouched by the change (equal to a localizer that was
+  // handed the same extrinsics through setParams before the frame).
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (int f = 5; f < 8; ++f) {
+    Eigen::Isometry3d T = with.T_base_cam;
+    T.linear() = T.linear() * Eigen::AngleAxisd(0.5 * M_PI / 180,
+                                                Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized())
+                                  .toRotationMatrix();
+    const DepthImage depth = syntheticDepth(truth[f] * T);
+    LocalizerParams moved = a.params();
+    moved.T_base_cam = T;
+    a.setParams(moved);
+    a.step(syntheticInput(truth, f, depth));
+    StepInput in = syntheticInput(truth, f, depth);
+    in.has_T_base_cam = true;
+    in.T_base_cam = T;
+    const StepResult r = b.step(in);
+    ASSERT_EQ(r.status, StepStatus::kOk) << r.message;
+    expectSameParticles(a, b);
+  }
+}
+
+// setParams keeps the belief: the same particles and weights, the new values used from the
+// next frame; backend and seed are fixed; invalid values are refused and change nothing.
+TEST(LocalizerTest, SetParamsKeepsTheBelief) {
+  const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(5);
+  LocalizerParams p = syntheticParams(truth[0]);
+  p.filter.num_particles = 200;
+  p.frame.pixel_stride = 8;
+  p.init.half_extent_m.setConstant(0.3);
+  Localizer loc(p, test::world().map), reference(p, test::world().map);
+  for (int f = 0; f < 4; ++f) {
+    const DepthImage depth = syntheticDepth(truth[f] * p.T_base_cam);
+    loc.step(syntheticInput(truth, f, depth));
+    reference.step(syntheticInput(truth, f, depth));
+  }
+  LocalizerParams q = p;
+  q.filter.sigma_translation_m = 0.001;
+  q.filter.temperature = 2.0;
+  q.lost.margin_nats = 5.0;
+  q.lost.redraw_blur_m = 0.3;
+  q.frame.pixel_stride = 6;
+  q.measurement.floor_log_density = -9.0f;
+  q.refinement.enabled = false;
+  const Particle mean_before = loc.filter().estimate().mean;
+  loc.setParams(q);
+  expectSameParticles(loc, reference);
+  EXPECT_EQ(loc.params().frame.pixel_stride, 6);
+  EXPECT_NE(loc.mapSelfLogDensity(), reference.mapSelfLogDensity()) << "floor change not applied";
+  const DepthImage depth = syntheticDepth(truth[4] * p.T_base_cam);
+  const StepResult r = loc.step(syntheticInput(truth, 4, depth));
+  EXPECT_EQ(r.status, StepStatus::kOk) << r.message;
+  EXPECT_FALSE(r.refinement.refined) << "refinement was switched off";
+  EXPECT_LT(distanceM(r.estimate.mean, mean_before), 0.1) << "the belief did not carry over";
+
+  LocalizerParams bad = q;
+  bad.filter.neff_floor_fraction = 2.0;
+  EXPECT_THROW(loc.setParams(bad), std::invalid_argument);
+  EXPECT_EQ(loc.params().filter.temperature, 2.0);
+  bad = q;
+  bad.backend = "cuda";
+  EXPECT_THROW(loc.setParams(bad), std::invalid_argument);
+  bad = q;
+  bad.filter.seed = 99;
+  EXPECT_THROW(loc.setParams(bad), std::invalid_argument);
+  bad = q;
+  bad.device_filter = !q.device_filter;  // where the set lives is fixed at construction
+  EXPECT_THROW(loc.setParams(bad), std::invalid_argument);
+}
+
+// Another map: the particles stay.
+TEST(LocalizerTest, SetMapKeepsTheParticles) {
+  const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(4);
+  LocalizerParams p = syntheticParams(truth[0]);
+  p.filter.num_particles = 200;
+  p.frame.pixel_stride = 8;
+  Localizer loc(p, test::world().map), reference(p, test::world().map);
+  const DepthImage depth = syntheticDepth(truth[0] * p.T_base_cam);
+  loc.step(syntheticInput(truth, 0, depth));
+  reference.step(syntheticInput(truth, 0, depth));
+  loc.setMap(test::world().map);
+  expectSameParticles(loc, reference);
+  EXPECT_THROW(loc.setMap(GmmMap()), std::invalid_argument);
+  EXPECT_EQ(loc.map().size(), test::world().map.size());
+}
+
 }  // namespace
 }  // namespace gmm_mcl

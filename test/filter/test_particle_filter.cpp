@@ -249,5 +249,61 @@ TEST(ParticleFilterTest, ReplaceWorstKeepsTheBestAndCanGrow) {
   EXPECT_NEAR(total, 1.0, 1e-12);
 }
 
+// Parameters change in place: the particles and weights stay, the next prediction uses the new
+// noise, a count outside the new range is resampled from the same set.
+TEST(ParticleFilterTest, SetParamsKeepsTheParticlesAndTheirWeights) {
+  ParticleFilterParams p;
+  p.num_particles = 500;
+  ParticleFilter pf(p);
+  pf.initialiseUniform(InitRegion());
+  std::vector<double> ll(500);
+  for (int i = 0; i < 500; ++i) ll[i] = -0.01 * i;
+  ASSERT_TRUE(pf.updateWeights(ll, 1));
+  const std::vector<Particle> before = pf.particles();
+  const std::vector<double> weights = pf.weights();
+
+  ParticleFilterParams q = p;
+  q.sigma_translation_m = 0.5;
+  q.sigma_yaw_rad = 0.0;
+  q.alpha_fast = 0.2;
+  q.temperature = 3.0;
+  pf.setParams(q);
+  ASSERT_EQ(pf.size(), 500);
+  for (int i = 0; i < 500; ++i) {
+    ASSERT_EQ(pf.particles()[i].x_m, before[i].x_m);
+    ASSERT_EQ(pf.weights()[i], weights[i]);
+  }
+  EXPECT_EQ(pf.params().temperature, 3.0);
+  pf.predict(PlanarDelta());
+  double sum_sq = 0.0, yaw_moved = 0.0;
+  for (int i = 0; i < 500; ++i) {
+    sum_sq += std::pow(pf.particles()[i].x_m - before[i].x_m, 2);
+    yaw_moved += std::abs(pf.particles()[i].yaw_rad - before[i].yaw_rad);
+  }
+  EXPECT_NEAR(std::sqrt(sum_sq / 500), 0.5, 0.05) << "the new process noise is not used";
+  EXPECT_EQ(yaw_moved, 0.0);
+
+  // A smaller fixed count: resampled from the same set.
+  const std::vector<Particle> moved = pf.particles();
+  q.num_particles = 200;
+  q.resample_groups = 4;
+  pf.setParams(q);
+  ASSERT_EQ(pf.size(), 200);
+  for (const Particle& a : pf.particles()) {
+    bool found = false;
+    for (const Particle& b : moved) found = found || (a.x_m == b.x_m && a.yaw_rad == b.yaw_rad);
+    ASSERT_TRUE(found) << "a particle not from the previous set";
+  }
+  EXPECT_NEAR(pf.weights()[0], 1.0 / 200, 1e-15);
+
+  // Invalid parameters: refused, nothing changes.
+  ParticleFilterParams bad = q;
+  bad.alpha_slow = 0.5;
+  bad.alpha_fast = 0.1;
+  EXPECT_THROW(pf.setParams(bad), std::invalid_argument);
+  EXPECT_EQ(pf.params().alpha_fast, q.alpha_fast);
+  EXPECT_EQ(pf.size(), 200);
+}
+
 }  // namespace
 }  // namespace gmm_mcl

@@ -1,8 +1,9 @@
-// rostest node that feeds the nodelet itself (wall time): good frames, then each bad input in
-// turn (wrong encoding, NaN-only depth, image size not matching CameraInfo, no CameraInfo,
-// missing tf, missing IMU, odometry gap); the node must stay up, say what is wrong (status and
-// /diagnostics) and recover when good data returns. mode "config": a bad configuration is
-// reported on /diagnostics and nothing is subscribed.
+// rostest node that feeds the nodelet itself, in lockstep with the clock it owns
+// (test/ros/lockstep.h): good frames, then each bad input in turn (wrong encoding, NaN-only
+// depth, image size not matching CameraInfo, no CameraInfo, an unknown camera frame, missing
+// IMU, an odometry gap); the node must stay up, say what is wrong (status and /diagnostics) and
+// recover when good data returns. mode "config": a bad configuration is reported on
+// /diagnostics and nothing is subscribed (wall time: nothing runs to wait for).
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -24,211 +25,149 @@
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/ros/conversions.h"
 #include "gmm_mcl/sim/box_scene.h"
+#include "synthetic_robot.h"
 
 using namespace gmm_mcl;
 
 namespace {
 
-bool spinUntil(const std::function<bool()>& done, double wall_timeout_s) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(wall_timeout_s);
-  while (ros::ok() && ros::WallTime::now() < end) {
-    ros::spinOnce();
-    if (done()) return true;
-    ros::WallDuration(0.005).sleep();
-  }
-  return false;
-}
+using namespace gmm_mcl::lockstep;
 
-struct Diag {
+bool spinUntil(const std::function<bool()>& done, double wall_timeout_s) { return waitFor(done, wall_timeout_s); }
+
+struct ConfigDiag {
   int level;
   std::string message;
 };
 
-class Harness {
- public:
-  Harness() {
-    image_pub_ = nh_.advertise<sensor_msgs::Image>("/camera/depth/image_raw", 5);
-    info_pub_ = nh_.advertise<sensor_msgs::CameraInfo>("/camera/depth/camera_info", 5);
-    imu_pub_ = nh_.advertise<sensor_msgs::Imu>("/imu/data", 5);
-    status_sub_ = nh_.subscribe("/gmm_mcl/status", 100, &Harness::status, this);
-    diag_sub_ = nh_.subscribe("/diagnostics", 100, &Harness::diag, this);
-    scene_ = sim::makeDefaultScene();
-    truth_ = sim::makeTrajectory(400);
-    K_.width_px = 160;
-    K_.height_px = 120;
-    K_.fx_px = K_.fy_px = 585.f / 4;
-    K_.cx_px = 0.5f * (K_.width_px - 1);
-    K_.cy_px = 0.5f * (K_.height_px - 1);
-    geometry_msgs::TransformStamped st;
-    st.header.stamp = ros::Time::now();
-    st.header.frame_id = "base_link";
-    st.child_frame_id = "camera_depth_optical_frame";
-    st.transform = ros_conv::transformFromIsometry(sim::defaultBaseToCamera());
-    static_tf_.sendTransform(st);
-  }
-  void status(const FilterStatusConstPtr& m) { statuses_.push_back(*m); }
-  void diag(const diagnostic_msgs::DiagnosticArrayConstPtr& m) {
-    for (const auto& s : m->status) {
-      if (s.name.find("localization") != std::string::npos) diags_.push_back(Diag{s.level, s.message});
-    }
-  }
-
-  enum Fault { kNone, kEncoding, kNanDepth, kSizeMismatch, kNoInfo, kNoTf, kNoImu, kNoOdom };
-  // Sends frame f with the fault; 15 Hz.
-  void send(Fault fault) {
-    const int f = frame_++;
-    const ros::Time stamp = ros::Time::now();
-    const Eigen::Isometry3d T = truth_[f % truth_.size()];
-    if (fault != kNoOdom) {
-      geometry_msgs::TransformStamped odom;
-      odom.header.stamp = stamp;
-      odom.header.frame_id = "odom";
-      odom.child_frame_id = "base_link";
-      odom.transform = ros_conv::transformFromIsometry(T);  // perfect odometry from the map origin
-      tf_.sendTransform(odom);
-    }
-    if (fault != kNoImu) {
-      sensor_msgs::Imu imu;
-      imu.header.stamp = stamp;
-      imu.orientation = ros_conv::poseFromIsometry(T).orientation;
-      imu_pub_.publish(imu);
-    }
-    ros::WallDuration(0.01).sleep();  // tf before the frame
-    const DepthImage depth = sim::renderDepth(scene_, K_, T * sim::defaultBaseToCamera(),
-                                              DepthEncoding::kMono16Millimetres, 8.0);
-    sensor_msgs::Image img;
-    img.header.stamp = stamp;
-    img.header.frame_id = fault == kNoTf ? "unknown_camera_frame" : "camera_depth_optical_frame";
-    img.width = depth.width_px;
-    img.height = depth.height_px;
-    img.encoding = "16UC1";
-    img.step = static_cast<uint32_t>(depth.row_bytes);
-    img.data = depth.data;
-    if (fault == kEncoding) {
-      img.encoding = "rgb8";
-      img.step = 3 * img.width;
-      img.data.assign(img.step * img.height, 128);
-    } else if (fault == kNanDepth) {
-      img.encoding = "32FC1";
-      img.step = 4 * img.width;
-      std::vector<float> nan(img.width * img.height, std::numeric_limits<float>::quiet_NaN());
-      img.data.resize(img.step * img.height);
-      std::memcpy(img.data.data(), nan.data(), img.data.size());
-    }
-    sensor_msgs::CameraInfo info;
-    info.header = img.header;
-    const int scale = fault == kSizeMismatch ? 2 : 1;
-    info.width = K_.width_px * scale;
-    info.height = K_.height_px * scale;
-    info.K = {K_.fx_px * scale, 0, K_.cx_px * scale, 0, K_.fy_px * scale, K_.cy_px * scale, 0, 0, 1};
-    image_pub_.publish(img);
-    if (fault != kNoInfo) info_pub_.publish(info);
-    const ros::WallTime until = ros::WallTime::now() + ros::WallDuration(1.0 / 15);
-    while (ros::WallTime::now() < until) {
-      ros::spinOnce();
-      ros::WallDuration(0.005).sleep();
-    }
-  }
-  // Sends n frames with the fault; true once a diagnostics message since the start contains
-  // `expected` (empty: no check).
-  bool sendUntilDiag(Fault fault, int n, const std::string& expected, int min_level) {
-    const size_t d0 = diags_.size();
-    bool seen = expected.empty();
-    for (int i = 0; i < n; ++i) {
-      send(fault);
-      for (size_t k = d0; k < diags_.size() && !seen; ++k) {
-        seen = diags_[k].level >= min_level && diags_[k].message.find(expected) != std::string::npos;
-      }
-    }
-    return seen;
-  }
-  int statusesSince(size_t s0, const std::string& step_status) const {
-    int n = 0;
-    for (size_t i = s0; i < statuses_.size(); ++i) n += statuses_[i].step_status == step_status;
-    return n;
-  }
-
-  ros::NodeHandle nh_;
-  ros::Publisher image_pub_, info_pub_, imu_pub_;
-  ros::Subscriber status_sub_, diag_sub_;
-  tf2_ros::TransformBroadcaster tf_;
-  tf2_ros::StaticTransformBroadcaster static_tf_;
-  sim::BoxScene scene_;
-  std::vector<Eigen::Isometry3d> truth_;
-  Intrinsics K_;
-  int frame_ = 0;
-  std::vector<FilterStatus> statuses_;
-  std::vector<Diag> diags_;
-};
-
-void lastDiag(const Harness& h) {
-  if (!h.diags_.empty()) {
-    std::printf("[ diag ] level %d: %s\n", h.diags_.back().level, h.diags_.back().message.c_str());
-  }
-}
-
 }  // namespace
 
+// Bad inputs one after another, each awaited (its ~status, or the drop counted on
+// /diagnostics, whose period the test's clock steps over): the node stays up, says what is
+// wrong, and uses good data again afterwards.
 TEST(BadInputs, NodeSaysWhatIsWrongAndRecovers) {
-  Harness h;
-  ASSERT_TRUE(spinUntil([&] { return h.image_pub_.getNumSubscribers() > 0 && h.info_pub_.getNumSubscribers() > 0; }, 20.0));
-  const int warn = diagnostic_msgs::DiagnosticStatus::WARN;
+  ros::NodeHandle nh;
+  Clock clock(nh);
+  Observer obs(nh);
+  SyntheticRobot robot(nh, &clock);
+  ASSERT_TRUE(robot.waitForNodelet());
+  robot.publishStaticExtrinsics();
+  double step = 0;
+  int k = 0;
+  auto send = [&](const SyntheticRobot::Frame& f) {
+    const ros::Time t = robot.stamp(step++);
+    robot.send(t, robot.truth(k++), f);
+    return t;
+  };
+  // Ticks the clock over the diagnostics period until the nodelet's diagnostics satisfy `ok`.
+  auto diagUntil = [&](const std::function<bool(const lockstep::Diag&)>& ok) {
+    lockstep::Diag d;
+    for (int i = 0; i < 10; ++i) {
+      if (!obs.tickDiagnostics(&clock, 0.25, &d)) break;
+      if (ok(d)) return true;
+    }
+    std::printf("[ diag ] level %d: %s\n", d.level, d.message.c_str());
+    return false;
+  };
+  auto says = [&](const std::string& text) {
+    return diagUntil([&](const lockstep::Diag& d) {
+      return d.level >= diagnostic_msgs::DiagnosticStatus::WARN && d.message.find(text) != std::string::npos;
+    });
+  };
+  const SyntheticRobot::Frame good;
 
-  size_t s0 = h.statuses_.size();
-  h.sendUntilDiag(Harness::kNone, 15, "", 0);
-  EXPECT_GE(h.statusesSince(s0, "ok"), 5) << "good frames are not used";
+  for (int i = 0; i < 5; ++i) {
+    const FilterStatus* s = obs.statusAt(send(good));
+    ASSERT_NE(s, nullptr) << "good frame " << i << " not used";
+    EXPECT_EQ(s->step_status, "ok") << s->message;
+  }
+  SyntheticRobot::Frame f = good;
+  f.encoding = "rgb8";
+  send(f);
+  EXPECT_TRUE(says("unsupported depth encoding 'rgb8'"));
+  EXPECT_EQ(obs.lastDiag()->number("dropped: conversion"), 1);
 
-  s0 = h.statuses_.size();
-  EXPECT_TRUE(h.sendUntilDiag(Harness::kEncoding, 25, "unsupported depth encoding 'rgb8'", warn));
-  lastDiag(h);
-  EXPECT_EQ(h.statuses_.size(), s0) << "a frame with a wrong encoding was used";
+  f = good;
+  f.nan_depth = true;
+  const FilterStatus* s = obs.statusAt(send(f));
+  ASSERT_NE(s, nullptr);
+  EXPECT_EQ(s->step_status, "no_valid_pixels");
 
-  s0 = h.statuses_.size();
-  h.sendUntilDiag(Harness::kNanDepth, 10, "", 0);
-  EXPECT_GE(h.statusesSince(s0, "no_valid_pixels"), 3) << "NaN-only frames not reported";
-  EXPECT_EQ(h.statusesSince(s0, "ok"), 0);
+  f = good;
+  f.info_scale = 2;
+  send(f);
+  EXPECT_TRUE(says("but CameraInfo says 320x240"));
 
-  s0 = h.statuses_.size();
-  EXPECT_TRUE(h.sendUntilDiag(Harness::kSizeMismatch, 25, "but CameraInfo says 320x240", warn));
-  lastDiag(h);
-  EXPECT_EQ(h.statuses_.size(), s0) << "a frame not matching its CameraInfo was used";
+  f = good;
+  f.camera_info = false;
+  for (int i = 0; i < 4; ++i) {
+    send(f);
+    step += 20;  // 2.7 s of images without CameraInfo
+  }
+  EXPECT_TRUE(says("but no CameraInfo on /camera/depth/camera_info"));
 
-  EXPECT_TRUE(h.sendUntilDiag(Harness::kNoInfo, 90, "no depth frame for", warn));
-  lastDiag(h);
+  // A camera frame that tf does not know: the frame waits for tf, then the next frame takes its
+  // place and it is dropped, saying why.
+  f = good;
+  f.camera_frame = "unknown_camera_frame";
+  const long long received = obs.statuses.back().frames_received;
+  send(f);
+  // It arrived (and waits for tf) before the next frame is sent, which takes its place.
+  ASSERT_TRUE(diagUntil([&](const lockstep::Diag& d) { return d.number("frames received") > received; }));
+  ASSERT_NE(obs.statusAt(send(good)), nullptr);
+  EXPECT_TRUE(says("'unknown_camera_frame'"));
+  EXPECT_GE(obs.lastDiag()->number("dropped: no extrinsics"), 1);
 
-  s0 = h.statuses_.size();
-  EXPECT_TRUE(h.sendUntilDiag(Harness::kNoTf, 25, "no transform base_link -> unknown_camera_frame", warn));
-  lastDiag(h);
-  EXPECT_EQ(h.statuses_.size(), s0) << "a frame without extrinsics was used";
+  f = good;
+  f.imu = false;
+  step += 30;  // the last IMU message is a second older than this frame
+  s = obs.statusAt(send(f));
+  ASSERT_NE(s, nullptr);
+  EXPECT_NE(s->message.find("IMU attitude"), std::string::npos) << s->message;
 
-  s0 = h.statuses_.size();
-  h.sendUntilDiag(Harness::kNoImu, 20, "", 0);
-  ASSERT_GT(h.statuses_.size(), s0);
-  EXPECT_NE(h.statuses_.back().message.find("IMU attitude is stale"), std::string::npos)
-      << h.statuses_.back().message;
+  // No odometry tf at a frame's stamp: it waits; the next stamp's odometry brackets it and it is
+  // used (odometry interpolated at the stamp, as amcl does), then the next frame. One frame in
+  // flight at a time: had the next image come before its odometry, it would have taken the
+  // waiting frame's place (queue_size 1), which is what happens on a loaded machine.
+  f = good;
+  f.odom_tf = false;
+  const long long received_before_gap = obs.statuses.back().frames_received;
+  const ros::Time t_gap = send(f);
+  ASSERT_TRUE(diagUntil([&](const lockstep::Diag& d) { return d.number("frames received") > received_before_gap; }));
+  const ros::Time t_next = robot.stamp(step);
+  robot.publishOdometry(t_next, robot.truth(k));
+  s = obs.statusAt(t_gap);
+  ASSERT_NE(s, nullptr);
+  EXPECT_EQ(s->message.find("odometry"), std::string::npos) << s->message;
+  SyntheticRobot::Frame next = good;
+  next.odom_tf = false;  // its odometry is out already
+  ASSERT_EQ(send(next), t_next);
+  ASSERT_NE(obs.statusAt(t_next), nullptr);
 
-  s0 = h.statuses_.size();
-  h.sendUntilDiag(Harness::kNoOdom, 10, "", 0);
-  ASSERT_GT(h.statuses_.size(), s0);
-  EXPECT_NE(h.statuses_.back().message.find("no odometry tf"), std::string::npos)
-      << h.statuses_.back().message;
-
-  // Good data again: frames are used, and the diagnostics return to OK.
-  s0 = h.statuses_.size();
-  EXPECT_TRUE(h.sendUntilDiag(Harness::kNone, 150, "localizing", diagnostic_msgs::DiagnosticStatus::OK));
-  lastDiag(h);
-  EXPECT_GE(h.statusesSince(s0, "ok"), 20);
+  // Good data again: used, and once the problems are 5 s old the diagnostics return to OK.
+  lockstep::Diag d;
+  d.level = -1;
+  for (int i = 0; i < 40 && d.level != diagnostic_msgs::DiagnosticStatus::OK; ++i) {
+    ASSERT_NE(obs.statusAt(send(good)), nullptr);
+    ASSERT_TRUE(obs.tickDiagnostics(&clock, 0.25, &d));
+  }
+  EXPECT_EQ(d.level, diagnostic_msgs::DiagnosticStatus::OK) << d.message;
+  EXPECT_EQ(d.message, "localizing");
+  // Every frame accounted for: received = used + dropped + waiting.
+  const FilterStatus& last = obs.statuses.back();
+  EXPECT_EQ(last.frames_received, last.frames_processed + last.frames_gated + last.dropped_conversion +
+                                      last.dropped_camera_info + last.dropped_extrinsics + last.frames_waiting);
 }
 
 TEST(BadConfig, ReportedAndNothingSubscribed) {
   ros::NodeHandle nh;
-  std::vector<Diag> diags;
+  std::vector<ConfigDiag> diags;
   ros::Subscriber sub = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
       "/diagnostics", 10, [&](const diagnostic_msgs::DiagnosticArrayConstPtr& m) {
-        for (const auto& s : m->status) diags.push_back(Diag{s.level, s.message});
+        for (const auto& s : m->status) diags.push_back(ConfigDiag{s.level, s.message});
       });
   ASSERT_TRUE(spinUntil([&] { return diags.size() >= 2; }, 30.0)) << "no diagnostics from the node";
-  const Diag d = diags.back();
+  const ConfigDiag d = diags.back();
   std::printf("[ diag ] level %d: %s\n", d.level, d.message.c_str());
   EXPECT_EQ(d.level, diagnostic_msgs::DiagnosticStatus::ERROR);
   EXPECT_NE(d.message.find("bad configuration"), std::string::npos);

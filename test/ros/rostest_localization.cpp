@@ -1,26 +1,26 @@
-// rostest node: the nodelet (in a manager) localizes on the synthetic bag played with --clock.
-// mode "track": final error, map -> odom future-dated and monotonic, covariance consistency,
-//   ~global_localization spreads the particles, a stale /initialpose is carried forward.
-// mode "looped": the bag loops (time jumps back); the filter resets and re-converges.
+// rostest node: the nodelet (in a manager) localizes on the synthetic bag, played in lockstep
+// (test/ros/lockstep.h): every message in bag order with /clock at its bag time, and after each
+// depth frame the test waits for the nodelet's ~status of that frame. No wall-time window.
+// mode "track": error after 3.5 s, ~global_localization spreads the particles, a /initialpose
+//   stamped 1.5 s before the latest frame is carried forward, final error, map -> odom stamped
+//   frame + transform_tolerance and increasing, covariance consistency.
+// mode "looped": the first 5 s twice (time jumps back): reported, tf restarts once, the filter
+//   re-converges.
 #include <cmath>
-#include <functional>
-#include <iterator>
 #include <map>
 #include <set>
 #include <vector>
 
 #include <geometry_msgs/PoseStamped.h>
-#include <geometry_msgs/PoseWithCovarianceStamped.h>
 #include <gtest/gtest.h>
-#include <ros/ros.h>
 #include <std_srvs/Empty.h>
-#include <tf2_msgs/TFMessage.h>
 
-#include "gmm_mcl/FilterStatus.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/ros/conversions.h"
+#include "lockstep.h"
 
 using namespace gmm_mcl;
+using namespace gmm_mcl::lockstep;
 
 namespace {
 
@@ -30,224 +30,195 @@ constexpr double kCarriedErrorM = 0.20;      // first estimate after the stale /
 constexpr double kConsistentFraction = 0.8;  // frames with an error component within 3 sigma
 constexpr double kTransformTolerance = 0.1;  // the launch's transform_tolerance
 
-struct Pose {
-  ros::Time stamp;
-  Eigen::Isometry3d T;
-  boost::array<double, 36> cov;
-};
-
-class Recorder {
+// Ground truth of the bag, by stamp.
+class Truth {
  public:
-  explicit Recorder(ros::NodeHandle& nh) {
-    gt_sub_ = nh.subscribe("/ground_truth", 1000, &Recorder::gt, this);
-    pose_sub_ = nh.subscribe("/gmm_mcl/pose", 1000, &Recorder::pose, this);
-    tf_sub_ = nh.subscribe("/tf", 1000, &Recorder::tf, this);
-    status_sub_ = nh.subscribe("/gmm_mcl/status", 1000, &Recorder::status, this);
-  }
-  void gt(const geometry_msgs::PoseStampedConstPtr& m) {
-    if (t0_.isZero() || m->header.stamp < t0_) t0_ = m->header.stamp;
+  explicit Truth(ros::NodeHandle& nh) : sub_(nh.subscribe("/ground_truth", 1000, &Truth::onTruth, this)) {}
+  void onTruth(const geometry_msgs::PoseStampedConstPtr& m) {
     truth_[m->header.stamp.toNSec()] = ros_conv::isometryFromPose(m->pose);
   }
-  void pose(const geometry_msgs::PoseWithCovarianceStampedConstPtr& m) {
-    poses_.push_back(Pose{m->header.stamp, ros_conv::isometryFromPose(m->pose.pose), m->pose.covariance});
+  // The truth at t (waits for it: it is published with the frame).
+  bool at(const ros::Time& t, Eigen::Isometry3d* T) {
+    return waitFor([&] {
+      const auto it = truth_.find(t.toNSec());
+      if (it != truth_.end()) *T = it->second;
+      return it != truth_.end();
+    });
   }
-  void tf(const tf2_msgs::TFMessageConstPtr& m) {
-    for (const auto& t : m->transforms) {
-      if (t.header.frame_id == "map" && t.child_frame_id == "odom") tf_stamps_.push_back(t.header.stamp);
-    }
+  // x, y, z, yaw error of a pose.
+  Eigen::Vector4d error(const geometry_msgs::PoseWithCovarianceStamped& p) {
+    Eigen::Isometry3d T;
+    if (!at(p.header.stamp, &T)) return Eigen::Vector4d::Constant(1e9);
+    const Eigen::Isometry3d E = ros_conv::isometryFromPose(p.pose.pose);
+    Eigen::Vector4d e;
+    e << E.translation() - T.translation(), wrapAngle(yawFromRotation(E.linear()) - yawFromRotation(T.linear()));
+    return e;
   }
-  void status(const FilterStatusConstPtr& m) {
-    statuses_.push_back(*m);
-    resets_[m->header.stamp.toNSec()] = m->resets;
-  }
-  // Resets the nodelet had applied when it published the pose of this stamp (-1: unknown).
-  int resetsAt(const Pose& p) const {
-    const auto it = resets_.find(p.stamp.toNSec());
-    return it == resets_.end() ? -1 : it->second;
-  }
-  // The first pose published once `resets` resets were applied.
-  bool firstPoseWithResets(int resets, Pose* out) const {
-    for (const Pose& p : poses_) {
-      if (resetsAt(p) >= resets) {
-        *out = p;
-        return true;
-      }
-    }
-    return false;
-  }
+  double translationError(const geometry_msgs::PoseWithCovarianceStamped& p) { return error(p).head<3>().norm(); }
 
-  // Error of a pose against the truth at its stamp; false when no truth has that stamp.
-  bool error(const Pose& p, Eigen::Vector4d* e) const {
-    const auto it = truth_.find(p.stamp.toNSec());
-    if (it == truth_.end()) return false;
-    const Eigen::Vector3d d = p.T.translation() - it->second.translation();
-    (*e) << d, wrapAngle(yawFromRotation(p.T.linear()) - yawFromRotation(it->second.linear()));
-    return true;
-  }
-  double rel(const ros::Time& t) const { return (t - t0_).toSec(); }
-
-  ros::Subscriber gt_sub_, pose_sub_, tf_sub_, status_sub_;
-  ros::Time t0_;
+ private:
+  ros::Subscriber sub_;
   std::map<uint64_t, Eigen::Isometry3d> truth_;
-  std::vector<Pose> poses_;
-  std::vector<ros::Time> tf_stamps_;
-  std::vector<FilterStatus> statuses_;
-  std::map<uint64_t, int> resets_;
 };
 
-bool spinUntil(const std::function<bool()>& done, double wall_timeout_s) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(wall_timeout_s);
-  while (ros::ok() && ros::WallTime::now() < end) {
-    ros::spinOnce();
-    if (done()) return true;
-    ros::WallDuration(0.005).sleep();
-  }
-  return false;
-}
-
-double translationError(const Recorder& r, const Pose& p) {
-  Eigen::Vector4d e;
-  return r.error(p, &e) ? e.head<3>().norm() : 1e9;
+std::string bagPath() {
+  std::string bag;
+  ros::param::param<std::string>("~bag", bag, "");
+  return bag;
 }
 
 }  // namespace
 
 TEST(LocalizationBag, TracksResetsAndPublishesTf) {
   ros::NodeHandle nh;
-  Recorder rec(nh);
-  double bag_duration_s = 8.0;
-  ros::param::param("~bag_duration", bag_duration_s, 8.0);
-
-  // 1. Tracking from the initial region.
-  ASSERT_TRUE(spinUntil([&] { return !rec.poses_.empty() && rec.rel(rec.poses_.back().stamp) >= 3.5; }, 120.0))
-      << "no pose 3.5 s into the bag (" << rec.poses_.size() << " poses)";
-  const double err_tracking = translationError(rec, rec.poses_.back());
-  std::printf("[ measured ] error after 3.5 s of tracking: %.3f m\n", err_tracking);
-  EXPECT_LT(err_tracking, kTrackErrorM);
-
-  // 2. Global localization: uniform over the map bounds.
-  std_srvs::Empty srv;
-  ASSERT_TRUE(ros::service::waitForService("/gmm_mcl/global_localization", 5000));
-  ASSERT_TRUE(ros::service::call("/gmm_mcl/global_localization", srv));
-  // The first pose computed after the reset (status.resets counts the resets applied).
-  const int resets0 = rec.statuses_.back().resets;
-  Pose after_global;
-  ASSERT_TRUE(spinUntil([&] { return rec.firstPoseWithResets(resets0 + 1, &after_global); }, 30.0));
-  const ros::Time t_global = after_global.stamp;
-  std::printf("[ measured ] sigma x, y after global localization: %.2f, %.2f m\n",
-              std::sqrt(after_global.cov[0]), std::sqrt(after_global.cov[7]));
-  EXPECT_GT(std::sqrt(after_global.cov[0]), 1.0) << "particles not spread over the map";
-  EXPECT_GT(std::sqrt(after_global.cov[7]), 1.0);
-
-  // 3. A stale /initialpose (the true pose 1.5 s before the latest frame) is carried forward.
-  ASSERT_TRUE(spinUntil([&] { return (rec.poses_.back().stamp - t_global).toSec() >= 0.5; }, 30.0));
-  const ros::Time t_latest = ros::Time::now();
-  const ros::Time t_stale = t_latest - ros::Duration(1.5);
-  auto stale = rec.truth_.lower_bound(t_stale.toNSec());
-  ASSERT_NE(stale, rec.truth_.end());
-  const auto now_truth = std::prev(rec.truth_.end());  // the latest truth received
-  const double moved_m = (now_truth->second.translation() - stale->second.translation()).norm();
-  std::printf("[ measured ] the robot moved %.2f m since the stale initial pose's stamp\n", moved_m);
-  ASSERT_GT(moved_m, 2.0 * kCarriedErrorM) << "the stale-stamp check would not discriminate";
+  Observer obs(nh);
+  Truth truth(nh);
+  Clock clock(nh);
+  BagPlayer player(nh, bagPath(), "/camera/depth/image_raw", &clock);
+  ASSERT_TRUE(player.waitForSubscribers()) << "the nodelet does not subscribe the depth image";
   ros::Publisher init_pub = nh.advertise<geometry_msgs::PoseWithCovarianceStamped>("/initialpose", 1, true);
-  geometry_msgs::PoseWithCovarianceStamped init;
-  init.header.frame_id = "map";
-  init.header.stamp.fromNSec(stale->first);
-  init.pose.pose = ros_conv::poseFromIsometry(stale->second);
-  init.pose.covariance[0] = init.pose.covariance[7] = init.pose.covariance[14] = 0.05 * 0.05;
-  init.pose.covariance[35] = 0.05 * 0.05;
-  ASSERT_TRUE(spinUntil([&] { return init_pub.getNumSubscribers() > 0; }, 5.0));
-  init_pub.publish(init);
-  // The first estimate after the reset was applied.
-  Pose first_after;
-  ASSERT_TRUE(spinUntil([&] { return rec.firstPoseWithResets(resets0 + 2, &first_after); }, 30.0));
-  const double err_carried = translationError(rec, first_after);
-  std::printf("[ measured ] error right after the stale initial pose: %.3f m\n", err_carried);
-  EXPECT_LT(err_carried, kCarriedErrorM);
+  const ros::Time t0 = player.frameStamp(0);
+  auto rel = [&](const ros::Time& t) { return (t - t0).toSec(); };
 
-  // 4. To the end of the bag.
-  spinUntil([&] { return rec.rel(rec.poses_.back().stamp) >= bag_duration_s - 0.3; }, 120.0);
-  ros::WallDuration(1.0).sleep();
-  ros::spinOnce();
-  for (const Pose& p : rec.poses_) {
-    const double t = rec.rel(p.stamp);
-    if (t > rec.rel(t_global) - 0.2 && t < rec.rel(first_after.stamp) + 0.5) {
-      std::printf("  pose at %.3f s: error %.3f m, sigma x %.3f m\n", t, translationError(rec, p), std::sqrt(p.cov[0]));
+  enum Phase { kTracking, kGlobal, kInitialPose, kToTheEnd } phase = kTracking;
+  ros::Time t_global, t_stale, t_carried;  // frames: after the global reset, the stale pose's, after it
+  int resets = 0;
+  std::vector<geometry_msgs::PoseWithCovarianceStamped> poses;
+  for (int i = 0; i < player.frames(); ++i) {
+    player.publishFrame(i);
+    const ros::Time t = player.frameStamp(i);
+    const FilterStatus* s = obs.statusAt(t);
+    ASSERT_NE(s, nullptr) << "no ~status for frame " << i << " at " << rel(t) << " s; " << obs.describe();
+    EXPECT_NE(s->step_status, "bad_frame") << s->message;
+    const geometry_msgs::PoseWithCovarianceStamped* p = obs.poseAt(t);
+    ASSERT_NE(p, nullptr);
+    poses.push_back(*p);
+    if (phase == kTracking && rel(t) >= 3.5) {
+      // 1. Tracking from the initial region, then global localization: uniform over the map.
+      const double err = truth.translationError(*p);
+      std::printf("[ measured ] error after %.2f s of tracking: %.3f m\n", rel(t), err);
+      EXPECT_LT(err, kTrackErrorM);
+      std_srvs::Empty srv;
+      ASSERT_TRUE(ros::service::call("/gmm_mcl/global_localization", srv));
+      resets = s->resets;
+      phase = kGlobal;
+    } else if (phase == kGlobal) {
+      // The first frame after the reset: spread over the map.
+      EXPECT_EQ(s->resets, resets + 1);
+      t_global = t;
+      std::printf("[ measured ] sigma x, y after global localization: %.2f, %.2f m\n",
+                  std::sqrt(p->pose.covariance[0]), std::sqrt(p->pose.covariance[7]));
+      EXPECT_GT(std::sqrt(p->pose.covariance[0]), 1.0) << "particles not spread over the map";
+      EXPECT_GT(std::sqrt(p->pose.covariance[7]), 1.0);
+      phase = kInitialPose;
+    } else if (phase == kInitialPose && (t - t_global).toSec() >= 0.5) {
+      // 2. A /initialpose stamped 1.5 s (45 frames) before this frame, the true pose then:
+      // carried forward by odometry to the latest frame.
+      Eigen::Isometry3d T_then, T_now;
+      ASSERT_TRUE(truth.at(player.frameStamp(i - 45), &T_then));
+      t_stale = player.frameStamp(i - 45);
+      ASSERT_TRUE(truth.at(t, &T_now));
+      const double moved_m = (T_now.translation() - T_then.translation()).norm();
+      std::printf("[ measured ] the robot moved %.2f m since the stale initial pose's stamp\n", moved_m);
+      ASSERT_GT(moved_m, 2.0 * kCarriedErrorM) << "the stale-stamp check would not discriminate";
+      geometry_msgs::PoseWithCovarianceStamped init;
+      init.header.frame_id = "map";
+      init.header.stamp = t_stale;
+      init.pose.pose = ros_conv::poseFromIsometry(T_then);
+      init.pose.covariance[0] = init.pose.covariance[7] = init.pose.covariance[14] = 0.05 * 0.05;
+      init.pose.covariance[35] = 0.05 * 0.05;
+      ASSERT_TRUE(waitFor([&] { return init_pub.getNumSubscribers() > 0; }));
+      init_pub.publish(init);
+      resets = s->resets;
+      phase = kToTheEnd;
+    } else if (phase == kToTheEnd && t_carried.isZero() && s->resets > resets) {
+      // The first estimate after the reset was applied.
+      t_carried = t;
+      const double err = truth.translationError(*p);
+      std::printf("[ measured ] error right after the stale initial pose: %.3f m\n", err);
+      EXPECT_LT(err, kCarriedErrorM);
     }
   }
-  const double err_final = translationError(rec, rec.poses_.back());
+  ASSERT_FALSE(t_carried.isZero()) << "the initial pose was never applied";
+  const double err_final = truth.translationError(poses.back());
   std::printf("[ measured ] final error %.3f m at %.2f s (%zu poses)\n", err_final,
-              rec.rel(rec.poses_.back().stamp), rec.poses_.size());
+              rel(poses.back().header.stamp), poses.size());
   EXPECT_LT(err_final, kFinalErrorM);
 
   // map -> odom: future-dated by transform_tolerance from a frame stamp, strictly increasing.
-  ASSERT_GE(rec.tf_stamps_.size(), 10u);
-  std::set<uint64_t> pose_stamps;
-  for (const Pose& p : rec.poses_) pose_stamps.insert(p.stamp.toNSec());
+  ASSERT_TRUE(waitFor([&] { return obs.tf_stamps.size() >= poses.size() - 2; }));
+  std::set<uint64_t> stamps;
+  for (const auto& p : poses) stamps.insert(p.header.stamp.toNSec());
   int dated = 0;
-  for (size_t i = 0; i < rec.tf_stamps_.size(); ++i) {
-    if (i > 0) EXPECT_GT(rec.tf_stamps_[i], rec.tf_stamps_[i - 1]) << "tf " << i << " not monotonic";
-    const uint64_t frame = (rec.tf_stamps_[i] - ros::Duration(kTransformTolerance)).toNSec();
+  for (size_t i = 0; i < obs.tf_stamps.size(); ++i) {
+    if (i > 0) EXPECT_GT(obs.tf_stamps[i], obs.tf_stamps[i - 1]) << "tf " << i << " not monotonic";
+    const uint64_t frame = (obs.tf_stamps[i] - ros::Duration(kTransformTolerance)).toNSec();
     bool match = false;
-    for (uint64_t s : {frame - 1, frame, frame + 1}) match = match || pose_stamps.count(s);
+    for (uint64_t s : {frame - 1, frame, frame + 1}) match = match || stamps.count(s);
     dated += match;
   }
-  EXPECT_EQ(dated, static_cast<int>(rec.tf_stamps_.size()))
+  EXPECT_EQ(dated, static_cast<int>(obs.tf_stamps.size()))
       << "map -> odom stamps are not the frame stamps + transform_tolerance";
 
   // Covariance consistency: each component within 3 sigma for most converged frames.
   int n = 0, within[4] = {0, 0, 0, 0};
   const int diag[4] = {0, 7, 14, 35};
-  for (const Pose& p : rec.poses_) {
-    const double t = rec.rel(p.stamp);
-    const bool converged = (t >= 1.5 && p.stamp < t_global) || (p.stamp - first_after.stamp).toSec() >= 1.0;
-    Eigen::Vector4d e;
-    if (!converged || !rec.error(p, &e)) continue;
+  for (const auto& p : poses) {
+    const double t = rel(p.header.stamp);
+    const bool converged = (t >= 1.5 && p.header.stamp < t_global) || (p.header.stamp - t_carried).toSec() >= 1.0;
+    if (!converged) continue;
+    const Eigen::Vector4d e = truth.error(p);
     ++n;
-    for (int k = 0; k < 4; ++k) within[k] += std::abs(e[k]) <= 3.0 * std::sqrt(p.cov[diag[k]]);
+    for (int k = 0; k < 4; ++k) within[k] += std::abs(e[k]) <= 3.0 * std::sqrt(p.pose.covariance[diag[k]]);
   }
   ASSERT_GE(n, 10);
   for (int k = 0; k < 4; ++k) {
     std::printf("[ measured ] component %d within 3 sigma in %d of %d frames\n", k, within[k], n);
     EXPECT_GE(within[k], kConsistentFraction * n) << "component " << k;
   }
-  for (const FilterStatus& s : rec.statuses_) EXPECT_NE(s.step_status, "bad_frame") << s.message;
 }
 
 TEST(LocalizationBag, LoopedBagResets) {
   ros::NodeHandle nh;
-  Recorder rec(nh);
-  double loop_s = 4.0;
-  ros::param::param("~loop_duration", loop_s, 4.0);
-  size_t i_jump = 0;
-  auto find_jump = [&] {
-    for (size_t i = 1; i < rec.poses_.size(); ++i) {
-      if (rec.poses_[i].stamp < rec.poses_[i - 1].stamp) {
-        i_jump = i;
-        return true;
+  Observer obs(nh);
+  Truth truth(nh);
+  Clock clock(nh);
+  BagPlayer player(nh, bagPath(), "/camera/depth/image_raw", &clock);
+  ASSERT_TRUE(player.waitForSubscribers());
+  double loop_s = 5.0;
+  ros::param::param("~loop_duration", loop_s, 5.0);
+  const ros::Time t0 = player.frameStamp(0);
+  int frames = 0;
+  while (frames < player.frames() && (player.frameStamp(frames) - t0).toSec() < loop_s) ++frames;
+  geometry_msgs::PoseWithCovarianceStamped last;
+  for (int loop = 0; loop < 2; ++loop) {
+    if (loop == 1) player.rewind();
+    for (int i = 0; i < frames; ++i) {
+      const size_t since = obs.statuses.size(), since_pose = obs.poses.size();
+      player.publishFrame(i);
+      const ros::Time t = player.frameStamp(i);
+      const FilterStatus* s = obs.statusAt(t, kWaitLimitS, since);
+      ASSERT_NE(s, nullptr) << "no ~status for frame " << i << " of loop " << loop << "; " << obs.describe();
+      if (loop == 1 && i == 0) {
+        EXPECT_EQ(s->step_status, "time_jump_back") << s->message;
+        EXPECT_EQ(s->time_jumps, 1);
+        std::printf("[ measured ] error before the loop: %.3f m\n", truth.translationError(last));
+      }
+      last = *obs.poseAt(t, since_pose);
+      if (loop == 1 && i % 20 == 0) {
+        std::printf("  second loop: pose at %.3f s: error %.3f m, sigma x %.3f m\n", (t - t0).toSec(),
+                    truth.translationError(last), std::sqrt(last.pose.covariance[0]));
       }
     }
-    return false;
-  };
-  ASSERT_TRUE(spinUntil(find_jump, 150.0)) << "no jump back in time seen (" << rec.poses_.size() << " poses)";
-  const double err_before = translationError(rec, rec.poses_[i_jump - 1]);
-  std::printf("[ measured ] error before the loop: %.3f m; jump from %.2f to %.2f s\n", err_before,
-              rec.rel(rec.poses_[i_jump - 1].stamp), rec.rel(rec.poses_[i_jump].stamp));
-  ASSERT_TRUE(spinUntil([&] { return rec.rel(rec.poses_.back().stamp) >= loop_s - 0.5 &&
-                                     rec.poses_.size() > i_jump + 5; }, 120.0));
-  for (size_t i = i_jump; i < rec.poses_.size(); i += 4) {
-    std::printf("  second loop: pose at %.3f s: error %.3f m, sigma x %.3f m\n", rec.rel(rec.poses_[i].stamp),
-                translationError(rec, rec.poses_[i]), std::sqrt(rec.poses_[i].cov[0]));
   }
-  const double err_after = translationError(rec, rec.poses_.back());
-  std::printf("[ measured ] error at %.2f s of the second loop: %.3f m\n", rec.rel(rec.poses_.back().stamp), err_after);
+  const double err_after = truth.translationError(last);
+  std::printf("[ measured ] error at %.2f s of the second loop: %.3f m\n", (last.header.stamp - t0).toSec(), err_after);
   EXPECT_LT(err_after, kTrackErrorM);
-  bool reported = false;
-  for (const FilterStatus& s : rec.statuses_) reported = reported || s.step_status == "time_jump_back";
-  EXPECT_TRUE(reported) << "no status reported time_jump_back";
   // tf: one step back at the loop, strictly increasing on either side.
+  EXPECT_TRUE(waitFor([&] { return obs.tf_stamps.size() >= 2u * frames; }))
+      << obs.tf_stamps.size() << " map -> odom transforms for " << 2 * frames << " frames";
   int backs = 0;
-  for (size_t i = 1; i < rec.tf_stamps_.size(); ++i) backs += rec.tf_stamps_[i] <= rec.tf_stamps_[i - 1];
+  for (size_t i = 1; i < obs.tf_stamps.size(); ++i) backs += obs.tf_stamps[i] <= obs.tf_stamps[i - 1];
   EXPECT_EQ(backs, 1) << "map -> odom should restart once at the loop and increase otherwise";
 }
 
@@ -257,10 +228,6 @@ int main(int argc, char** argv) {
   ros::NodeHandle nh;
   std::string mode;
   ros::param::param<std::string>("~mode", mode, "track");
-  if (mode == "looped") {
-    testing::GTEST_FLAG(filter) = "LocalizationBag.Looped*";
-  } else {
-    testing::GTEST_FLAG(filter) = "LocalizationBag.Tracks*";
-  }
+  testing::GTEST_FLAG(filter) = mode == "looped" ? "LocalizationBag.Looped*" : "LocalizationBag.Tracks*";
   return RUN_ALL_TESTS();
 }

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
+#include <tf2/buffer_core.h>
 
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/ros/conversions.h"
@@ -103,6 +104,46 @@ TEST(RosConversions, CameraInfo) {
   EXPECT_FALSE(ros_conv::intrinsicsFromCameraInfo(nan, 64, 48, &K, &why));
 }
 
+// P (the rectified image's projection) before K, binning and the region of interest as
+// image_geometry applies them, distortion without P refused.
+TEST(RosConversions, CameraInfoProjectionBinningRoiAndDistortion) {
+  sensor_msgs::CameraInfo info = infoMsg(640, 480);
+  info.P = {500, 0, 320, 0, 0, 505, 240, 0, 0, 0, 1, 0};
+  Intrinsics K;
+  std::string why, note;
+  ASSERT_TRUE(ros_conv::intrinsicsFromCameraInfo(info, 640, 480, &K, &why, &note)) << why;
+  EXPECT_FLOAT_EQ(K.fx_px, 500);
+  EXPECT_FLOAT_EQ(K.fy_px, 505);
+  EXPECT_TRUE(note.empty());
+  // 2x2 binning: a 320x240 image, focal lengths and centre halved.
+  info.binning_x = info.binning_y = 2;
+  ASSERT_TRUE(ros_conv::intrinsicsFromCameraInfo(info, 320, 240, &K, &why)) << why;
+  EXPECT_FLOAT_EQ(K.fx_px, 250);
+  EXPECT_FLOAT_EQ(K.cx_px, 160);
+  EXPECT_FLOAT_EQ(K.cy_px, 120);
+  EXPECT_FALSE(ros_conv::intrinsicsFromCameraInfo(info, 640, 480, &K, &why));
+  // A region of interest: the image is the region, the centre moves by its offset.
+  info.binning_x = info.binning_y = 0;
+  info.roi.x_offset = 100;
+  info.roi.y_offset = 40;
+  info.roi.width = 200;
+  info.roi.height = 160;
+  ASSERT_TRUE(ros_conv::intrinsicsFromCameraInfo(info, 200, 160, &K, &why)) << why;
+  EXPECT_FLOAT_EQ(K.cx_px, 220);
+  EXPECT_FLOAT_EQ(K.cy_px, 200);
+  info.roi.width = 600;
+  EXPECT_FALSE(ros_conv::intrinsicsFromCameraInfo(info, 600, 160, &K, &why));
+  EXPECT_NE(why.find("region of interest"), std::string::npos) << why;
+  // Distortion: used through P with a note; refused without P.
+  info.roi = sensor_msgs::RegionOfInterest();
+  info.D = {0.1, -0.2, 0, 0, 0};
+  ASSERT_TRUE(ros_conv::intrinsicsFromCameraInfo(info, 640, 480, &K, &why, &note)) << why;
+  EXPECT_NE(note.find("rectified"), std::string::npos) << note;
+  info.P.fill(0.0);
+  EXPECT_FALSE(ros_conv::intrinsicsFromCameraInfo(info, 640, 480, &K, &why));
+  EXPECT_NE(why.find("distortion"), std::string::npos) << why;
+}
+
 TEST(RosConversions, OrganizedCloudGivesDepthAndIntrinsics) {
   Intrinsics K;
   K.width_px = 80;
@@ -193,19 +234,10 @@ TEST(RosConversions, PoseRoundTripAndEstimate) {
   }
   EXPECT_TRUE(ros_conv::isometryFromPose(pwc.pose).isApprox(T, 1e-12));
 
-  Particle p;
-  Eigen::Vector4d sigma;
-  ASSERT_TRUE(ros_conv::particleFromPoseWithCovariance(pwc, Eigen::Vector4d(9, 9, 9, 9), &p, &sigma));
-  EXPECT_NEAR(p.x_m, 1.0, kTol);
-  EXPECT_NEAR(p.yaw_rad, 2.5, 1e-9);
-  EXPECT_NEAR(sigma[0], std::sqrt(0.01), kTol);
-  EXPECT_NEAR(sigma[3], std::sqrt(0.06), kTol);  // yaw variance is entry (5, 5)
-  geometry_msgs::PoseWithCovariance zero_cov = pwc;
-  zero_cov.covariance.fill(0.0);
-  ASSERT_TRUE(ros_conv::particleFromPoseWithCovariance(zero_cov, Eigen::Vector4d(1, 2, 3, 4), &p, &sigma));
-  EXPECT_EQ(sigma, Eigen::Vector4d(1, 2, 3, 4));
-  zero_cov.pose.position.x = std::numeric_limits<double>::quiet_NaN();
-  EXPECT_FALSE(ros_conv::particleFromPoseWithCovariance(zero_cov, Eigen::Vector4d(1, 2, 3, 4), &p, &sigma));
+  EXPECT_TRUE(ros_conv::covarianceFromMsg(pwc.covariance).isApprox(e.covariance, 0.0));
+  // An unset quaternion (all zero) is the identity.
+  geometry_msgs::Pose unset;
+  EXPECT_TRUE(ros_conv::isometryFromPose(unset).isApprox(Eigen::Isometry3d::Identity(), 0.0));
 }
 
 TEST(RosConversions, ParticlesAndMarkers) {
@@ -270,3 +302,44 @@ TEST(RosConversions, CompressedDepthRoundTrip) {
   EXPECT_NE(why.find("compressedDepth"), std::string::npos) << why;
 }
 #endif
+
+// A requested pose in another frame goes through tf (covariance rotated); a planar tool's pose
+// is marked planar before the transform (rviz sends z = 0 in its fixed frame).
+TEST(RosConversions, PoseResetRequestThroughTf) {
+  tf2::BufferCore tf;
+  Eigen::Isometry3d T_map_odom = Eigen::Isometry3d::Identity();
+  T_map_odom.translation() = Eigen::Vector3d(1.5, -1.0, 0.2);
+  T_map_odom.linear() = rotationFromRpy(0, 0, M_PI / 2);
+  geometry_msgs::TransformStamped t;
+  t.header.stamp = ros::Time(10.0);
+  t.header.frame_id = "map";
+  t.child_frame_id = "odom";
+  t.transform = ros_conv::transformFromIsometry(T_map_odom);
+  ASSERT_TRUE(tf.setTransform(t, "test", true));
+
+  geometry_msgs::PoseWithCovarianceStamped msg;
+  msg.header.frame_id = "odom";
+  msg.header.stamp = ros::Time(12.0);
+  msg.pose.pose.position.x = 1.0;
+  msg.pose.pose.orientation.w = 1.0;
+  msg.pose.covariance[0] = 0.04;  // x variance in odom: y in the map
+  PoseResetRequest r;
+  std::string why;
+  ASSERT_TRUE(ros_conv::poseResetRequestFromMsg(msg, tf, "map", &r, &why)) << why;
+  EXPECT_TRUE(r.planar);
+  EXPECT_NEAR(r.T_map_base.translation().x(), 1.5, 1e-9);
+  EXPECT_NEAR(r.T_map_base.translation().y(), 0.0, 1e-9);
+  EXPECT_NEAR(r.T_map_base.translation().z(), 0.2, 1e-9);
+  EXPECT_NEAR(yawFromRotation(r.T_map_base.linear()), M_PI / 2, 1e-9);
+  EXPECT_NEAR(r.covariance(1, 1), 0.04, 1e-12);
+  EXPECT_NEAR(r.covariance(0, 0), 0.0, 1e-12);
+  // In the map frame: as given; a frame tf does not know: refused with why.
+  msg.header.frame_id = "map";
+  msg.pose.pose.position.z = 1.1;
+  ASSERT_TRUE(ros_conv::poseResetRequestFromMsg(msg, tf, "map", &r, &why));
+  EXPECT_FALSE(r.planar);
+  EXPECT_NEAR(r.T_map_base.translation().x(), 1.0, 1e-12);
+  msg.header.frame_id = "nowhere";
+  EXPECT_FALSE(ros_conv::poseResetRequestFromMsg(msg, tf, "map", &r, &why));
+  EXPECT_NE(why.find("'nowhere'"), std::string::npos) << why;
+}

@@ -33,6 +33,7 @@ class CudaParticleFilter : public ParticleFilterBase {
 
   std::string name() const override { return "cuda"; }
   const ParticleFilterParams& params() const override;
+  void setParams(const ParticleFilterParams& params) override;
   int size() const override;
   const std::vector<Particle>& particles() const override;
   const std::vector<double>& weights() const override;

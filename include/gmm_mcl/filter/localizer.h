@@ -34,6 +34,10 @@ struct StepInput {
   double pitch_rad = 0.0;
   const DepthImage* depth = nullptr;  // nullptr: predict only
   Intrinsics intrinsics;
+  // The camera optical frame in the base frame at this frame's stamp (a gimbal, a moving
+  // joint); false: params().T_base_cam. Kept for the following frames; the belief is untouched.
+  bool has_T_base_cam = false;
+  Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();
 };
 
 struct StepTimings {
@@ -79,6 +83,15 @@ class Localizer {
 
   StepResult step(const StepInput& input);
 
+  // New parameters for the same belief: the particles, their weights and the recovery region
+  // stay (a particle count outside the new range is resampled to it). Throws
+  // std::invalid_argument naming every fault, or when backend or seed differ (fixed at
+  // construction); params.init is used only by the constructor.
+  void setParams(const LocalizerParams& params);
+  // Another map in the same frame (e.g. an updated one): the particles stay, the lost detector's
+  // reference restarts from the new map's level. Throws std::invalid_argument when empty.
+  void setMap(GmmMap map);
+
   // Uniform over a region (e.g. global localisation over mapBounds()); becomes the region that
   // recovery draws from.
   void reset(const InitRegion& region);
@@ -116,6 +129,9 @@ class Localizer {
   const DepthFrame& hostFrame(const StepInput& input);
   // A backend failure: the status, and with cpu_fallback the switch to the CPU backend.
   void backendFailed(const std::string& what, StepResult* res);
+  // What the map and the measurement parameters determine: the backend's map, the blurred map
+  // of lost redraws and the map's expected per-point log-density (the lost detector's start).
+  void prepareMap();
 
   LocalizerParams params_;
   GmmMap map_;

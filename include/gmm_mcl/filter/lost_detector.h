@@ -30,6 +30,9 @@ class LostDetector {
   LostDetector() = default;
   LostDetector(const LostDetectionParams& params, double initial_reference);
 
+  // New parameters and starting reference (e.g. another map or measurement model); the current
+  // reference is kept, raised to the new lowest level where below it.
+  void setParams(const LostDetectionParams& params, double initial_reference);
   // Restarts the grace period (after any re-initialisation of the particle set).
   void restart();
   // Feeds one frame's best per-pixel log-likelihood; returns true when the filter is judged

@@ -29,6 +29,7 @@ class ParticleFilter : public ParticleFilterBase {
 
   std::string name() const override { return "host"; }
   const ParticleFilterParams& params() const override { return params_; }
+  void setParams(const ParticleFilterParams& params) override;
   const std::vector<Particle>& particles() const override { return particles_; }
   const std::vector<double>& weights() const override { return weights_; }
   int size() const override { return static_cast<int>(particles_.size()); }

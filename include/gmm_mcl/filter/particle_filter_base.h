@@ -65,6 +65,11 @@ class ParticleFilterBase {
   virtual ~ParticleFilterBase() = default;
   virtual std::string name() const = 0;  // "host", "cuda"
   virtual const ParticleFilterParams& params() const = 0;
+  // New parameters for the same particle set (throws std::invalid_argument when invalid; the
+  // seed is the generator's and stays; the augmented-MCL averages stay). A count the new range
+  // does not allow (num_particles, or [min_particles, num_particles] when adaptive) is resampled
+  // to the nearest allowed one.
+  virtual void setParams(const ParticleFilterParams& params) = 0;
   virtual int size() const = 0;
   // The set on the host (the device filter copies it down on each call after a change).
   virtual const std::vector<Particle>& particles() const = 0;

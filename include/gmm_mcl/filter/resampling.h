@@ -34,6 +34,12 @@ class AugmentedMcl {
   // Feeds one frame's average likelihood (> 0); returns how many of n particles to reinitialise.
   int update(double average_likelihood, int n);
   void reset() { initialised_ = false; }
+  // New rates and threshold; the averages are kept.
+  void setRates(double alpha_slow, double alpha_fast, double threshold) {
+    alpha_slow_ = alpha_slow;
+    alpha_fast_ = alpha_fast;
+    threshold_ = threshold;
+  }
   double wSlow() const { return w_slow_; }
   double wFast() const { return w_fast_; }
 

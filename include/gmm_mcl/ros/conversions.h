@@ -9,16 +9,20 @@
 #include <geometry_msgs/Pose.h>
 #include <geometry_msgs/PoseArray.h>
 #include <geometry_msgs/PoseWithCovariance.h>
+#include <geometry_msgs/PoseWithCovarianceStamped.h>
 #include <geometry_msgs/Transform.h>
+#include <geometry_msgs/TransformStamped.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/CompressedImage.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/Imu.h>
 #include <sensor_msgs/PointCloud2.h>
+#include <tf2/buffer_core.h>
 #include <visualization_msgs/MarkerArray.h>
 
 #include "gmm_mcl/camera/depth_image.h"
 #include "gmm_mcl/filter/particle_filter.h"
+#include "gmm_mcl/filter/pose_reset.h"
 #include "gmm_mcl/map/gmm_map.h"
 
 namespace gmm_mcl {
@@ -41,10 +45,16 @@ bool depthImageFromCompressedDepth(const sensor_msgs::CompressedImage& msg, Dept
 bool compressedDepthFromImage(const DepthImage& image, sensor_msgs::CompressedImage* out,
                               std::string* error);
 
-// CameraInfo -> Intrinsics. False (with why) when uncalibrated (K all zero), non-finite, or
-// when expected_width/height (> 0) differ from the CameraInfo size.
+// CameraInfo -> Intrinsics of the (rectified) depth image, as depth_image_proc and
+// image_geometry read it: the projection matrix P (K when P is unset), divided by the binning
+// and shifted by the region of interest, whose size (over the binning) is the image's. False
+// (with why) when uncalibrated (all zero), non-finite, distorted without a P, a region of
+// interest beyond the image, or when expected_width/height (> 0) differ from that size. A
+// distorted CameraInfo with a P is used (the image must then be the rectified one) and says so
+// in *note.
 bool intrinsicsFromCameraInfo(const sensor_msgs::CameraInfo& msg, int expected_width,
-                              int expected_height, Intrinsics* out, std::string* error);
+                              int expected_height, Intrinsics* out, std::string* error,
+                              std::string* note = nullptr);
 
 // Organized PointCloud2 in the camera optical frame (float32 x, y, z) -> 32FC1 depth image
 // (z per pixel, NaN where missing) and pinhole intrinsics fitted to the points by least
@@ -58,26 +68,38 @@ bool depthImageFromCloud(const sensor_msgs::PointCloud2& msg, DepthImage* out, I
 // (all zero, or orientation_covariance[0] == -1) or not finite.
 bool attitudeFromImu(const sensor_msgs::Imu& msg, double* roll_rad, double* pitch_rad);
 
+// Pose and transform conversions (tf2_eigen); an unset (all zero) quaternion is the identity.
 Eigen::Isometry3d isometryFromPose(const geometry_msgs::Pose& msg);
 Eigen::Isometry3d isometryFromTransform(const geometry_msgs::Transform& msg);
 geometry_msgs::Pose poseFromIsometry(const Eigen::Isometry3d& T);
 geometry_msgs::Transform transformFromIsometry(const Eigen::Isometry3d& T);
+geometry_msgs::TransformStamped transformStamped(const Eigen::Isometry3d& T_parent_child,
+                                                 const std::string& parent,
+                                                 const std::string& child, const ros::Time& stamp);
 
 // Mean pose with the shared roll/pitch and the full 6x6 covariance (ROS order, row-major).
 geometry_msgs::PoseWithCovariance poseWithCovarianceFromEstimate(const PoseEstimate& estimate,
-                                                                 double roll_rad,
-                                                                 double pitch_rad);
+                                                                 double roll_rad, double pitch_rad);
+
+// A pose with its 6x6 covariance (ROS order), stamped in `frame`.
+geometry_msgs::PoseWithCovarianceStamped poseWithCovarianceStamped(
+    const Eigen::Isometry3d& T, const Eigen::Matrix<double, 6, 6>& covariance,
+    const std::string& frame, const ros::Time& stamp);
 
 // Every particle as a pose (shared roll/pitch).
 void poseArrayFromParticles(const std::vector<Particle>& particles, double roll_rad,
                             double pitch_rad, geometry_msgs::PoseArray* out);
 
-// Particle (x, y, z, yaw) and sigmas from a PoseWithCovariance (e.g. /initialpose): sigmas from
-// the covariance diagonal (x, y, z, yaw), each at least min_sigma where the entry is zero,
-// negative or not finite. False when the pose is not finite.
-bool particleFromPoseWithCovariance(const geometry_msgs::PoseWithCovariance& msg,
-                                    const Eigen::Vector4d& min_sigma, Particle* pose,
-                                    Eigen::Vector4d* sigma);
+// A message's row-major 6x6 covariance (x, y, z, roll, pitch, yaw) as a matrix.
+Eigen::Matrix<double, 6, 6> covarianceFromMsg(const boost::array<double, 36>& covariance);
+
+// A requested pose (initialpose, a reset service) in the map frame: a pose in another frame is
+// transformed with tf at its stamp (the latest transform when tf has none that recent), its
+// covariance rotated too; planar when the message itself is (rviz's 2D Pose Estimate sends
+// z = 0 in its fixed frame). False, with why, when it cannot be transformed.
+bool poseResetRequestFromMsg(const geometry_msgs::PoseWithCovarianceStamped& msg,
+                             const tf2::BufferCore& tf, const std::string& map_frame,
+                             PoseResetRequest* out, std::string* why);
 
 // The map's 3-sigma ellipsoids as SPHERE markers (scale = 6 sigma along the principal axes),
 // coloured by height, in `frame_id`.

@@ -1,42 +1,118 @@
-// The nodelet's parameters: the core's LocalizerParams plus the ROS-side options, read from the
-// private namespace. Every fault is collected and reported together; a bad config starts nothing.
+// The nodelet's parameters: the core's LocalizerParams (described in
+// gmm_mcl/filter/parameter_table.h) plus the ROS-side options below, described the same way.
+// Both tables feed the private ROS parameters, dynamic_reconfigure (cfg/Localizer.cfg is
+// generated from them: gmm_mcl_params --cfg), the parameter reference (docs/parameters.md:
+// gmm_mcl_params --markdown) and the startup log.
 #pragma once
 
+#include <functional>
+#include <limits>
+#include <memory>
 #include <string>
+#include <vector>
 
+#include <dynamic_reconfigure/Config.h>
 #include <ros/node_handle.h>
 
-#include "gmm_mcl/filter/params.h"
+#include "gmm_mcl/LocalizerConfig.h"
+#include "gmm_mcl/filter/localizer.h"
+#include "gmm_mcl/filter/parameter_table.h"
+#include "gmm_mcl/filter/pose.h"
 
 namespace gmm_mcl {
 
 struct RosOptions {
   std::string map_path;
   std::string map_frame = "map";
-  std::string odom_frame = "odom";      // "" = no odometry frame: publish map -> base_frame
+  std::string odom_frame = "odom";  // "" = no odometry frame: publish map -> base_frame
   std::string base_frame = "base_link";
   std::string odometry_source = "tf";   // tf (odom_frame -> base_frame), topic (~odom), none
-  std::string depth_input = "image";    // image (CameraSubscriber) or cloud (organized PointCloud2)
-  // image: raw through image_transport, or compressedDepth (decoded by the nodelet itself).
-  std::string image_transport = "raw";
+  std::string depth_input = "image";    // image (+ CameraInfo) or cloud (organized PointCloud2)
+  std::string image_transport = "raw";  // raw or another image_transport plugin; compressedDepth
   bool use_imu = true;
-  double transform_tolerance_s = 0.1;   // map -> odom is stamped with the frame stamp + this
-  double tf_timeout_s = 0.05;           // wait for odometry tf at the frame stamp
-  double odom_timeout_s = 0.2;          // odometry older than this (vs the frame) is a gap
-  double imu_timeout_s = 0.5;           // attitude older than this is missing
-  int queue_size = 1;                   // depth queue: stale frames are dropped
-  bool init_from_map_bounds = false;    // initial region = map bounds instead of ~init_*
-  double initial_sigma_xy_m = 0.25;     // /initialpose: spread where its covariance is zero
+  bool tf_broadcast = true;
+  double transform_tolerance_s = 0.1;
+  double odom_timeout_s = 0.2;
+  double imu_timeout_s = 0.5;
+  int queue_size = 1;
+  bool init_from_map_bounds = false;
+  double initial_sigma_xy_m = 0.25;  // spread of a requested pose whose covariance gives none
   double initial_sigma_z_m = 0.1;
   double initial_sigma_yaw_rad = 0.2;
+  // A single-pose start (amcl's initial_pose_*): all four set, or none (the initial region).
+  double initial_pose_x_m = std::numeric_limits<double>::quiet_NaN();
+  double initial_pose_y_m = std::numeric_limits<double>::quiet_NaN();
+  double initial_pose_z_m = std::numeric_limits<double>::quiet_NaN();
+  double initial_pose_yaw_rad = std::numeric_limits<double>::quiet_NaN();
+  double initial_cov_xx_m2 = 0.25;
+  double initial_cov_yy_m2 = 0.25;
+  double initial_cov_zz_m2 = 0.01;
+  double initial_cov_yawyaw_rad2 = 0.0685;
+  double update_min_d_m = 0.0;
+  double update_min_a_rad = 0.0;
+  double save_pose_rate_hz = 0.5;
   double diagnostics_period_s = 1.0;
+  double markers_period_s = 5.0;
+  double warn_sigma_xy_m = 0.25;
+  double warn_sigma_yaw_rad = 0.25;
+
+  bool hasInitialPose() const;
+  // No odometry frame (none given, or odometry_source none): the published transform is
+  // map -> base_frame instead of map -> odom_frame.
+  bool mapToBase() const { return odom_frame.empty() || odometry_source == "none"; }
+  Eigen::Vector4d defaultPoseSigma() const {  // x, y, z, yaw
+    return Eigen::Vector4d(initial_sigma_xy_m, initial_sigma_xy_m, initial_sigma_z_m,
+                           initial_sigma_yaw_rad);
+  }
+  // Cross-field rules (the table checks each value's range): "" when valid.
+  std::string validate() const;
 };
 
-// Reads ~params into *core and *ros (defaults where absent). Returns "" when valid, else every
-// fault (wrong types, unknown enum values, the core's validate()).
-std::string loadRosParams(const ros::NodeHandle& pnh, LocalizerParams* core, RosOptions* ros);
+const ParamTable<RosOptions>& rosOptionsTable();
 
-// One line per effective parameter, for the log.
+// Reads the private parameters into *core and *ros (defaults where absent). Returns "" when
+// valid, else every fault (wrong types, values out of range, unknown modes, the core's
+// validate()). *unknown: private parameters that no table describes (typing mistakes).
+std::string loadRosParams(const ros::NodeHandle& pnh, LocalizerParams* core, RosOptions* ros,
+                          std::vector<std::string>* unknown = nullptr);
+
+// The localizer of the parameters: loads the map (and, with init_from_map_bounds, makes its
+// bounds the initial region). nullptr with *error saying why.
+std::unique_ptr<Localizer> makeLocalizer(LocalizerParams* core, const RosOptions& ros,
+                                         std::string* error);
+
+// The effective parameters for the startup log (both tables, one group per line).
 std::string describeParams(const LocalizerParams& core, const RosOptions& ros);
+
+// dynamic_reconfigure: every run-time parameter of both tables, by name.
+void toReconfigure(const LocalizerParams& core, const RosOptions& ros,
+                   dynamic_reconfigure::Config* msg);
+LocalizerConfig toLocalizerConfig(const LocalizerParams& core, const RosOptions& ros);
+// The inverse; "" when every value fits its table entry, else why (nothing is written then).
+std::string fromReconfigure(const dynamic_reconfigure::Config& msg, LocalizerParams* core,
+                            RosOptions* ros);
+
+// A dynamic_reconfigure request: the values in *config checked against the tables and the
+// structs' validate(), then handed to `apply` (e.g. Localizer::setParams, which may throw).
+// Accepted: *core and *ros updated, "" returned, *changes lists "name old -> new". Refused: why,
+// with *config set back to the previous values (which the server then keeps).
+std::string reconfigure(LocalizerConfig* config, LocalizerParams* core, RosOptions* ros,
+                        const std::function<void(const LocalizerParams&)>& apply,
+                        std::string* changes);
+
+// amcl's pose persistence: the estimate written to ~initial_pose_* and ~initial_cov_*, which a
+// restart reads back (RosOptions::hasInitialPose).
+void savePoseParams(const ros::NodeHandle& pnh, const Particle& mean,
+                    const Eigen::Matrix<double, 6, 6>& covariance);
+// The single-pose start of the options as a pose in the map frame with its covariance.
+void initialPose(const RosOptions& ros, Eigen::Isometry3d* T_map_base,
+                 Eigen::Matrix<double, 6, 6>* covariance);
+
+// cfg/Localizer.cfg's text, generated from the tables.
+std::string dynamicReconfigureCfg();
+// docs/parameters.md's text, generated from the tables.
+std::string parameterReferenceMarkdown();
+// Every parameter with its default as a ROS parameter file (unset ones commented out).
+std::string defaultsYaml();
 
 }  // namespace gmm_mcl

@@ -1,0 +1,55 @@
+// What a depth frame's step needs besides the image, at the frame's stamp: the base -> camera
+// extrinsics and the odometry from tf (or odometry from the buffered topic), and the IMU's roll
+// and pitch from its buffer. IMU and odometry messages are buffered by stamp from any thread
+// while an update runs; a frame takes what belongs to its own stamp.
+#pragma once
+
+#include <string>
+
+#include <nav_msgs/Odometry.h>
+#include <sensor_msgs/Imu.h>
+#include <std_msgs/Header.h>
+#include <tf2_ros/buffer.h>
+
+#include "gmm_mcl/filter/localizer.h"
+#include "gmm_mcl/filter/stamped_buffer.h"
+#include "gmm_mcl/ros/ros_params.h"
+
+namespace gmm_mcl {
+
+class StepInputs {
+ public:
+  explicit StepInputs(tf2_ros::Buffer* tf) : tf_(tf) {}
+  void setOptions(const RosOptions& opts) { opts_ = opts; }
+
+  // Thread-safe. False: an IMU message without orientation (ignored).
+  bool addImu(const sensor_msgs::Imu& imu);
+  void addOdometry(const nav_msgs::Odometry& odom);
+  long long imuReceived() const { return imu_.added(); }
+  long long odometryReceived() const { return odom_.added(); }
+
+  struct Gaps {
+    bool odometry = false;  // no odometry at the stamp: predicting without motion
+    bool imu = false;       // no IMU attitude at the stamp: roll and pitch from odometry
+    std::string warnings;   // why, for ~status
+  };
+  // Fills `in` (stamp, extrinsics, odometry, attitude) for a frame. False, with why, when the
+  // camera frame has no extrinsics (and none from an earlier frame of the same camera).
+  bool gather(const std_msgs::Header& header, StepInput* in, Gaps* gaps, std::string* why);
+  // Odometry (odom -> base) at a stamp, from tf or the buffered topic.
+  bool odometryAt(const ros::Time& stamp, Eigen::Isometry3d* T_odom_base, std::string* why) const;
+  // Time went back (a looped bag): what the buffers hold after the stamp is dropped; tf is
+  // cleared after the next gather (which still reads the frame's own transforms).
+  void timeJumpedBack(const ros::Time& stamp);
+  const Eigen::Isometry3d& extrinsics() const { return T_base_cam_; }
+
+ private:
+  tf2_ros::Buffer* tf_;
+  RosOptions opts_;
+  StampedPoseBuffer imu_{2.0}, odom_{10.0};
+  std::string camera_frame_;
+  Eigen::Isometry3d T_base_cam_ = Eigen::Isometry3d::Identity();
+  bool clear_tf_ = false;
+};
+
+}  // namespace gmm_mcl

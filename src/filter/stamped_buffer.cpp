@@ -1,0 +1,100 @@
+#include "gmm_mcl/filter/stamped_buffer.h"
+
+#include <cmath>
+#include <iterator>
+#include <sstream>
+
+#include "gmm_mcl/filter/pose.h"
+
+namespace gmm_mcl {
+
+StampedPoseBuffer::StampedPoseBuffer(double max_age_s, double max_gap_s)
+    : max_age_s_(max_age_s), max_gap_s_(max_gap_s) {}
+
+void StampedPoseBuffer::add(double stamp_s, const Eigen::Isometry3d& pose) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  track_[stamp_s] = pose;
+  ++added_;
+  const double oldest = track_.rbegin()->first - max_age_s_;
+  while (!track_.empty() && track_.begin()->first < oldest) track_.erase(track_.begin());
+}
+
+void StampedPoseBuffer::addAttitude(double stamp_s, double roll_rad, double pitch_rad) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = rotationFromRpy(roll_rad, pitch_rad, 0.0);
+  add(stamp_s, T);
+}
+
+bool StampedPoseBuffer::at(double t, double tolerance_s, Eigen::Isometry3d* out,
+                           std::string* why) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::ostringstream msg;
+  if (track_.empty()) {
+    if (why) *why = "none received";
+    return false;
+  }
+  const auto hi = track_.lower_bound(t);
+  if (hi != track_.end() && hi->first == t) {
+    *out = hi->second;
+    return true;
+  }
+  if (hi != track_.end() && hi != track_.begin()) {
+    const auto lo = std::prev(hi);
+    if (hi->first - lo->first <= max_gap_s_) {
+      const double a = (t - lo->first) / (hi->first - lo->first);
+      *out = Eigen::Isometry3d::Identity();
+      out->linear() = Eigen::Quaterniond(lo->second.linear())
+                          .slerp(a, Eigen::Quaterniond(hi->second.linear()))
+                          .toRotationMatrix();
+      out->translation() = (1 - a) * lo->second.translation() + a * hi->second.translation();
+      return true;
+    }
+  }
+  // The nearest neighbour.
+  auto nearest = hi == track_.end() ? std::prev(hi) : hi;
+  if (hi != track_.end() && hi != track_.begin() && t - std::prev(hi)->first < hi->first - t) {
+    nearest = std::prev(hi);
+  }
+  const double dt = std::abs(nearest->first - t);
+  if (dt <= tolerance_s) {
+    *out = nearest->second;
+    return true;
+  }
+  if (why) {
+    msg << "nearest is " << dt << " s " << (nearest->first < t ? "before" : "after")
+        << " the stamp (tolerance " << tolerance_s << " s)";
+    *why = msg.str();
+  }
+  return false;
+}
+
+bool StampedPoseBuffer::attitudeAt(double t_s, double tolerance_s, double* roll_rad,
+                                   double* pitch_rad, std::string* why) const {
+  Eigen::Isometry3d T;
+  if (!at(t_s, tolerance_s, &T, why)) return false;
+  double yaw;
+  rpyFromRotation(T.linear(), roll_rad, pitch_rad, &yaw);
+  return true;
+}
+
+void StampedPoseBuffer::eraseAfter(double t_s) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  track_.erase(track_.upper_bound(t_s), track_.end());
+}
+
+void StampedPoseBuffer::clear() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  track_.clear();
+}
+
+size_t StampedPoseBuffer::size() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return track_.size();
+}
+
+long long StampedPoseBuffer::added() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return added_;
+}
+
+}  // namespace gmm_mcl

@@ -1,0 +1,73 @@
+#include "gmm_mcl/ros/step_inputs.h"
+
+#include "gmm_mcl/ros/conversions.h"
+
+namespace gmm_mcl {
+
+bool StepInputs::addImu(const sensor_msgs::Imu& imu) {
+  double roll, pitch;
+  if (!ros_conv::attitudeFromImu(imu, &roll, &pitch)) return false;
+  imu_.addAttitude(imu.header.stamp.toSec(), roll, pitch);
+  return true;
+}
+
+void StepInputs::addOdometry(const nav_msgs::Odometry& odom) {
+  odom_.add(odom.header.stamp.toSec(), ros_conv::isometryFromPose(odom.pose.pose));
+}
+
+bool StepInputs::odometryAt(const ros::Time& stamp, Eigen::Isometry3d* T_odom_base,
+                            std::string* why) const {
+  if (opts_.odometry_source == "none") return false;
+  if (opts_.odometry_source == "topic") {
+    if (odom_.at(stamp.toSec(), opts_.odom_timeout_s, T_odom_base, why)) return true;
+    *why = "no odometry at the frame's stamp: " + *why;
+    return false;
+  }
+  try {
+    *T_odom_base = ros_conv::isometryFromTransform(
+        tf_->lookupTransform(opts_.odom_frame, opts_.base_frame, stamp).transform);
+    return true;
+  } catch (const tf2::TransformException& e) {
+    *why = std::string("no odometry tf at the frame's stamp: ") + e.what();
+    return false;
+  }
+}
+
+bool StepInputs::gather(const std_msgs::Header& header, StepInput* in, Gaps* gaps,
+                        std::string* why) {
+  in->stamp_s = header.stamp.toSec();
+  try {  // per frame, at its stamp: a gimbal or a moving joint
+    T_base_cam_ = ros_conv::isometryFromTransform(
+        tf_->lookupTransform(opts_.base_frame, header.frame_id, header.stamp).transform);
+    camera_frame_ = header.frame_id;
+  } catch (const tf2::TransformException& e) {
+    // After a time jump cleared tf, the last extrinsics of the same camera still hold.
+    if (camera_frame_ != header.frame_id) {
+      *why = "no transform " + opts_.base_frame + " <- " + header.frame_id + ": " + e.what();
+      return false;
+    }
+  }
+  in->has_T_base_cam = true;
+  in->T_base_cam = T_base_cam_;
+  std::string gap;
+  in->has_odometry = odometryAt(header.stamp, &in->T_odom_base, &gap);
+  if (clear_tf_) tf_->clear();
+  clear_tf_ = false;
+  gaps->odometry = !in->has_odometry && opts_.odometry_source != "none";
+  if (gaps->odometry) gaps->warnings += gap + " (predicting without motion); ";
+  if (opts_.use_imu) {
+    in->has_attitude =
+        imu_.attitudeAt(in->stamp_s, opts_.imu_timeout_s, &in->roll_rad, &in->pitch_rad, &gap);
+    gaps->imu = !in->has_attitude;
+    if (gaps->imu) gaps->warnings += "IMU attitude: " + gap + " (roll/pitch from odometry); ";
+  }
+  return true;
+}
+
+void StepInputs::timeJumpedBack(const ros::Time& stamp) {
+  imu_.eraseAfter(stamp.toSec());
+  odom_.eraseAfter(stamp.toSec());
+  clear_tf_ = true;
+}
+
+}  // namespace gmm_mcl

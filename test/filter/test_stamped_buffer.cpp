@@ -1,0 +1,87 @@
+// Stamped poses and attitudes looked up at a frame's stamp; concurrent producers and readers.
+#include <atomic>
+#include <cmath>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "gmm_mcl/filter/pose.h"
+#include "gmm_mcl/filter/stamped_buffer.h"
+
+namespace gmm_mcl {
+namespace {
+
+Eigen::Isometry3d pose(double x, double yaw) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = Eigen::Vector3d(x, 2 * x, 0.5);
+  T.linear() = rotationFromRpy(0, 0, yaw);
+  return T;
+}
+
+TEST(StampedPoseBufferTest, InterpolatesBetweenNeighboursAndTakesTheNearestWithinTolerance) {
+  StampedPoseBuffer b(10.0, 1.0);
+  Eigen::Isometry3d T;
+  std::string why;
+  EXPECT_FALSE(b.at(1.0, 0.1, &T, &why));
+  EXPECT_EQ(why, "none received");
+  b.add(1.0, pose(0.0, 0.0));
+  b.add(2.0, pose(1.0, 0.4));
+  b.add(1.5, pose(0.5, 0.2));  // out of order: inserted in place
+  ASSERT_TRUE(b.at(1.25, 0.0, &T));
+  EXPECT_NEAR(T.translation().x(), 0.25, 1e-12);
+  EXPECT_NEAR(yawFromRotation(T.linear()), 0.1, 1e-12);
+  ASSERT_TRUE(b.at(2.0, 0.0, &T));  // exact
+  EXPECT_NEAR(T.translation().x(), 1.0, 1e-12);
+  ASSERT_TRUE(b.at(2.05, 0.1, &T));  // after the newest, within tolerance
+  EXPECT_NEAR(T.translation().x(), 1.0, 1e-12);
+  EXPECT_FALSE(b.at(2.3, 0.1, &T, &why));
+  EXPECT_NE(why.find("0.3 s before the stamp"), std::string::npos) << why;
+  EXPECT_FALSE(b.at(0.5, 0.1, &T, &why));
+  EXPECT_NE(why.find("after the stamp"), std::string::npos) << why;
+  // A gap longer than max_gap: no interpolation across it, the nearest within tolerance only.
+  b.add(5.0, pose(3.0, 0.0));
+  EXPECT_FALSE(b.at(3.5, 0.1, &T));
+  ASSERT_TRUE(b.at(4.95, 0.1, &T));
+  EXPECT_NEAR(T.translation().x(), 3.0, 1e-12);
+  // A time jump back: what came after is dropped.
+  b.eraseAfter(1.5);
+  EXPECT_EQ(b.size(), 2u);
+  EXPECT_EQ(b.added(), 4);
+  // Entries older than max_age behind the newest are dropped.
+  b.add(30.0, pose(0, 0));
+  EXPECT_EQ(b.size(), 1u);
+}
+
+TEST(StampedPoseBufferTest, AttitudeRoundTrip) {
+  StampedPoseBuffer b;
+  b.addAttitude(1.0, 0.1, -0.05);
+  b.addAttitude(1.1, 0.2, -0.15);
+  double roll, pitch;
+  ASSERT_TRUE(b.attitudeAt(1.05, 0.0, &roll, &pitch));
+  EXPECT_NEAR(roll, 0.15, 2e-3);
+  EXPECT_NEAR(pitch, -0.10, 2e-3);
+  ASSERT_TRUE(b.attitudeAt(1.1, 0.0, &roll, &pitch));
+  EXPECT_NEAR(roll, 0.2, 1e-12);
+}
+
+// Producers add while a reader looks up: every entry arrives, no lookup fails in between.
+TEST(StampedPoseBufferTest, ConcurrentProducersAndReader) {
+  StampedPoseBuffer b(1e9, 1.0);
+  b.add(0.0, pose(0, 0));
+  std::atomic<bool> done(false);
+  std::thread reader([&] {
+    Eigen::Isometry3d T;
+    while (!done) EXPECT_TRUE(b.at(0.0, 0.0, &T));
+  });
+  std::thread a([&] { for (int i = 1; i <= 20000; i += 2) b.add(i * 1e-3, pose(i, 0)); });
+  std::thread c([&] { for (int i = 2; i <= 20000; i += 2) b.add(i * 1e-3, pose(i, 0)); });
+  a.join();
+  c.join();
+  done = true;
+  reader.join();
+  EXPECT_EQ(b.size(), 20001u);
+  EXPECT_EQ(b.added(), 20001);
+}
+
+}  // namespace
+}  // namespace gmm_mcl

@@ -1,0 +1,95 @@
+#!/usr/bin/env bash
+# The package as deployed from an install space: installs a built tree into a temporary prefix
+# and runs it from there in a fresh environment that sources only that prefix's setup.bash (the
+# source tree and the build folder are nowhere on the paths):
+#  - the tools and the core library resolve (gmm_fit, gmm_inspect, gmm_mcl_replay, gmm_mcl_bench,
+#    make_sim_bag: each prints its usage; no missing shared library);
+#  - localization.launch loads the nodelet from the install space into a manager, and its
+#    services and messages answer from Python (rosservice call, rostopic type, rosmsg);
+#  - replay.launch plays a bag written by the installed make_sim_bag, and removes
+#    /use_sim_time from the master when it ends.
+#   install_space_test.sh BUILD_DIR MAP.gmm
+set -euo pipefail
+BUILD="$1"
+MAP="$2"
+TMP="$(mktemp -d)"
+# Installed under DESTDIR into the prefix the build was configured with: catkin writes its
+# setup files to the configured CMAKE_INSTALL_PREFIX whatever `cmake --install --prefix` says
+# (they would land in /usr/local), and setup.bash finds its own folder when sourced.
+CONFIGURED_PREFIX="$(sed -n 's/^CMAKE_INSTALL_PREFIX:PATH=//p' "$BUILD/CMakeCache.txt")"
+PREFIX="$TMP/root${CONFIGURED_PREFIX:-/usr/local}"
+PIDS=()
+cleanup() {
+  for pid in "${PIDS[@]}"; do kill -TERM "$pid" 2> /dev/null || true; done
+  for pid in "${PIDS[@]}"; do wait "$pid" 2> /dev/null || true; done
+  rm -rf "$TMP"
+}
+trap cleanup EXIT
+fail() {
+  echo "FAIL: $*" >&2
+  for f in "$TMP"/*.log; do echo "---- $f"; tail -30 "$f"; done >&2
+  exit 1
+}
+
+DESTDIR="$TMP/root" cmake --install "$BUILD" > "$TMP/install.log" 2>&1 || fail "cmake --install"
+if grep -v "^-- .*$TMP/root/" "$TMP/install.log" | grep -q "^-- \(Installing\|Up-to-date\)"; then
+  fail "files installed outside the install space: $(grep -v "$TMP/root/" "$TMP/install.log" | head -3)"
+fi
+echo "installed into $PREFIX: $(find "$PREFIX" -type f | wc -l) files"
+
+PORT=$(python3 -c 'import socket; s = socket.socket(); s.bind(("", 0)); print(s.getsockname()[1])')
+# A clean environment: only the install space (and Debian's ROS in /usr).
+run() {
+  env -i HOME="$TMP" PATH=/usr/bin:/bin ROS_MASTER_URI="http://localhost:$PORT" \
+    ROS_HOME="$TMP/ros_home" PREFIX="$PREFIX" MAP="$MAP" TMP="$TMP" \
+    bash -c "set +u; source '$PREFIX/setup.bash'; set -u; $1"
+}
+# A long-running command in the background, its PID the command's own (so that TERM reaches
+# it), its output unbuffered into LOG (the nodelet's start-up line is checked there).
+start() {
+  env -i HOME="$TMP" PATH=/usr/bin:/bin ROS_MASTER_URI="http://localhost:$PORT" \
+    ROS_HOME="$TMP/ros_home" PREFIX="$PREFIX" MAP="$MAP" TMP="$TMP" PYTHONUNBUFFERED=1 \
+    bash -c "set +u; source '$PREFIX/setup.bash'; set -u; exec stdbuf -oL -eL $2" > "$1" 2>&1 &
+  PIDS+=($!)
+}
+
+# The environment points at the install space only.
+run 'test "$(rospack find gmm_mcl)" = "$PREFIX/share/gmm_mcl"' ||
+  fail "rospack find gmm_mcl is not the install space: $(run 'rospack find gmm_mcl' 2>&1)"
+for lib in "$PREFIX"/lib/libgmm_mcl_*.so; do
+  if run "ldd '$lib'" | grep -q "not found"; then fail "$lib: $(run "ldd '$lib'" | grep 'not found')"; fi
+done
+for tool in gmm_fit gmm_inspect gmm_mcl_replay gmm_mcl_bench make_sim_bag gmm_mcl_params; do
+  run "rosrun gmm_mcl $tool --help" > "$TMP/$tool.log" 2>&1 || fail "rosrun gmm_mcl $tool --help"
+done
+echo "tools: gmm_fit gmm_inspect gmm_mcl_replay gmm_mcl_bench make_sim_bag gmm_mcl_params run"
+
+start "$TMP/roscore.log" 'roscore -p "${ROS_MASTER_URI##*:}"'
+for _ in $(seq 1 120); do run 'rosparam get /run_id' > /dev/null 2>&1 && break; sleep 0.5; done
+run 'rosparam get /run_id' > /dev/null 2>&1 || fail "roscore did not start"
+
+# The nodelet from the install space, in its manager.
+start "$TMP/localization.log" 'roslaunch gmm_mcl localization.launch map:="$MAP"'
+LAUNCH=${PIDS[-1]}
+run 'timeout 120 rosservice call --wait /gmm_mcl/global_localization' > "$TMP/service.log" 2>&1 ||
+  fail "rosservice call /gmm_mcl/global_localization (std_srvs from Python, the nodelet loaded)"
+run 'rostopic type /gmm_mcl/status' | grep -q '^gmm_mcl/FilterStatus$' || fail "rostopic type /gmm_mcl/status"
+run 'rosmsg show gmm_mcl/FilterStatus' | grep -q 'frames_received' || fail "rosmsg show gmm_mcl/FilterStatus"
+run 'rosservice type /gmm_mcl/reload_map' | grep -q '^gmm_mcl/LoadMap$' || fail "rosservice type /gmm_mcl/reload_map"
+grep -q "gmm_mcl: .* components from" "$TMP/localization.log" || fail "the nodelet did not start"
+echo "localization.launch: the nodelet loaded from $PREFIX/lib and answered ~global_localization"
+kill -TERM "$LAUNCH"
+wait "$LAUNCH" || true
+
+# replay.launch with a bag from the installed make_sim_bag; /use_sim_time is gone afterwards.
+run 'rosrun gmm_mcl make_sim_bag --bag "$TMP/short.bag" --map "$TMP/short.gmm" --frames 30 --width 160 --quiet' \
+  > "$TMP/make_sim_bag.log" 2>&1 || fail "make_sim_bag"
+run 'timeout 240 roslaunch gmm_mcl replay.launch bag:="$TMP/short.bag" map:="$TMP/short.gmm" \
+       overrides:="$PREFIX/share/gmm_mcl/config/sim_test.yaml" params:="$TMP/short_init.yaml" \
+       rate:=2 delay:=1 record:="$TMP/poses.bag"' > "$TMP/replay.log" 2>&1 || fail "replay.launch"
+run 'rosbag info "$TMP/poses.bag"' | grep -q "/gmm_mcl/pose" || fail "no pose recorded by replay.launch"
+if run 'rosparam get /use_sim_time' > /dev/null 2>&1; then
+  fail "/use_sim_time is still set after replay.launch ended: $(run 'rosparam get /use_sim_time')"
+fi
+echo "replay.launch: poses recorded, /use_sim_time removed when it ended"
+echo "install space test passed"
