@@ -21,7 +21,17 @@ cmake --build "$BUILD" -j2
 echo "== build took $(( $(date +%s) - start )) s"
 start=$(date +%s)
 export ROS_HOME="$BUILD/ros_home"  # rostest logs stay in the build folder
-(cd "$BUILD" && ctest --output-on-failure --timeout 1200) | tee "$BUILD/ctest.log"
+# Two at a time for the tests without ROS (seeded, on the data's own time: a second test beside
+# them changes only how long they take; the longest start first, cmake/test_costs.cmake), then the
+# rostests, the soak and the install space one at a time beside nothing else. Passive OpenMP
+# threads: two tests' spinning pools would take each other's cores.
+ROS_TESTS='rostest|soak|install_space'
+(cd "$BUILD" && OMP_WAIT_POLICY=passive ctest -j2 --output-on-failure --timeout 1200 \
+  -E "$ROS_TESTS") | tee "$BUILD/ctest.log"
+echo "== tests without ROS took $(( $(date +%s) - start )) s"
+ros_start=$(date +%s)
+(cd "$BUILD" && ctest --output-on-failure --timeout 1200 -R "$ROS_TESTS") | tee -a "$BUILD/ctest.log"
+echo "== ROS tests took $(( $(date +%s) - ros_start )) s"
 echo "== tests took $(( $(date +%s) - start )) s"
 
 # CUDA backend: compiled with nvcc (one architecture); its tests skip without a GPU.
