@@ -158,13 +158,8 @@ class FailingBackend : public LikelihoodBackend {
   int calls_ = 0;
 };
 
-// Steps a localizer along the synthetic trajectory from frame `first` (odometry = truth).
-StepResult stepSynthetic(Localizer* loc, int f) {
-  const auto& w = test::world();
-  const Intrinsics K = test::smallCamera();
-  const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(f + 1);
-  const DepthImage depth = sim::renderDepth(w.scene, K, truth[f] * w.T_base_cam,
-                                            DepthEncoding::kMono16Millimetres, 9.0);
+// Inputs of the synthetic trajectory's frame f (perfect odometry and attitude).
+StepInput syntheticInput(const std::vector<Eigen::Isometry3d>& truth, int f, const DepthImage& depth) {
   double roll, pitch, yaw;
   rpyFromRotation(truth[f].linear(), &roll, &pitch, &yaw);
   StepInput in;
@@ -175,8 +170,17 @@ StepResult stepSynthetic(Localizer* loc, int f) {
   in.roll_rad = roll;
   in.pitch_rad = pitch;
   in.depth = &depth;
-  in.intrinsics = K;
-  return loc->step(in);
+  in.intrinsics = test::smallCamera();
+  return in;
+}
+
+// Steps a localizer along the synthetic trajectory at frame f (odometry = truth).
+StepResult stepSynthetic(Localizer* loc, int f) {
+  const auto& w = test::world();
+  const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(f + 1);
+  const DepthImage depth = sim::renderDepth(w.scene, test::smallCamera(), truth[f] * w.T_base_cam,
+                                            DepthEncoding::kMono16Millimetres, 9.0);
+  return loc->step(syntheticInput(truth, f, depth));
 }
 
 double syntheticError(const StepResult& r, int f) {
@@ -266,22 +270,6 @@ TEST(LocalizerTest, InvalidParametersAreRejectedAtConstruction) {
 
 double distanceM(const Particle& a, const Particle& b) {
   return std::sqrt(std::pow(a.x_m - b.x_m, 2) + std::pow(a.y_m - b.y_m, 2) + std::pow(a.z_m - b.z_m, 2));
-}
-
-// Inputs of the synthetic trajectory's frame f (perfect odometry and attitude).
-StepInput syntheticInput(const std::vector<Eigen::Isometry3d>& truth, int f, const DepthImage& depth) {
-  double roll, pitch, yaw;
-  rpyFromRotation(truth[f].linear(), &roll, &pitch, &yaw);
-  StepInput in;
-  in.stamp_s = f / 30.0;
-  in.has_odometry = true;
-  in.T_odom_base = truth[f];
-  in.has_attitude = true;
-  in.roll_rad = roll;
-  in.pitch_rad = pitch;
-  in.depth = &depth;
-  in.intrinsics = test::smallCamera();
-  return in;
 }
 
 DepthImage syntheticDepth(const Eigen::Isometry3d& T_map_cam) {
