@@ -422,6 +422,22 @@ void checkImage(const DepthImage& image, const Intrinsics& K, const FrameParams&
   }
 }
 
+// The frame-preparation kernel's configuration for this image, camera, grid and frame parameters.
+cuda::FrameConfig frameConfig(const DepthImage& image, const Intrinsics& K, const PatchGrid& grid,
+                              const FrameParams& frame_params) {
+  cuda::FrameConfig fc;
+  fc.K = K;
+  fc.patch_size_px = grid.patch_size_px;
+  fc.cols = grid.cols;
+  fc.rows = grid.rows;
+  fc.stride_px = frame_params.pixel_stride;
+  fc.min_range_m = frame_params.min_range_m;
+  fc.max_range_m = frame_params.max_range_m;
+  fc.millimetres = image.encoding == DepthEncoding::kMono16Millimetres ? 1 : 0;
+  fc.row_bytes = image.row_bytes;
+  return fc;
+}
+
 void resetOutput(int n, BackendOutput* out) {
   out->log_likelihood.assign(n, 0.0);
   out->floor_hits.assign(n, 0);
@@ -518,16 +534,7 @@ void CudaBackend::evaluateImage(const DepthImage& image, const Intrinsics& K,
   d.h_results.reserve(O.total);
   Impl::DeviceFrameView view = d.view(L, K, grid);
   view.patch_begin = reinterpret_cast<const int*>(d.results.data() + O.patch_begin);
-  cuda::FrameConfig fc;
-  fc.K = K;
-  fc.patch_size_px = grid.patch_size_px;
-  fc.cols = grid.cols;
-  fc.rows = grid.rows;
-  fc.stride_px = st;
-  fc.min_range_m = frame_params.min_range_m;
-  fc.max_range_m = frame_params.max_range_m;
-  fc.millimetres = image.encoding == DepthEncoding::kMono16Millimetres ? 1 : 0;
-  fc.row_bytes = image.row_bytes;
+  const cuda::FrameConfig fc = frameConfig(image, K, grid, frame_params);
   GMM_MCL_CUDA_CHECK(cuda::launchFramePrep(
       fc, d.inputs.data() + L.image, d.counts.data(), const_cast<int*>(view.patch_begin),
       const_cast<float*>(view.x), const_cast<float*>(view.y), const_cast<float*>(view.z), s));
@@ -640,16 +647,7 @@ CudaBackend::DeviceFrameInfo CudaBackend::prepareDeviceFrame(const DepthImage& i
   if (patches > 0) {
     GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(d.dframe_image.data(), d.dframe_staging.data(), image_bytes,
                                        cudaMemcpyHostToDevice, s));
-    cuda::FrameConfig fc;
-    fc.K = K;
-    fc.patch_size_px = grid.patch_size_px;
-    fc.cols = grid.cols;
-    fc.rows = grid.rows;
-    fc.stride_px = st;
-    fc.min_range_m = frame_params.min_range_m;
-    fc.max_range_m = frame_params.max_range_m;
-    fc.millimetres = image.encoding == DepthEncoding::kMono16Millimetres ? 1 : 0;
-    fc.row_bytes = image.row_bytes;
+    const cuda::FrameConfig fc = frameConfig(image, K, grid, frame_params);
     GMM_MCL_CUDA_CHECK(cuda::launchFramePrep(
         fc, d.dframe_image.data(), reinterpret_cast<int*>(dev + L.counts),
         reinterpret_cast<int*>(dev + L.patch_begin), reinterpret_cast<float*>(dev + L.x),
