@@ -72,7 +72,13 @@ bool LocalizationNodelet::configure(std::vector<std::string>* unknown) {
 void LocalizationNodelet::advertise() {
   ros::NodeHandle &nh = getNodeHandle(), &pnh = getPrivateNodeHandle();
   tf_.reset(new tf2_ros::Buffer(ros::Duration(30.0)));
-  tf_listener_.reset(new tf2_ros::TransformListener(*tf_, nh));
+  // The listener on this nodelet's single-threaded queue, not a thread of its own: the depth
+  // input's tf2_ros::MessageFilter registers a frame's transform request before it queues the
+  // frame, so a transform inserted by another thread in between completes a request the filter
+  // cannot find yet and the frame then waits for good (ros/geometry2#538 is the same class of
+  // race for clear()). On one thread, the transforms are inserted between depth frames, in
+  // arrival order. The listener's queue (100 messages) holds the /tf traffic of one update.
+  tf_listener_.reset(new tf2_ros::TransformListener(*tf_, nh, false));
   tf_broadcaster_.reset(new tf2_ros::TransformBroadcaster());
   inputs_.reset(new StepInputs(tf_.get()));
   inputs_->setOptions(opts_);

@@ -6,6 +6,8 @@
 #pragma once
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <functional>
 #include <map>
 #include <memory>
@@ -33,6 +35,22 @@ namespace lockstep {
 
 // Limit of a wait for an output that should come (a failure when reached), wall seconds.
 constexpr double kWaitLimitS = 120.0;
+
+// On the first failed wait for the nodelet's output: every thread's stack of the nodelet
+// managers on this machine (gdb, when installed), into the test's output, so that a hang shows
+// where it hangs.
+inline void dumpManagerStacks() {
+  static bool done = false;
+  if (done) return;
+  done = true;
+  std::fflush(stdout);
+  const int rc = std::system(
+      "command -v gdb >/dev/null || { echo 'no gdb: no stacks'; exit 0; }; "
+      "for p in $(pgrep -f '^[^ ]*nodelet manager'); do echo \"== stacks of $(cat /proc/$p/cmdline | "
+      "tr '\\0' ' ')\"; timeout 60 gdb -batch -nx -ex 'thread apply all bt' -p $p 2>&1 | "
+      "grep -v '^\\[New LWP'; done");
+  (void)rc;
+}
 
 inline bool waitFor(const std::function<bool()>& done, double limit_s = kWaitLimitS) {
   const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(limit_s);
@@ -130,6 +148,7 @@ class Observer {
       }
       return found != nullptr;
     }, limit_s);
+    if (!found) dumpManagerStacks();
     return found;
   }
   const geometry_msgs::PoseWithCovarianceStamped* poseAt(const ros::Time& t, size_t since = 0) {

@@ -3,8 +3,9 @@
 // pose resets, parameter changes keeping the belief) lives in the core; the bookkeeping (frame
 // accounting, status, diagnostics) in node_status.h; the depth input in depth_input.h.
 //
-// Threads: depth frames, /initialpose, the services and dynamic_reconfigure run on the nodelet's
-// single-threaded queue, one at a time (so nothing else touches the filter during an update);
+// Threads: depth frames, the tf listener, /initialpose, the services and dynamic_reconfigure run
+// on the nodelet's single-threaded queue, one at a time (so nothing else touches the filter
+// during an update, and tf2's message filter never races the listener);
 // IMU, odometry and the diagnostics timer run on its multi-threaded queue and never wait for an
 // update (they only take the buffers' and the health snapshot's own locks).
 #pragma once
