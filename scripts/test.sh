@@ -56,7 +56,7 @@ fi
 # Jetson TX2 proxies (docs/tx2.md): every package source as strict C++14 (the main build's
 # compile commands), the ROS Melodic checks, the CUDA backend by nvcc 11.8 for sm_62 when
 # scripts/tx2_cuda_compile.sh has installed it, and the core's unit tests cross-built for
-# aarch64 and run under qemu (less nine cases that take minutes emulated).
+# aarch64 and run under qemu (less twelve cases that take minutes emulated).
 start=$(date +%s)
 "$GMM_MCL_ROOT/scripts/tx2_cxx14_check.sh" "$BUILD"
 "$GMM_MCL_ROOT/scripts/tx2_melodic_check.sh"
