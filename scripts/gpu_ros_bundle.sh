@@ -49,6 +49,8 @@ cmake -S "$GMM_MCL_ROOT" -B "$BUILD" -DGMM_MCL_BUILD_ROS=ON -DGMM_MCL_WITH_CUDA=
 # The nodelet, the demo's tools, every gmm_mcl executable a launch or test file names, and the
 # targets that write the rostests' data.
 targets=(gmm_mcl_ros gmm_mcl_node make_sim_bag evaluate_pose_bag)
+# The CUDA suites (the backend, the device particle filter, the localizer with it).
+targets+=(test_cuda_backend test_cuda_particle_filter test_cuda_localizer)
 targets+=($(grep -ohE 'pkg="gmm_mcl" +type="[A-Za-z0-9_]+"' "$GMM_MCL_ROOT"/launch/*.launch \
   "$GMM_MCL_ROOT"/test/ros/*.test | sed -E 's/.*type="([^"]+)"/\1/' | sort -u))
 targets+=($(cmake --build "$BUILD" --target help | sed -n 's/^\.\.\. \([A-Za-z0-9_]*_test_data\)$/\1/p'))
@@ -145,6 +147,8 @@ ln -s ../usr/bin/python3.11 "$R/bin/python"
 DEVEL="$BUILD/devel"
 cp -P "$DEVEL"/lib/libgmm_mcl*.so* "$R/ws/lib/"
 find "$DEVEL/lib/gmm_mcl" -maxdepth 1 -type f -perm -u+x -exec cp {} "$R/ws/lib/gmm_mcl/" \;
+# The launch files' Python nodes (catkin installs them beside the executables).
+install -m 755 "$GMM_MCL_ROOT/scripts/restore_wall_time.py" "$R/ws/lib/gmm_mcl/"
 cp -r "$DEVEL/lib/python3/dist-packages/gmm_mcl" "$R/ws/lib/python3/dist-packages/"
 cp "$GMM_MCL_ROOT/package.xml" "$GMM_MCL_ROOT/nodelet_plugins.xml" "$R/ws/share/gmm_mcl/"
 cp -r "$GMM_MCL_ROOT/launch" "$GMM_MCL_ROOT/config" "$R/ws/share/gmm_mcl/"

@@ -4,6 +4,7 @@
 # script, or $GPUROS_ARCHIVE). Unpacks it into $GPUROS_WORK (default /tmp/gpuros_run), then runs
 # the steps of $GPUROS_STEPS (default: all, in this order):
 #   info       the GPU, the bundled interpreter, every bundled ELF file's libraries resolve
+#   cudatests  the CUDA suites (backend parity, device particle filter, localizer with it)
 #   roscore    a master starts, answers and stops
 #   rostests   every rostest of the package, each with its nodelet's `backend` parameters set
 #              to $BACKEND (default cuda): a copy of the test file with <param> overrides for
@@ -29,7 +30,7 @@ ARCHIVE="${GPUROS_ARCHIVE:-$HERE/gpuros.tar.xz}"
 [[ -f "$ARCHIVE" ]] || ARCHIVE="$HERE/../.deps/gpuros/gpuros.tar.xz"
 WORK="${GPUROS_WORK:-/tmp/gpuros_run}"
 OUT="${OUT:-$WORK/out}"
-STEPS="${GPUROS_STEPS:-info roscore rostests demo live memcheck racecheck}"
+STEPS="${GPUROS_STEPS:-info cudatests roscore rostests demo live memcheck racecheck}"
 BACKEND="${BACKEND:-cuda}"
 DEMO_BACKENDS="${DEMO_BACKENDS:-cuda cpu}"
 FRAMES="${FRAMES:-300}"
@@ -38,6 +39,8 @@ RATE="${RATE:-0.5}"
 SANITIZER_FRAMES="${SANITIZER_FRAMES:-60}"
 MEMCHECK_RATE="${MEMCHECK_RATE:-0.2}"
 RACECHECK_RATE="${RACECHECK_RATE:-0.03}"   # racecheck: about 0.5 s per update on an H100
+SANITIZER_DELAY="${SANITIZER_DELAY:-45}"    # seconds between the nodelet's load and the bag
+SANITIZER_EXIT_S="${SANITIZER_EXIT_S:-150}" # the longest wait for the manager under a tool to exit
 LIVE_SECONDS="${LIVE_SECONDS:-30}"
 SANITIZER="${COMPUTE_SANITIZER:-$(command -v compute-sanitizer || echo /usr/local/cuda/bin/compute-sanitizer)}"
 mkdir -p "$WORK" "$OUT"
@@ -186,7 +189,7 @@ EOF
     rostest --text "$copy" $args < /dev/null > "$log" 2>&1
     local rc=$? secs=$(( $(date +%s) - t0 ))
     local ready fallback
-    ready=$(grep -c "localizer ready.*$BACKEND backend" "$log")
+    ready=$(grep -c "components from .*, $BACKEND backend" "$log")
     fallback=$(grep -c "CUDA backend unavailable\|CUDA backend not built" "$log")
     if [[ $rc -eq 0 && $fallback -eq 0 ]]; then
       n_ok=$((n_ok + 1))
@@ -296,6 +299,21 @@ EOF
   fi
 }
 
+# The CUDA suites as built for the bundle (exit 77: no device).
+step_cudatests() {
+  local t rc
+  for t in test_cuda_backend test_cuda_particle_filter test_cuda_localizer; do
+    "$BIN/$t" > "$OUT/$t.log" 2>&1
+    rc=$?
+    if [[ $rc -eq 0 ]]; then
+      pass "$t" "$(grep -E '^\[  PASSED  \]' "$OUT/$t.log")"
+    else
+      fail "$t" "exit $rc ($t.log)"
+      grep -E "FAILED|Failure" "$OUT/$t.log" | head -10
+    fi
+  done
+}
+
 step_sanitizer() {
   local tool="$1" d="$WORK/sanitizer"
   [[ -x "$SANITIZER" ]] || { fail "$tool" "compute-sanitizer not found"; return; }
@@ -308,10 +326,12 @@ step_sanitizer() {
   local t0=$(date +%s)
   local rate="$MEMCHECK_RATE"
   [[ "$tool" == racecheck ]] && rate="$RACECHECK_RATE"
-  run_replay "$d" cuda "$rate" "$tool" manager:=gmm_mcl_manager
+  # The nodelet's CUDA start-up under the sanitizer takes tens of seconds: the bag waits for it.
+  run_replay "$d" cuda "$rate" "$tool" manager:=gmm_mcl_manager delay:="$SANITIZER_DELAY"
   local secs=$(( $(date +%s) - t0 ))
   rosnode kill /gmm_mcl_manager > /dev/null 2>&1
-  for _ in $(seq 1 60); do kill -0 "$san_pid" 2> /dev/null || break; sleep 1; done
+  # The summary is written when the manager exits on its own (the tool's teardown is slow).
+  for _ in $(seq 1 "$SANITIZER_EXIT_S"); do kill -0 "$san_pid" 2> /dev/null || break; sleep 1; done
   kill -INT "$san_pid" 2> /dev/null
   wait "$san_pid" 2> /dev/null
   stop_master
@@ -334,6 +354,7 @@ for s in $STEPS; do
     rostests) step_rostests ;;
     demo) step_demo ;;
     live) step_live ;;
+    cudatests) step_cudatests ;;
     memcheck | racecheck) step_sanitizer "$s" ;;
     *) fail "$s" "unknown step" ;;
   esac
