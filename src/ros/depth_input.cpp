@@ -9,6 +9,10 @@ namespace {
 
 // CameraInfos kept for images still waiting for tf (about a second at 30 Hz).
 constexpr uint32_t kSyncQueue = 30;
+// A frame older than the last one used by more than this is a jump back in time, not a frame
+// whose tf came late: no frame waits for tf that long in practice (the message filter keeps
+// queue_size frames).
+constexpr double kLongestWaitS = 1.0;
 
 std::string noTransform(const std::vector<std::string>& targets, const std::string& frame) {
   std::string to;
@@ -126,9 +130,13 @@ void DepthInput::onUnmatched(const boost::shared_ptr<const M>& image) {
 
 bool DepthInput::inOrder(const std_msgs::Header& header) {
   const ros::Time t = header.stamp;
-  // tf came for an older frame only after a newer one was used (the clock did not go back, so
-  // this is no looped bag): used now it would look like time running backwards.
-  if (!last_delivered_.isZero() && t < last_delivered_ && ros::Time::now() >= last_delivered_) {
+  // tf came for an older frame only after a newer one was used: used now it would look like time
+  // running backwards. Not so when the clock went back, or when the frame is older by more than
+  // a frame can wait (a looped bag whose first frame is taken before /clock, which arrives on
+  // another connection and thread, has gone back).
+  const bool jump = ros::Time::now() < last_delivered_ ||
+                    (last_delivered_ - t).toSec() > kLongestWaitS;
+  if (!last_delivered_.isZero() && t < last_delivered_ && !jump) {
     cb_.dropped(FrameDrop::kExtrinsics,
                 "tf for the frame of '" + header.frame_id + "' came after a newer frame");
     return false;

@@ -49,6 +49,7 @@ void LocalizationNodelet::onInit() {
       ros::WallDuration(0.05), [this](const ros::WallTimerEvent&) {
         if (nowS() > 0 && diagnostics_due_.due(nowS())) updater_->force_update();
         markers_.poll(nowS());
+        pose_saver_.flush(getPrivateNodeHandle());
       });
 }
 
@@ -72,12 +73,7 @@ bool LocalizationNodelet::configure(std::vector<std::string>* unknown) {
 void LocalizationNodelet::advertise() {
   ros::NodeHandle &nh = getNodeHandle(), &pnh = getPrivateNodeHandle();
   tf_.reset(new tf2_ros::Buffer(ros::Duration(30.0)));
-  // The listener on this nodelet's single-threaded queue, not a thread of its own: the depth
-  // input's tf2_ros::MessageFilter registers a frame's transform request before it queues the
-  // frame, so a transform inserted by another thread in between completes a request the filter
-  // cannot find yet and the frame then waits for good (ros/geometry2#538 is the same class of
-  // race for clear()). On one thread, the transforms are inserted between depth frames, in
-  // arrival order. The listener's queue (100 messages) holds the /tf traffic of one update.
+  // On the single-threaded queue, with the depth input's tf2 message filter (header: Threads).
   tf_listener_.reset(new tf2_ros::TransformListener(*tf_, nh, false));
   tf_broadcaster_.reset(new tf2_ros::TransformBroadcaster());
   inputs_.reset(new StepInputs(tf_.get()));
@@ -145,7 +141,8 @@ void LocalizationNodelet::jumpedBack(const ros::Time& stamp) {
       last_stamp_.toSec(), stamp.toSec());
   inputs_->timeJumpedBack(stamp);
   have_map_odom_ = have_step_odom_ = false;
-  last_tf_stamp_ = last_save_ = ros::Time();
+  last_tf_stamp_ = ros::Time();
+  pose_saver_.restart();
   gate_.force();
   markers_.publish();  // rviz clears its displays on a jump back
   health_.count(&FrameCounters::time_jumps);
@@ -191,12 +188,9 @@ void LocalizationNodelet::onFrame(const std_msgs::Header& header, const DepthIma
   const double ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   publish(header, last_result_, T_map_base, depth, K, ms, gaps.warnings, gated);
-  const double rate = opts_.save_pose_rate_hz;  // amcl's pose persistence
-  if (!gated && rate > 0 && (last_save_.isZero() || (stamp - last_save_).toSec() >= 1.0 / rate)) {
-    last_save_ = stamp;
-    savePoseParams(getPrivateNodeHandle(), last_result_.estimate.mean,
-                   last_result_.estimate.covariance);
-  }
+  if (!gated)  // amcl's pose persistence, written by the poll timer
+    pose_saver_.offer(opts_.save_pose_rate_hz, stamp, last_result_.estimate.mean,
+                      last_result_.estimate.covariance);
 }
 
 void LocalizationNodelet::publish(const std_msgs::Header& header, const StepResult& r,

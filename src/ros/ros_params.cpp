@@ -426,6 +426,34 @@ void savePoseParams(const ros::NodeHandle& pnh, const Particle& m,
   pnh.setParam("initial_cov_yawyaw", c(5, 5));
 }
 
+void PoseSaver::offer(double rate_hz, const ros::Time& stamp, const Particle& mean,
+                      const Eigen::Matrix<double, 6, 6>& covariance) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (rate_hz <= 0 || (!last_.isZero() && (stamp - last_).toSec() < 1.0 / rate_hz)) return;
+  last_ = stamp;
+  pending_ = true;
+  mean_ = mean;
+  covariance_ = covariance;
+}
+
+void PoseSaver::restart() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  last_ = ros::Time();
+}
+
+void PoseSaver::flush(const ros::NodeHandle& pnh) {
+  Particle mean;
+  Eigen::Matrix<double, 6, 6> covariance;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!pending_) return;
+    pending_ = false;
+    mean = mean_;
+    covariance = covariance_;
+  }
+  savePoseParams(pnh, mean, covariance);
+}
+
 void initialPose(const RosOptions& o, Eigen::Isometry3d* T, Eigen::Matrix<double, 6, 6>* cov) {
   *T = particleToPose(
       Particle{o.initial_pose_x_m, o.initial_pose_y_m, o.initial_pose_z_m, o.initial_pose_yaw_rad},

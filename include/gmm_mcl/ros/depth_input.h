@@ -64,7 +64,8 @@ class DepthInput {
   void onUnmatched(const boost::shared_ptr<const M>& image);
   void onCloud(const sensor_msgs::PointCloud2ConstPtr& cloud);
   // False (and dropped) for a frame older than one already handed on, unless the clock went
-  // back too (a looped bag); drops the frames still waiting for tf that are older than it.
+  // back too or the frame is over a second older (a looped bag); drops the frames still waiting
+  // for tf that are older than it.
   bool inOrder(const std_msgs::Header& header);
   void convertInfo(const std_msgs::Header& header, const DepthImage& depth,
                    const sensor_msgs::CameraInfo& info);

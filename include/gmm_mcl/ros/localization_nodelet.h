@@ -5,8 +5,11 @@
 //
 // Threads: depth frames, the tf listener, /initialpose, the services and dynamic_reconfigure run
 // on the nodelet's single-threaded queue, one at a time (so nothing else touches the filter
-// during an update, and tf2's message filter never races the listener);
-// IMU, odometry and the diagnostics timer run on its multi-threaded queue and never wait for an
+// during an update; and tf2's message filter, which registers a frame's transform request
+// before it queues the frame, never meets a transform inserted by another thread in between,
+// which would complete a request it cannot find yet and leave the frame waiting for good);
+// IMU, odometry and the poll timer (diagnostics, markers, the saved pose) run on its
+// multi-threaded queue and never wait for an
 // update (they only take the buffers' and the health snapshot's own locks).
 #pragma once
 
@@ -94,13 +97,14 @@ class LocalizationNodelet : public nodelet::Nodelet {
 
   // The last update (single-threaded queue only).
   bool have_step_ = false;
-  ros::Time last_stamp_, last_tf_stamp_, last_save_;
+  ros::Time last_stamp_, last_tf_stamp_;
   StepResult last_result_;
   bool have_map_odom_ = false;
   Eigen::Isometry3d T_map_odom_ = Eigen::Isometry3d::Identity();
   bool have_step_odom_ = false;
   Eigen::Isometry3d T_odom_base_last_ = Eigen::Isometry3d::Identity();
 
+  PoseSaver pose_saver_;  // offered on the update thread, written by the poll timer
   HealthMonitor health_;  // counters and the /diagnostics snapshot
 };
 

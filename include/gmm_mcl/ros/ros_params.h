@@ -8,6 +8,7 @@
 #include <functional>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -104,6 +105,23 @@ std::string reconfigure(LocalizerConfig* config, LocalizerParams* core, RosOptio
 // restart reads back (RosOptions::hasInitialPose).
 void savePoseParams(const ros::NodeHandle& pnh, const Particle& mean,
                     const Eigen::Matrix<double, 6, 6>& covariance);
+// The same at save_pose_rate, off the update thread: offer() keeps a frame's estimate when a
+// save is due by the frame stamps (cheap, the update thread); flush() writes the kept one (eight
+// blocking calls to the master, another thread), so an update never waits for the master.
+class PoseSaver {
+ public:
+  void offer(double rate_hz, const ros::Time& stamp, const Particle& mean,
+             const Eigen::Matrix<double, 6, 6>& covariance);
+  void restart();  // the stamps jumped back: the next offer is due
+  void flush(const ros::NodeHandle& pnh);
+
+ private:
+  std::mutex mutex_;
+  ros::Time last_;
+  bool pending_ = false;
+  Particle mean_;
+  Eigen::Matrix<double, 6, 6> covariance_;
+};
 // The single-pose start of the options as a pose in the map frame with its covariance.
 void initialPose(const RosOptions& ros, Eigen::Isometry3d* T_map_base,
                  Eigen::Matrix<double, 6, 6>* covariance);
