@@ -320,16 +320,18 @@ step_sanitizer() {
   make_demo_bag "$d" "$SANITIZER_FRAMES"
   start_master "$OUT/roscore_$tool.log" || { fail "$tool" "no master"; return; }
   "$SANITIZER" --tool "$tool" --log-file "$OUT/$tool.log" --print-limit 50 \
-    "$NODELET" manager __name:=gmm_mcl_manager > "$OUT/manager_$tool.log" 2>&1 &
+    "$NODELET" manager __name:=sanitized_manager > "$OUT/manager_$tool.log" 2>&1 &
   local san_pid=$!
   sleep 3
   local t0=$(date +%s)
   local rate="$MEMCHECK_RATE"
   [[ "$tool" == racecheck ]] && rate="$RACECHECK_RATE"
   # The nodelet's CUDA start-up under the sanitizer takes tens of seconds: the bag waits for it.
-  run_replay "$d" cuda "$rate" "$tool" manager:=gmm_mcl_manager delay:="$SANITIZER_DELAY"
+  # Another name than the launch file's own manager (gmm_mcl_manager), which the launch would
+  # start beside it, replacing the instrumented one on the master.
+  run_replay "$d" cuda "$rate" "$tool" manager:=sanitized_manager delay:="$SANITIZER_DELAY"
   local secs=$(( $(date +%s) - t0 ))
-  rosnode kill /gmm_mcl_manager > /dev/null 2>&1
+  rosnode kill /sanitized_manager > /dev/null 2>&1
   # The summary is written when the manager exits on its own (the tool's teardown is slow).
   for _ in $(seq 1 "$SANITIZER_EXIT_S"); do kill -0 "$san_pid" 2> /dev/null || break; sleep 1; done
   kill -INT "$san_pid" 2> /dev/null
