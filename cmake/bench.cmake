@@ -5,5 +5,5 @@ target_link_libraries(gmm_mcl_bench_data PUBLIC gmm_mcl_core)
 target_compile_options(gmm_mcl_bench_data PRIVATE -Wall -Wextra)
 
 add_executable(gmm_mcl_bench src/tools/bench_main.cpp)
-target_link_libraries(gmm_mcl_bench PRIVATE gmm_mcl_bench_data)
+target_link_libraries(gmm_mcl_bench PRIVATE gmm_mcl_bench_data gmm_mcl_cli)
 target_compile_options(gmm_mcl_bench PRIVATE -Wall -Wextra)

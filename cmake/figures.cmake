@@ -21,7 +21,7 @@ target_compile_options(gmm_mcl_figures PRIVATE -Wall -Wextra)
 
 add_executable(gmm_mcl_figures_tool src/tools/figures_main.cpp)
 set_target_properties(gmm_mcl_figures_tool PROPERTIES OUTPUT_NAME gmm_mcl_figures)
-target_link_libraries(gmm_mcl_figures_tool PRIVATE gmm_mcl_figures)
+target_link_libraries(gmm_mcl_figures_tool PRIVATE gmm_mcl_figures gmm_mcl_cli)
 target_compile_options(gmm_mcl_figures_tool PRIVATE -Wall -Wextra)
 
 if(GMM_MCL_BUILD_TESTS)

@@ -5,7 +5,7 @@ if(TARGET gmm_mcl_replay)
   target_link_libraries(gmm_mcl_reliability PUBLIC gmm_mcl_replay)
   target_compile_options(gmm_mcl_reliability PRIVATE -Wall -Wextra)
   add_executable(gmm_mcl_kidnap src/tools/kidnap_main.cpp)
-  target_link_libraries(gmm_mcl_kidnap PRIVATE gmm_mcl_reliability)
+  target_link_libraries(gmm_mcl_kidnap PRIVATE gmm_mcl_reliability gmm_mcl_cli)
 endif()
 
 if(GMM_MCL_BUILD_TESTS)

@@ -17,7 +17,7 @@ add_executable(gmm_mcl_ground_truth_odometry src/ros/ground_truth_odometry_node.
 add_executable(gmm_mcl_replay_bag src/ros/replay_bag_main.cpp)
 set(GMM_MCL_DATASET_TOOLS gmm_mcl_make_bag gmm_mcl_ground_truth_odometry gmm_mcl_replay_bag)
 foreach(t ${GMM_MCL_DATASET_TOOLS})
-  target_link_libraries(${t} PRIVATE gmm_mcl_datasets_ros)
+  target_link_libraries(${t} PRIVATE gmm_mcl_datasets_ros gmm_mcl_cli)
   target_compile_options(${t} PRIVATE -Wall -Wextra)
   set_target_properties(${t} PROPERTIES
     RUNTIME_OUTPUT_DIRECTORY ${CATKIN_DEVEL_PREFIX}/${CATKIN_PACKAGE_BIN_DESTINATION})

@@ -36,6 +36,6 @@ endif()
 # gmm_mcl_render: mesh + trajectory -> TUM RGB-D folder (the replay library writes the folder).
 if(TARGET gmm_mcl_replay)
   add_executable(gmm_mcl_render src/tools/render_main.cpp)
-  target_link_libraries(gmm_mcl_render PRIVATE gmm_mcl_replay)
+  target_link_libraries(gmm_mcl_render PRIVATE gmm_mcl_replay gmm_mcl_cli)
   target_compile_options(gmm_mcl_render PRIVATE -Wall -Wextra)
 endif()
