@@ -12,9 +12,9 @@ target_link_libraries(gmm_mcl_fit PUBLIC gmm_mcl_core)
 target_compile_options(gmm_mcl_fit PRIVATE -Wall -Wextra)
 
 add_executable(gmm_fit src/tools/gmm_fit_main.cpp)
-target_link_libraries(gmm_fit PRIVATE gmm_mcl_fit)
+target_link_libraries(gmm_fit PRIVATE gmm_mcl_fit gmm_mcl_cli)
 add_executable(gmm_inspect src/tools/gmm_inspect_main.cpp)
-target_link_libraries(gmm_inspect PRIVATE gmm_mcl_fit)
+target_link_libraries(gmm_inspect PRIVATE gmm_mcl_fit gmm_mcl_cli)
 
 if(GMM_MCL_BUILD_TESTS)
   enable_testing()

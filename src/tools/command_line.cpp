@@ -96,6 +96,13 @@ void CommandLine::addDepthNoise(DepthNoiseModel* model) {
         "depth noise sigma(z) = A + B (z - Z0)^2 in metres as A,B,Z0 (0,0,0: off)");
 }
 
+void CommandLine::addNumbers(const std::string& name, int n, std::vector<double>* out) {
+  NumberList& list = number_lists_[name];
+  list.n = n;
+  list.out = out;
+  add()(name.c_str(), value(&list.text));
+}
+
 void CommandLine::alias(const std::string& old_spelling, const std::string& name) {
   aliases_["--" + old_spelling] = "--" + name;
 }
@@ -122,6 +129,17 @@ void CommandLine::parse(int argc, char** argv) {
     const auto alias = aliases_.find(key);
     if (alias != aliases_.end()) a = alias->second + a.substr(key.size());
     args.push_back(a);
+    // The n values of a number list as one comma-separated value (boost would take a negative
+    // one for a flag).
+    const auto list = a.size() > 2 ? number_lists_.find(a.substr(2)) : number_lists_.end();
+    if (list != number_lists_.end()) {
+      if (i + list->second.n >= argc) {
+        fail(a + " needs " + std::to_string(list->second.n) + " numbers");
+      }
+      std::string joined;
+      for (int k = 0; k < list->second.n; ++k) joined += (k ? "," : "") + std::string(argv[++i]);
+      args.push_back(joined);
+    }
   }
   po::options_description all;
   all.add(options_);
@@ -137,6 +155,15 @@ void CommandLine::parse(int argc, char** argv) {
     po::notify(vm_);
   } catch (const po::error& e) {
     fail(e.what());
+  }
+  for (auto& entry : number_lists_) {
+    NumberList& list = entry.second;
+    if (!vm_.count(entry.first)) continue;
+    list.out->resize(list.n);
+    if (!parseNumberList(list.text, list.n, list.out->data())) {
+      fail("--" + entry.first + ": expected " + std::to_string(list.n) + " numbers (got '" +
+           list.text + "')");
+    }
   }
   if (depth_noise_ && !depth_noise_text_.empty()) {
     double abz[3];

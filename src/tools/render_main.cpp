@@ -21,13 +21,13 @@
 #include "gmm_mcl/sim/mesh_renderer.h"
 #include "gmm_mcl/sim/mesh_scene.h"
 #include "gmm_mcl/sim/trajectory_io.h"
+#include "gmm_mcl/tools/command_line.h"
 
 using namespace gmm_mcl;
 
 namespace {
 
-void usage() {
-  std::printf(
+const char* kUsage =
       "usage: gmm_mcl_render --out DIR [--mesh FILE.ply] [--trajectory FILE] [--camera SPEC]\n"
       "                      [--first I] [--frames N] [--stride K] [--rate HZ] [--start-time S]\n"
       "                      [--seed S] [--no-noise] [--dropout P] [--max-range M]\n"
@@ -45,8 +45,7 @@ void usage() {
       "  --no-noise    ideal depth (only the range window of --max-range)\n"
       "  --dropout P   probability that a pixel is missing at random (default 0.005)\n"
       "  --down        gravity direction in world coordinates (default 0,0,-1: z up)\n"
-      "  --save-map    the built-in scene's tiled GMM (0.4 m tiles, 1.5 cm normal sigma)\n");
-}
+      "  --save-map    the built-in scene's tiled GMM (0.4 m tiles, 1.5 cm normal sigma)\n";
 
 std::vector<double> csvNumbers(const std::string& s) {
   std::vector<double> v;
@@ -140,44 +139,32 @@ int run(int argc, char** argv) {
   double rate_hz = 30.0, start_s = 0.0, max_range_m = 10.0;
   uint64_t seed = 1;
   bool noise = true, quiet = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> std::string {
-      if (i + 1 >= argc) throw std::runtime_error("missing value after " + a);
-      return argv[++i];
-    };
-    if (a == "--out") out = next();
-    else if (a == "--mesh") mesh_path = next();
-    else if (a == "--trajectory") traj_path = next();
-    else if (a == "--camera") camera = next();
-    else if (a == "--first") first = std::atoi(next().c_str());
-    else if (a == "--frames") frames = std::atoi(next().c_str());
-    else if (a == "--stride") stride = std::atoi(next().c_str());
-    else if (a == "--rate") rate_hz = std::atof(next().c_str());
-    else if (a == "--start-time") start_s = std::atof(next().c_str());
-    else if (a == "--seed") seed = std::strtoull(next().c_str(), nullptr, 10);
-    else if (a == "--no-noise") noise = false;
-    else if (a == "--dropout") sensor.random_dropout = std::atof(next().c_str());
-    else if (a == "--max-range") max_range_m = std::atof(next().c_str());
-    else if (a == "--down") down = next();
-    else if (a == "--width") width_px = std::atoi(next().c_str());
-    else if (a == "--save-map") save_map = next();
-    else if (a == "--save-mesh") save_mesh = next();
-    else if (a == "--quiet") quiet = true;
-    else if (a == "--help" || a == "-h") {
-      usage();
-      return 0;
-    } else {
-      usage();
-      return 2;
-    }
-  }
+  cli::CommandLine cl("gmm_mcl_render", kUsage);
+  cl.add()
+      ("out", cli::value(&out))
+      ("mesh", cli::value(&mesh_path))
+      ("trajectory", cli::value(&traj_path))
+      ("camera", cli::value(&camera))
+      ("first", cli::value(&first))
+      ("frames", cli::value(&frames))
+      ("stride", cli::value(&stride))
+      ("rate", cli::value(&rate_hz))
+      ("start-time", cli::value(&start_s))
+      ("seed", cli::value(&seed))
+      ("no-noise", cli::clearFlag(&noise))
+      ("dropout", cli::value(&sensor.random_dropout))
+      ("max-range", cli::value(&max_range_m))
+      ("down", cli::value(&down))
+      ("width", cli::value(&width_px))
+      ("save-map", cli::value(&save_map))
+      ("save-mesh", cli::value(&save_mesh))
+      ("quiet", cli::flag(&quiet));
+  cl.parse(argc, argv);
   const std::string sensor_err = sensor.validate();
   if (!sensor_err.empty()) throw std::runtime_error("sensor model: " + sensor_err);
-  if (out.empty() || stride < 1 || first < 0 || !(rate_hz > 0.0) || !(max_range_m > 0.0) ||
-      width_px < 16) {
-    usage();
-    return 2;
+  if (out.empty()) cl.fail("--out is needed");
+  if (stride < 1 || first < 0 || !(rate_hz > 0.0) || !(max_range_m > 0.0) || width_px < 16) {
+    cl.fail("--stride >= 1, --first >= 0, --rate > 0, --max-range > 0 and --width >= 16");
   }
 
   // Mesh.

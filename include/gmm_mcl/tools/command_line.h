@@ -52,6 +52,10 @@ class CommandLine {
   // three depth_noise_* parameters in one flag, written into *model when given.
   void addDepthNoise(DepthNoiseModel* model);
 
+  // A flag followed by n numbers (--crop-box X0 Y0 Z0 X1 Y1 Z1; negative ones too), written
+  // into *out (resized to n) when given.
+  void addNumbers(const std::string& name, int n, std::vector<double>* out);
+
   // `old_spelling` (e.g. "lost-margin") is read as `name` ("lost-margin-nats").
   void alias(const std::string& old_spelling, const std::string& name);
 
@@ -77,6 +81,12 @@ class CommandLine {
   po::variables_map vm_;
   LocalizerParams* table_values_ = nullptr;
   std::set<std::string> table_flags_;
+  struct NumberList {
+    int n;
+    std::vector<double>* out;
+    std::string text;
+  };
+  std::map<std::string, NumberList> number_lists_;
   std::string depth_noise_text_;
   DepthNoiseModel* depth_noise_ = nullptr;
 };
