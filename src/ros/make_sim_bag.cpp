@@ -24,13 +24,13 @@
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/ros/conversions.h"
 #include "gmm_mcl/sim/box_scene.h"
+#include "gmm_mcl/tools/command_line.h"
 
 using namespace gmm_mcl;
 
 namespace {
 
-void usage() {
-  std::printf(
+const char* kUsage =
       "usage: make_sim_bag --bag FILE [--map FILE] [--params FILE] [--frames N] [--width PX]\n"
       "                    [--seed S] [--encoding 16UC1|32FC1] [--start-time S]\n"
       "                    [--init-half-extent M] [--init-yaw-half-range RAD] [--compressed] [--cloud] [--quiet]\n"
@@ -38,8 +38,7 @@ void usage() {
       "/tf_static, /ground_truth (base pose in map); --compressed adds\n"
       "/camera/depth/image_raw/compressedDepth, --cloud /camera/depth/points (organized).\n"
       "Frames map, odom, base_link,\n"
-      "camera_depth_optical_frame; 30 Hz.\n");
-}
+      "camera_depth_optical_frame; 30 Hz.\n";
 
 }  // namespace
 
@@ -49,36 +48,25 @@ int main(int argc, char** argv) {
   double start_s = 1000.0, init_half_extent_m = 0.5, init_yaw_half_range_rad = 0.3;
   std::string bag_path, map_path, params_path, encoding = "16UC1";
   bool quiet = false, compressed = false, cloud = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> const char* {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "missing value after %s\n", a.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (a == "--bag") bag_path = next();
-    else if (a == "--map") map_path = next();
-    else if (a == "--params") params_path = next();
-    else if (a == "--frames") frames = std::atoi(next());
-    else if (a == "--width") width_px = std::atoi(next());
-    else if (a == "--seed") seed = std::strtoull(next(), nullptr, 10);
-    else if (a == "--encoding") encoding = next();
-    else if (a == "--start-time") start_s = std::atof(next());
-    else if (a == "--init-half-extent") init_half_extent_m = std::atof(next());
-    else if (a == "--init-yaw-half-range") init_yaw_half_range_rad = std::atof(next());
-    else if (a == "--quiet") quiet = true;
-    else if (a == "--compressed") compressed = true;
-    else if (a == "--cloud") cloud = true;
-    else {
-      usage();
-      return a == "--help" || a == "-h" ? 0 : 2;
-    }
-  }
-  if (bag_path.empty() || frames < 2 || width_px < 64 || (encoding != "16UC1" && encoding != "32FC1")) {
-    usage();
-    return 2;
+  cli::CommandLine cl("make_sim_bag", kUsage);
+  cl.add()
+      ("bag", cli::value(&bag_path))
+      ("map", cli::value(&map_path))
+      ("params", cli::value(&params_path))
+      ("frames", cli::value(&frames))
+      ("width", cli::value(&width_px))
+      ("seed", cli::value(&seed))
+      ("encoding", cli::value(&encoding))
+      ("start-time", cli::value(&start_s))
+      ("init-half-extent", cli::value(&init_half_extent_m))
+      ("init-yaw-half-range", cli::value(&init_yaw_half_range_rad))
+      ("quiet", cli::flag(&quiet))
+      ("compressed", cli::flag(&compressed))
+      ("cloud", cli::flag(&cloud));
+  cl.parse(argc, argv);
+  if (bag_path.empty()) cl.fail("--bag is needed");
+  if (frames < 2 || width_px < 64 || (encoding != "16UC1" && encoding != "32FC1")) {
+    cl.fail("--frames >= 2, --width >= 64, --encoding 16UC1 or 32FC1");
   }
   if (params_path.empty()) {
     params_path = bag_path.substr(0, bag_path.rfind('.')) + "_init.yaml";
