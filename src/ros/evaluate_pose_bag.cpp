@@ -48,12 +48,8 @@ int main(int argc, char** argv) {
   cli::CommandLine cl("evaluate_pose_bag",
                       "usage: evaluate_pose_bag BAG [--pose-topic T] [--truth-topic T] "
                       "[--skip S] [--out PREFIX]\n");
-  cl.add()
-      ("bag", cli::value(&bag_path))
-      ("pose-topic", cli::value(&pose_topic))
-      ("truth-topic", cli::value(&gt_topic))
-      ("skip", cli::value(&skip_s))
-      ("out", cli::value(&out_prefix));
+  cl.flags({{"bag", &bag_path}, {"pose-topic", &pose_topic}, {"truth-topic", &gt_topic},
+            {"skip", &skip_s}, {"out", &out_prefix}});
   cl.positional("bag");
   cl.parse(argc, argv);
   if (bag_path.empty()) cl.fail("no bag given");

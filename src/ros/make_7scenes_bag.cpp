@@ -25,14 +25,9 @@ int main(int argc, char** argv) {
       "                        [--init-half-extent M (2)] [--init-yaw-half-range RAD (pi/2)]\n"
       "Writes OUT.bag, OUT.gmm (the map in the gravity-aligned frame) and OUT_init.yaml.\n"
       "Same as: gmm_mcl_make_bag --format 7scenes DATA_DIR OUT.bag --map WORLD_MAP.gmm\n");
-  cl.add()
-      ("data-dir", cli::value(&data_dir))
-      ("map", cli::value(&map_in))
-      ("bag", cli::value(&bag_path))
-      ("frames", cli::value(&frames))
-      ("seed", cli::value(&bo.seed))
-      ("init-half-extent", cli::value(&bo.init_half_extent_m))
-      ("init-yaw-half-range", cli::value(&bo.init_yaw_half_range_rad));
+  cl.flags({{"data-dir", &data_dir}, {"map", &map_in}, {"bag", &bag_path}, {"frames", &frames},
+            {"seed", &bo.seed}, {"init-half-extent", &bo.init_half_extent_m},
+            {"init-yaw-half-range", &bo.init_yaw_half_range_rad}});
   cl.positional("data-dir");
   cl.parse(argc, argv);
   if (data_dir.empty() || map_in.empty() || bag_path.empty()) {

@@ -42,25 +42,14 @@ int main(int argc, char** argv) {
   int frames = -1;
   std::vector<std::string> paths;
   cli::CommandLine cl("gmm_mcl_make_bag", kUsage);
-  cl.add()
-      ("format", cli::value(&format))
-      ("map", cli::value(&map_path))
-      ("frames", cli::value(&frames))
-      ("seed", cli::value(&bo.seed))
-      ("layout", cli::value(&bo.layout))
-      ("marker-to-camera", cli::value(&marker_to_camera))
-      ("init-half-extent", cli::value(&bo.init_half_extent_m))
-      ("init-yaw-half-range", cli::value(&bo.init_yaw_half_range_rad))
-      ("start-time", cli::value(&bo.start_s))
-      ("width", cli::value(&width))
-      ("intrinsics", cli::value(&so.intrinsics))
-      ("depth-scale", cli::value(&so.depth_units_per_m))
-      ("tolerance", cli::value(&so.association_tolerance_s))
-      ("gravity", cli::value(&so.gravity))
-      ("trajectory", cli::value(&so.trajectory))
-      ("rate", cli::value(&so.frame_rate_hz))
-      ("quiet", cli::flag(&quiet))
-      ("paths", cli::value(&paths));
+  cl.flags({{"format", &format}, {"map", &map_path}, {"frames", &frames}, {"seed", &bo.seed},
+            {"layout", &bo.layout}, {"marker-to-camera", &marker_to_camera},
+            {"init-half-extent", &bo.init_half_extent_m},
+            {"init-yaw-half-range", &bo.init_yaw_half_range_rad}, {"start-time", &bo.start_s},
+            {"width", &width}, {"intrinsics", &so.intrinsics},
+            {"depth-scale", &so.depth_units_per_m}, {"tolerance", &so.association_tolerance_s},
+            {"gravity", &so.gravity}, {"trajectory", &so.trajectory}, {"rate", &so.frame_rate_hz},
+            {"quiet", &quiet}, {"paths", &paths}});
   cl.positional("paths", 2);
   cl.parse(argc, argv);
   if (cl.given("frames")) so.max_frames = bo.max_frames = frames;

@@ -49,20 +49,11 @@ int main(int argc, char** argv) {
   std::string bag_path, map_path, params_path, encoding = "16UC1";
   bool quiet = false, compressed = false, cloud = false;
   cli::CommandLine cl("make_sim_bag", kUsage);
-  cl.add()
-      ("bag", cli::value(&bag_path))
-      ("map", cli::value(&map_path))
-      ("params", cli::value(&params_path))
-      ("frames", cli::value(&frames))
-      ("width", cli::value(&width_px))
-      ("seed", cli::value(&seed))
-      ("encoding", cli::value(&encoding))
-      ("start-time", cli::value(&start_s))
-      ("init-half-extent", cli::value(&init_half_extent_m))
-      ("init-yaw-half-range", cli::value(&init_yaw_half_range_rad))
-      ("quiet", cli::flag(&quiet))
-      ("compressed", cli::flag(&compressed))
-      ("cloud", cli::flag(&cloud));
+  cl.flags({{"bag", &bag_path}, {"map", &map_path}, {"params", &params_path}, {"frames", &frames},
+            {"width", &width_px}, {"seed", &seed}, {"encoding", &encoding},
+            {"start-time", &start_s}, {"init-half-extent", &init_half_extent_m},
+            {"init-yaw-half-range", &init_yaw_half_range_rad}, {"quiet", &quiet},
+            {"compressed", &compressed}, {"cloud", &cloud}});
   cl.parse(argc, argv);
   if (bag_path.empty()) cl.fail("--bag is needed");
   if (frames < 2 || width_px < 64 || (encoding != "16UC1" && encoding != "32FC1")) {

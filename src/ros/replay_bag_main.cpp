@@ -73,28 +73,15 @@ int main(int argc, char** argv) {
   bool cow_and_lady = false;
   LocalizerParams lp;  // the filter parameters given on the command line
   cli::CommandLine cl("gmm_mcl_replay_bag", kUsage);
-  cl.add()
-      ("bag", cli::value(&bag_path))
-      ("map", cli::value(&map_path))
-      ("out", cli::value(&out_dir))
-      ("seed", cli::value(&seed))
-      ("frames", cli::value(&frames))
-      ("particles", cli::value(&particles))
-      ("stride", cli::value(&stride))
-      ("init-half-extent", cli::value(&init_half_extent_m))
-      ("init-yaw-half-range", cli::value(&init_yaw_half_range_rad))
-      ("depth-topic", cli::value(&depth_topic))
-      ("info-topic", cli::value(&info_topic))
-      ("cloud-topic", cli::value(&cloud_topic))
-      ("imu-topic", cli::value(&imu_topic))
-      ("odom-topic", cli::value(&odom_topic))
-      ("truth-topic", cli::value(&truth_topic))
-      ("odometry", cli::value(&odometry_mode))
-      ("marker-to-camera", cli::value(&marker_to_camera))
-      ("odom-frame", cli::value(&odom_frame))
-      ("base-frame", cli::value(&base_frame))
-      ("quiet", cli::flag(&quiet))
-      ("cow-and-lady", cli::flag(&cow_and_lady));
+  cl.flags({{"bag", &bag_path}, {"map", &map_path}, {"out", &out_dir}, {"seed", &seed},
+            {"frames", &frames}, {"particles", &particles}, {"stride", &stride},
+            {"init-half-extent", &init_half_extent_m},
+            {"init-yaw-half-range", &init_yaw_half_range_rad}, {"depth-topic", &depth_topic},
+            {"info-topic", &info_topic}, {"cloud-topic", &cloud_topic}, {"imu-topic", &imu_topic},
+            {"odom-topic", &odom_topic}, {"truth-topic", &truth_topic},
+            {"odometry", &odometry_mode}, {"marker-to-camera", &marker_to_camera},
+            {"odom-frame", &odom_frame}, {"base-frame", &base_frame}, {"quiet", &quiet},
+            {"cow-and-lady", &cow_and_lady}});
   cl.addLocalizerParams(&lp, {"num_particles", "pixel_stride", "seed", "init_centre",
                               "init_half_extent", "init_yaw_centre", "init_yaw_half_range"});
   cl.alias("max-range", "max-range-m");

@@ -75,21 +75,13 @@ void parse(int argc, char** argv, Options* o) {
           "/tf_static base_link -> ") +
       kCameraFrame + ", /ground_truth; /soak/sent, /soak/timeouts, /soak/done.\n";
   cli::CommandLine cl("gmm_mcl_soak_publisher", usage);
-  cl.add()
-      ("frames", cli::value(&o->frames))
-      ("render-frames", cli::value(&o->render_frames))
-      ("width", cli::value(&o->width_px))
-      ("period", cli::value(&o->period_s))
-      ("timeout", cli::value(&o->timeout_s))
-      ("first-timeout", cli::value(&o->first_timeout_s))
-      ("linger", cli::value(&o->linger_s))
-      ("seed", cli::value(&o->seed))
-      ("status-topic", cli::value(&o->status_topic))
-      ("no-wait-for-monitor", cli::clearFlag(&o->wait_for_monitor))
-      ("write-map", cli::value(&o->write_map))
-      ("write-params", cli::value(&o->write_params))
-      ("init-half-extent", cli::value(&o->init_half_extent_m))
-      ("init-yaw-half-range", cli::value(&o->init_yaw_half_range_rad));
+  cl.flags({{"frames", &o->frames}, {"render-frames", &o->render_frames}, {"width", &o->width_px},
+            {"period", &o->period_s}, {"timeout", &o->timeout_s},
+            {"first-timeout", &o->first_timeout_s}, {"linger", &o->linger_s}, {"seed", &o->seed},
+            {"status-topic", &o->status_topic},
+            {"no-wait-for-monitor", cli::Clear{&o->wait_for_monitor}}, {"write-map", &o->write_map},
+            {"write-params", &o->write_params}, {"init-half-extent", &o->init_half_extent_m},
+            {"init-yaw-half-range", &o->init_yaw_half_range_rad}});
   cl.parse(argc, argv);
   if (!(o->frames >= 1 && o->render_frames >= 2 && o->width_px >= 64 && o->period_s > 0.0 &&
         o->timeout_s > 0.0 && o->first_timeout_s > 0.0 && o->linger_s >= 0.0)) {

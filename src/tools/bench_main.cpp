@@ -601,30 +601,16 @@ void runSteps(const std::vector<LikelihoodBackend*>& backends, const GmmMap& map
 int run(int argc, char** argv) {
   Options opt;
   cli::CommandLine cl("gmm_mcl_bench", kUsage);
-  cl.add()
-      ("backend", cli::value(&opt.backends))
-      ("workload", cli::value(&opt.workloads))
-      ("map", cli::value(&opt.map_path))
-      ("large-map", cli::value(&opt.large_map_path))
-      ("patch", cli::value(&opt.patch_px))
-      ("exact", cli::value(&opt.exact_particles))
-      ("exact-frames", cli::value(&opt.exact_frames))
-      ("frames-dir", cli::value(&opt.frames_dir))
-      ("frames-raw", cli::value(&opt.frames_raw))
-      ("export-frames", cli::value(&opt.export_frames))
-      ("frames", cli::value(&opt.frames))
-      ("warmup", cli::value(&opt.warmup))
-      ("budget-s", cli::value(&opt.budget_s))
-      ("min-timed", cli::value(&opt.min_timed))
-      ("threads", cli::value(&opt.threads))
-      ("particles", cli::value(&opt.particles))
-      ("seed", cli::value(&opt.seed))
-      ("no-depth-noise", cli::clearFlag(&opt.depth_noise))
-      ("spread-m", cli::value(&opt.spread_m))
-      ("spread-rad", cli::value(&opt.spread_rad))
-      ("synthetic", cli::flag(&opt.synthetic))
-      ("cuda-host-prep", cli::flag(&opt.cuda_host_prep))
-      ("step", cli::flag(&opt.step));
+  cl.flags({{"backend", &opt.backends}, {"workload", &opt.workloads}, {"map", &opt.map_path},
+            {"large-map", &opt.large_map_path}, {"patch", &opt.patch_px},
+            {"exact", &opt.exact_particles}, {"exact-frames", &opt.exact_frames},
+            {"frames-dir", &opt.frames_dir}, {"frames-raw", &opt.frames_raw},
+            {"export-frames", &opt.export_frames}, {"frames", &opt.frames}, {"warmup", &opt.warmup},
+            {"budget-s", &opt.budget_s}, {"min-timed", &opt.min_timed}, {"threads", &opt.threads},
+            {"particles", &opt.particles}, {"seed", &opt.seed},
+            {"no-depth-noise", cli::Clear{&opt.depth_noise}}, {"spread-m", &opt.spread_m},
+            {"spread-rad", &opt.spread_rad}, {"synthetic", &opt.synthetic},
+            {"cuda-host-prep", &opt.cuda_host_prep}, {"step", &opt.step}});
   cl.parse(argc, argv);
   if (opt.frames < 1 || opt.warmup < 0) throw std::invalid_argument("--frames >= 1, --warmup >= 0");
   if (opt.patch_px < 1) throw std::invalid_argument("--patch must be >= 1");

@@ -112,35 +112,20 @@ struct Options {
 void parseArgs(int argc, char** argv, Options* o) {
   std::string particle_list, component_list;
   cli::CommandLine cl("gmm_mcl_figures", kUsage);
-  cl.add()
-      ("command", cli::value(&o->command))
-      ("scene", cli::value(&o->scene))
-      ("dataset", cli::value(&o->dataset))
-      ("map", cli::value(&o->map_path))
-      ("out", cli::value(&o->out_dir))
-      ("width", cli::value(&o->width_px))
-      ("quiet", cli::flag(&o->quiet))
-      ("frame", cli::value(&o->frame))
-      ("stride", cli::value(&o->stride))
-      ("range-m", cli::value(&o->sweep.half_range_m))
-      ("step-m", cli::value(&o->sweep.step_m))
-      ("range-rad", cli::value(&o->sweep.half_range_rad))
-      ("step-rad", cli::value(&o->sweep.step_rad))
-      ("no-exact", cli::clearFlag(&o->sweep.exact))
-      ("sweep", cli::value(&o->which))
-      ("particles-list", cli::value(&particle_list))
-      ("reference-particles", cli::value(&o->reference_particles))
-      ("components-list", cli::value(&component_list))
-      ("reference-components", cli::value(&o->reference_components))
-      ("component-particles", cli::value(&o->component_particles))
-      ("component-reference-particles", cli::value(&o->component_reference_particles))
-      ("runs", cli::value(&o->runs))
-      ("frames", cli::value(&o->frames))
-      ("first-frame", cli::value(&o->first_frame))
-      ("eval-from", cli::value(&o->eval_from))
-      ("init", cli::value(&o->init))
-      ("data-seed", cli::value(&o->data_seed))
-      ("max-iter", cli::value(&o->max_iter));
+  cl.flags({{"command", &o->command}, {"scene", &o->scene}, {"dataset", &o->dataset},
+            {"map", &o->map_path}, {"out", &o->out_dir}, {"width", &o->width_px},
+            {"quiet", &o->quiet}, {"frame", &o->frame}, {"stride", &o->stride},
+            {"range-m", &o->sweep.half_range_m}, {"step-m", &o->sweep.step_m},
+            {"range-rad", &o->sweep.half_range_rad}, {"step-rad", &o->sweep.step_rad},
+            {"no-exact", cli::Clear{&o->sweep.exact}}, {"sweep", &o->which},
+            {"particles-list", &particle_list}, {"reference-particles", &o->reference_particles},
+            {"components-list", &component_list},
+            {"reference-components", &o->reference_components},
+            {"component-particles", &o->component_particles},
+            {"component-reference-particles", &o->component_reference_particles},
+            {"runs", &o->runs}, {"frames", &o->frames}, {"first-frame", &o->first_frame},
+            {"eval-from", &o->eval_from}, {"init", &o->init}, {"data-seed", &o->data_seed},
+            {"max-iter", &o->max_iter}});
   cl.positional("command");
   cl.parse(argc, argv);
   if (o->command.empty()) cl.fail("a command is needed (nll-sweep or sensitivity)");

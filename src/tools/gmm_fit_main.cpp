@@ -93,33 +93,16 @@ int main(int argc, char** argv) {
   std::string init = "kmeans";
   std::vector<double> crop_box, crop_range, range_centre;
   cli::CommandLine cl("gmm_fit", kUsage);
-  cl.add()
-      ("input", cli::value(&input))
-      ("import", cli::value(&import_path))
-      ("output,o", cli::value(&output))
-      ("save-cloud", cli::value(&save_cloud))
-      ("stats-json", cli::value(&stats_json))
-      ("quiet,q", cli::flag(&quiet))
-      ("components,m", cli::value(&em.components))
-      ("max-iter", cli::value(&em.max_iterations))
-      ("tol", cli::value(&em.tolerance))
-      ("reg-covar", cli::value(&em.reg_covar_m2))
-      ("init", cli::value(&init))
-      ("kmeans-iter", cli::value(&em.kmeans_iterations))
-      ("init-means", cli::value(&init_means_path))
-      ("seed", cli::value(&em.seed))
-      ("prune-sigma", cli::value(&em.prune_sigma))
-      ("cell-size", cli::value(&em.cell_size_m))
-      ("threads", cli::value(&threads))
-      ("voxel", cli::value(&filter.voxel_m))
-      ("mesh-samples", cli::value(&mesh_samples))
-      ("use-vertices", cli::flag(&use_vertices))
-      ("7scenes", cli::value(&seven_dir))
-      ("first", cli::value(&seven.first_frame))
-      ("last", cli::value(&seven.last_frame))
-      ("step", cli::value(&seven.frame_step))
-      ("min-depth", cli::value(&seven.min_depth_m))
-      ("max-depth", cli::value(&seven.max_depth_m));
+  cl.flags({{"input", &input}, {"import", &import_path}, {"output,o", &output},
+            {"save-cloud", &save_cloud}, {"stats-json", &stats_json}, {"quiet,q", &quiet},
+            {"components,m", &em.components}, {"max-iter", &em.max_iterations},
+            {"tol", &em.tolerance}, {"reg-covar", &em.reg_covar_m2}, {"init", &init},
+            {"kmeans-iter", &em.kmeans_iterations}, {"init-means", &init_means_path},
+            {"seed", &em.seed}, {"prune-sigma", &em.prune_sigma}, {"cell-size", &em.cell_size_m},
+            {"threads", &threads}, {"voxel", &filter.voxel_m}, {"mesh-samples", &mesh_samples},
+            {"use-vertices", &use_vertices}, {"7scenes", &seven_dir}, {"first", &seven.first_frame},
+            {"last", &seven.last_frame}, {"step", &seven.frame_step},
+            {"min-depth", &seven.min_depth_m}, {"max-depth", &seven.max_depth_m}});
   cl.addNumbers("crop-box", 6, &crop_box);
   cl.addNumbers("crop-range", 2, &crop_range);
   cl.addNumbers("range-centre", 3, &range_centre);

@@ -22,13 +22,8 @@ int main(int argc, char** argv) {
   std::string map_path, ply, csv;
   EllipsoidExportParams params;
   cli::CommandLine cl("gmm_inspect", kUsage);
-  cl.add()
-      ("map", cli::value(&map_path))
-      ("ply", cli::value(&ply))
-      ("csv", cli::value(&csv))
-      ("sigma", cli::value(&params.sigma))
-      ("rings", cli::value(&params.rings))
-      ("segments", cli::value(&params.segments));
+  cl.flags({{"map", &map_path}, {"ply", &ply}, {"csv", &csv}, {"sigma", &params.sigma},
+            {"rings", &params.rings}, {"segments", &params.segments}});
   cl.positional("map");
   cl.parse(argc, argv);
   if (map_path.empty()) cl.fail("no map file given");

@@ -55,24 +55,13 @@ int main(int argc, char** argv) {
   std::string out_dir, init = "region";
   double attitude_noise_deg = kp.attitude_sigma_rad * 180.0 / M_PI;
   cli::CommandLine cl("gmm_mcl_kidnap", kUsage);
-  cl.add()
-      ("scene", cli::value(&scene))
-      ("map", cli::value(&map_path))
-      ("dataset", cli::value(&dataset))
-      ("trials", cli::value(&trials))
-      ("first-seed", cli::value(&first_seed))
-      ("stride", cli::value(&stride))
-      ("width", cli::value(&width))
-      ("particles", cli::value(&particles))
-      ("min-particles", cli::value(&min_particles))
-      ("track-frames", cli::value(&kp.track_frames))
-      ("after-frames", cli::value(&kp.after_frames))
-      ("start-frame", cli::value(&kp.start_frame))
-      ("backend", cli::value(&backend))
-      ("attitude-noise", cli::value(&attitude_noise_deg))
-      ("no-lost-detector", cli::clearFlag(&lost_detector))
-      ("out", cli::value(&out_dir))
-      ("init", cli::value(&init));
+  cl.flags({{"scene", &scene}, {"map", &map_path}, {"dataset", &dataset}, {"trials", &trials},
+            {"first-seed", &first_seed}, {"stride", &stride}, {"width", &width},
+            {"particles", &particles}, {"min-particles", &min_particles},
+            {"track-frames", &kp.track_frames}, {"after-frames", &kp.after_frames},
+            {"start-frame", &kp.start_frame}, {"backend", &backend},
+            {"attitude-noise", &attitude_noise_deg},
+            {"no-lost-detector", cli::Clear{&lost_detector}}, {"out", &out_dir}, {"init", &init}});
   cl.addLocalizerParams(&kp.localizer, {"num_particles", "min_particles", "pixel_stride",
                                         "backend", "device_filter", "seed", "init_centre",
                                         "init_half_extent", "init_yaw_centre",

@@ -140,25 +140,12 @@ int run(int argc, char** argv) {
   uint64_t seed = 1;
   bool noise = true, quiet = false;
   cli::CommandLine cl("gmm_mcl_render", kUsage);
-  cl.add()
-      ("out", cli::value(&out))
-      ("mesh", cli::value(&mesh_path))
-      ("trajectory", cli::value(&traj_path))
-      ("camera", cli::value(&camera))
-      ("first", cli::value(&first))
-      ("frames", cli::value(&frames))
-      ("stride", cli::value(&stride))
-      ("rate", cli::value(&rate_hz))
-      ("start-time", cli::value(&start_s))
-      ("seed", cli::value(&seed))
-      ("no-noise", cli::clearFlag(&noise))
-      ("dropout", cli::value(&sensor.random_dropout))
-      ("max-range", cli::value(&max_range_m))
-      ("down", cli::value(&down))
-      ("width", cli::value(&width_px))
-      ("save-map", cli::value(&save_map))
-      ("save-mesh", cli::value(&save_mesh))
-      ("quiet", cli::flag(&quiet));
+  cl.flags({{"out", &out}, {"mesh", &mesh_path}, {"trajectory", &traj_path}, {"camera", &camera},
+            {"first", &first}, {"frames", &frames}, {"stride", &stride}, {"rate", &rate_hz},
+            {"start-time", &start_s}, {"seed", &seed}, {"no-noise", cli::Clear{&noise}},
+            {"dropout", &sensor.random_dropout}, {"max-range", &max_range_m}, {"down", &down},
+            {"width", &width_px}, {"save-map", &save_map}, {"save-mesh", &save_mesh},
+            {"quiet", &quiet}});
   cl.parse(argc, argv);
   const std::string sensor_err = sensor.validate();
   if (!sensor_err.empty()) throw std::runtime_error("sensor model: " + sensor_err);

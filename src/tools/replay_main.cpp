@@ -122,35 +122,17 @@ int main(int argc, char** argv) {
   std::string init = "cube";
   LocalizerParams lp;  // the filter parameters given on the command line
   cli::CommandLine cl("gmm_mcl_replay", kUsage);
-  cl.add()
-      ("map", cli::value(&map_path))
-      ("dataset", cli::value(&dataset))
-      ("trials", cli::value(&trials))
-      ("first-seed", cli::value(&first_seed))
-      ("frames", cli::value(&frames))
-      ("stride", cli::value(&stride))
-      ("particles", cli::value(&particles))
-      ("min-particles", cli::value(&min_particles))
-      ("backend", cli::value(&backend))
-      ("out", cli::value(&out_dir))
-      ("format", cli::value(&format))
-      ("intrinsics", cli::value(&so.intrinsics))
-      ("depth-scale", cli::value(&so.depth_units_per_m))
-      ("tolerance", cli::value(&so.association_tolerance_s))
-      ("gravity", cli::value(&so.gravity))
-      ("trajectory", cli::value(&so.trajectory))
-      ("rate", cli::value(&so.frame_rate_hz))
-      ("init-half-extent", cli::value(&init_half_extent_m))
-      ("init-yaw-half-range", cli::value(&init_yaw_half_range_rad))
-      ("init", cli::value(&init))
-      ("width", cli::value(&width))
-      ("hold-frames", cli::value(&hold_frames))
-      ("tail-frames", cli::value(&tail_frames))
-      ("convert-stride", cli::value(&convert_stride))
-      ("convert", cli::value(&convert)->multitoken())
-      ("make-fixture", cli::value(&fixture)->multitoken())
-      ("quiet", cli::flag(&quiet))
-      ("host-filter", cli::flag(&host_filter));
+  cl.flags({{"map", &map_path}, {"dataset", &dataset}, {"trials", &trials},
+            {"first-seed", &first_seed}, {"frames", &frames}, {"stride", &stride},
+            {"particles", &particles}, {"min-particles", &min_particles}, {"backend", &backend},
+            {"out", &out_dir}, {"format", &format}, {"intrinsics", &so.intrinsics},
+            {"depth-scale", &so.depth_units_per_m}, {"tolerance", &so.association_tolerance_s},
+            {"gravity", &so.gravity}, {"trajectory", &so.trajectory}, {"rate", &so.frame_rate_hz},
+            {"init-half-extent", &init_half_extent_m},
+            {"init-yaw-half-range", &init_yaw_half_range_rad}, {"init", &init}, {"width", &width},
+            {"hold-frames", &hold_frames}, {"tail-frames", &tail_frames},
+            {"convert-stride", &convert_stride}, {"convert", &convert}, {"make-fixture", &fixture},
+            {"quiet", &quiet}, {"host-filter", &host_filter}});
   cl.addLocalizerParams(&lp, {"num_particles", "min_particles", "pixel_stride", "backend",
                               "device_filter", "seed", "init_centre", "init_half_extent",
                               "init_yaw_centre", "init_yaw_half_range"});

@@ -147,18 +147,10 @@ int main(int argc, char** argv) {
   std::string frames_text, pose_text;
   double attitude_noise_deg = 0.0;
   cli::CommandLine cl("gmm_mcl_score", kUsage);
-  cl.add()
-      ("map", cli::value(&map_path))
-      ("format", cli::value(&format))
-      ("dataset", cli::value(&dataset))
-      ("gravity", cli::value(&so.gravity))
-      ("per-pixel", cli::value(&per_pixel_path))
-      ("frame", cli::value(&frame_index))
-      ("attitude-noise", cli::value(&attitude_noise_deg))
-      ("frames", cli::value(&frames_text))
-      ("stride", cli::value(&lp.frame.pixel_stride))
-      ("pose", cli::value(&pose_text))
-      ("refine", cli::flag(&refine));
+  cl.flags({{"map", &map_path}, {"format", &format}, {"dataset", &dataset},
+            {"gravity", &so.gravity}, {"per-pixel", &per_pixel_path}, {"frame", &frame_index},
+            {"attitude-noise", &attitude_noise_deg}, {"frames", &frames_text},
+            {"stride", &lp.frame.pixel_stride}, {"pose", &pose_text}, {"refine", &refine}});
   cl.addLocalizerParams(&lp, {"pixel_stride"}, {"frame", "measurement"});
   cl.addDepthNoise(&lp.measurement.depth_noise);
   cl.parse(argc, argv);

@@ -42,20 +42,11 @@ int main(int argc, char** argv) {
   bool quiet = false, sensor_noise = true;
   LocalizerParams params;
   cli::CommandLine cl("gmm_mcl_sim_demo", kUsage);
-  cl.add()
-      ("frames", cli::value(&frames))
-      ("particles", cli::value(&particles))
-      ("seed", cli::value(&seed))
-      ("stride", cli::value(&stride))
-      ("map-spacing", cli::value(&spacing_m))
-      ("map-normal-sigma", cli::value(&normal_sigma_m))
-      ("width", cli::value(&width_px))
-      ("backend", cli::value(&backend))
-      ("save-map", cli::value(&save_map))
-      ("scene", cli::value(&scene_name))
-      ("no-sensor-noise", cli::clearFlag(&sensor_noise))
-      ("save-mesh", cli::value(&save_mesh))
-      ("quiet", cli::flag(&quiet));
+  cl.flags({{"frames", &frames}, {"particles", &particles}, {"seed", &seed}, {"stride", &stride},
+            {"map-spacing", &spacing_m}, {"map-normal-sigma", &normal_sigma_m},
+            {"width", &width_px}, {"backend", &backend}, {"save-map", &save_map},
+            {"scene", &scene_name}, {"no-sensor-noise", cli::Clear{&sensor_noise}},
+            {"save-mesh", &save_mesh}, {"quiet", &quiet}});
   cl.addLocalizerParams(&params, {"num_particles", "seed", "pixel_stride", "backend",
                                   "init_centre", "init_yaw_centre"});
   cl.parse(argc, argv);

@@ -5,6 +5,7 @@
 // its usage and exits with status 2; --help prints the usage and every flag and exits 0.
 #pragma once
 
+#include <initializer_list>
 #include <map>
 #include <set>
 #include <string>
@@ -33,12 +34,35 @@ inline po::typed_value<bool>* clearFlag(bool* target) {
   });
 }
 
+// cli::Clear{&x}: the flag sets x to false.
+struct Clear {
+  bool* target;
+};
+
+// One flag of a list given to CommandLine::flags(): the name and where its value goes. A bool
+// target is a switch without a value that sets it (Clear{}: clears it); a vector of strings
+// takes the values that follow the flag; any other target takes one value of its type.
+struct Flag {
+  template <typename T>
+  Flag(const char* flag_name, T* target) : name(flag_name), semantic(value(target)) {}
+  Flag(const char* flag_name, bool* target) : name(flag_name), semantic(flag(target)) {}
+  Flag(const char* flag_name, Clear c) : name(flag_name), semantic(clearFlag(c.target)) {}
+  Flag(const char* flag_name, std::vector<std::string>* target)
+      : name(flag_name), semantic(value(target)->multitoken()) {}
+  const char* name;
+  const po::value_semantic* semantic;  // owned by the CommandLine once added
+};
+
 class CommandLine {
  public:
   // tool: the program's name in messages; usage: the text printed before the list of flags.
   CommandLine(std::string tool, std::string usage);
 
-  // The tool's flags: add()("frames", cli::value(&frames), "help")("quiet", cli::flag(&q)).
+  // The tool's flags: flags({{"frames", &frames}, {"quiet", &quiet}}).
+  void flags(std::initializer_list<Flag> list) {
+    for (const Flag& f : list) options_.add_options()(f.name, f.semantic);
+  }
+  // One flag with a help text or a semantic of its own.
   po::options_description_easy_init add() { return options_.add_options(); }
 
   // Every parameter of the localizer's table as --name-with-dashes (--lost-margin-nats), except
