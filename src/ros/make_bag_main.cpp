@@ -10,7 +10,7 @@
 #include "gmm_mcl/replay/sim_sequence.h"
 #include "gmm_mcl/ros/bag_writer.h"
 #include "gmm_mcl/ros/sequence_bag.h"
-#include "gmm_mcl/tools/command_line.h"
+#include "gmm_mcl/tools/sequence_flags.h"
 
 using namespace gmm_mcl;
 
@@ -46,10 +46,8 @@ int main(int argc, char** argv) {
             {"layout", &bo.layout}, {"marker-to-camera", &marker_to_camera},
             {"init-half-extent", &bo.init_half_extent_m},
             {"init-yaw-half-range", &bo.init_yaw_half_range_rad}, {"start-time", &bo.start_s},
-            {"width", &width}, {"intrinsics", &so.intrinsics},
-            {"depth-scale", &so.depth_units_per_m}, {"tolerance", &so.association_tolerance_s},
-            {"gravity", &so.gravity}, {"trajectory", &so.trajectory}, {"rate", &so.frame_rate_hz},
-            {"quiet", &quiet}, {"paths", &paths}});
+            {"width", &width}, {"quiet", &quiet}, {"paths", &paths}});
+  cli::addSequenceFlags(&cl, &so);
   cl.positional("paths", 2);
   cl.parse(argc, argv);
   if (cl.given("frames")) so.max_frames = bo.max_frames = frames;

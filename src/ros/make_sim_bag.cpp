@@ -22,8 +22,10 @@
 
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/map/gmm_map_io.h"
+#include "gmm_mcl/ros/bag_writer.h"
 #include "gmm_mcl/ros/conversions.h"
 #include "gmm_mcl/sim/box_scene.h"
+#include "gmm_mcl/sim/mesh_scene.h"
 #include "gmm_mcl/tools/command_line.h"
 
 using namespace gmm_mcl;
@@ -69,27 +71,17 @@ int main(int argc, char** argv) {
   saveMap(map, map_path);
   const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(frames);
   const Eigen::Isometry3d T_base_cam = sim::defaultBaseToCamera();
-  Intrinsics K;
-  const float scale = width_px / 640.f;
-  K.fx_px = K.fy_px = 585.f * scale;
-  K.width_px = width_px;
-  K.height_px = width_px * 3 / 4;
-  K.cx_px = 0.5f * (K.width_px - 1);
-  K.cy_px = 0.5f * (K.height_px - 1);
+  const Intrinsics K = sim::defaultCamera(width_px);
 
   const Particle start = poseToParticle(truth[0]);
-  {
-    std::ofstream y(params_path);
-    y << "# Initial region around the true start of " << bag_path << " (make_sim_bag)\n"
-      << "init_centre: [" << start.x_m << ", " << start.y_m << ", " << start.z_m << "]\n"
-      << "init_half_extent: [" << init_half_extent_m << ", " << init_half_extent_m << ", "
-      << init_half_extent_m << "]\n"
-      << "init_yaw_centre: " << start.yaw_rad << "\n"
-      << "init_yaw_half_range: " << init_yaw_half_range_rad << "\n";
-    if (!y) {
-      std::fprintf(stderr, "cannot write %s\n", params_path.c_str());
-      return 1;
-    }
+  try {
+    ros_bag::writeInitRegionYaml(params_path,
+                                 "Initial region around the true start of " + bag_path +
+                                     " (make_sim_bag)",
+                                 start, init_half_extent_m, init_yaw_half_range_rad);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s\n", e.what());
+    return 1;
   }
 
   rosbag::Bag bag;
@@ -166,48 +158,11 @@ int main(int argc, char** argv) {
     bag.write("/tf", t_before, tf);
 
     const DepthImage depth = sim::renderDepth(scene, K, truth[f] * T_base_cam, enc, 8.0, noise, &rng);
-    sensor_msgs::Image img;
-    img.header.stamp = t;
-    img.header.frame_id = cam_frame;
-    img.width = depth.width_px;
-    img.height = depth.height_px;
-    img.encoding = encoding;
-    img.is_bigendian = 0;
-    img.step = static_cast<uint32_t>(depth.row_bytes);
-    img.data = depth.data;
-    sensor_msgs::CameraInfo info;
-    info.header = img.header;
-    info.width = img.width;
-    info.height = img.height;
-    info.distortion_model = "plumb_bob";
-    info.D.assign(5, 0.0);
-    info.K = {K.fx_px, 0, K.cx_px, 0, K.fy_px, K.cy_px, 0, 0, 1};
-    info.R = {1, 0, 0, 0, 1, 0, 0, 0, 1};
-    info.P = {K.fx_px, 0, K.cx_px, 0, 0, K.fy_px, K.cy_px, 0, 0, 0, 1, 0};
+    const sensor_msgs::Image img = ros_bag::imageFromDepth(depth, t, cam_frame);
     bag.write("/camera/depth/image_raw", t, img);
-    bag.write("/camera/depth/camera_info", t, info);
+    bag.write("/camera/depth/camera_info", t, ros_bag::cameraInfoFromIntrinsics(K, t, cam_frame));
     if (cloud) {
-      sensor_msgs::PointCloud2 pc;
-      sensor_msgs::PointCloud2Modifier mod(pc);
-      mod.setPointCloud2FieldsByString(1, "xyz");
-      mod.resize(static_cast<size_t>(depth.width_px) * depth.height_px);
-      pc.header = img.header;
-      pc.width = depth.width_px;
-      pc.height = depth.height_px;
-      pc.row_step = pc.width * pc.point_step;
-      pc.is_dense = false;
-      sensor_msgs::PointCloud2Iterator<float> x(pc, "x"), y(pc, "y"), z(pc, "z");
-      for (int v = 0; v < depth.height_px; ++v) {
-        for (int u = 0; u < depth.width_px; ++u, ++x, ++y, ++z) {
-          const float d = depth.depthMetres(u, v);
-          float p[3] = {NAN, NAN, NAN};
-          if (std::isfinite(d) && d > 0.f) backProject(K, static_cast<float>(u), static_cast<float>(v), d, p);
-          *x = p[0];
-          *y = p[1];
-          *z = p[2];
-        }
-      }
-      bag.write("/camera/depth/points", t, pc);
+      bag.write("/camera/depth/points", t, ros_bag::organizedCloudFromDepth(depth, K, t, cam_frame));
     }
     if (compressed) {
       sensor_msgs::CompressedImage c;

@@ -37,8 +37,10 @@
 #include "gmm_mcl/FilterStatus.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/map/gmm_map_io.h"
+#include "gmm_mcl/ros/bag_writer.h"
 #include "gmm_mcl/ros/conversions.h"
 #include "gmm_mcl/sim/box_scene.h"
+#include "gmm_mcl/sim/mesh_scene.h"
 #include "gmm_mcl/tools/command_line.h"
 
 using namespace gmm_mcl;
@@ -90,17 +92,6 @@ void parse(int argc, char** argv, Options* o) {
   }
 }
 
-Intrinsics camera(int width_px) {
-  // The synthetic scenes' camera: f = 585 px at 640 px wide, scaled; centre of the image.
-  Intrinsics K;
-  K.width_px = width_px;
-  K.height_px = width_px * 3 / 4;
-  K.fx_px = K.fy_px = 585.f * static_cast<float>(width_px) / 640.f;
-  K.cx_px = 0.5f * static_cast<float>(K.width_px - 1);
-  K.cy_px = 0.5f * static_cast<float>(K.height_px - 1);
-  return K;
-}
-
 // The fixed map -> odom offset that the published odometry carries (the nodelet must find it).
 Eigen::Isometry3d mapToOdom() {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
@@ -114,15 +105,13 @@ int writeMapAndParams(const Options& o) {
   saveMap(sim::tileScene(scene, 0.4, 0.015), o.write_map);
   if (o.write_params.empty()) return 0;
   const Particle start = poseToParticle(sim::makeTrajectory(2)[0]);
-  std::ofstream y(o.write_params);
-  y << "# Initial region around the soak trajectory's true start (gmm_mcl_soak_publisher)\n"
-    << "init_centre: [" << start.x_m << ", " << start.y_m << ", " << start.z_m << "]\n"
-    << "init_half_extent: [" << o.init_half_extent_m << ", " << o.init_half_extent_m << ", "
-    << o.init_half_extent_m << "]\n"
-    << "init_yaw_centre: " << start.yaw_rad << "\n"
-    << "init_yaw_half_range: " << o.init_yaw_half_range_rad << "\n";
-  if (!y) {
-    std::fprintf(stderr, "cannot write %s\n", o.write_params.c_str());
+  try {
+    ros_bag::writeInitRegionYaml(
+        o.write_params,
+        "Initial region around the soak trajectory's true start (gmm_mcl_soak_publisher)", start,
+        o.init_half_extent_m, o.init_yaw_half_range_rad);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s\n", e.what());
     return 1;
   }
   return 0;
@@ -137,7 +126,7 @@ struct Frame {
 
 class SoakPublisher {
  public:
-  explicit SoakPublisher(const Options& o) : o_(o), K_(camera(o.width_px)) {
+  explicit SoakPublisher(const Options& o) : o_(o), K_(sim::defaultCamera(o.width_px)) {
     image_pub_ = nh_.advertise<sensor_msgs::Image>("/camera/depth/image_raw", 2);
     info_pub_ = nh_.advertise<sensor_msgs::CameraInfo>("/camera/depth/camera_info", 2);
     imu_pub_ = nh_.advertise<sensor_msgs::Imu>("/imu/data", 10);

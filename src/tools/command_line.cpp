@@ -1,5 +1,6 @@
 #include "gmm_mcl/tools/command_line.h"
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -61,14 +62,10 @@ std::string toParamValue(const std::string& text, ParamType type, ParamValue* v)
 }  // namespace
 
 bool parseNumberList(const std::string& text, int n, double* out) {
-  std::stringstream ss(text);
-  std::string item;
-  int count = 0;
-  while (std::getline(ss, item, ',')) {
-    if (count >= n || !parseDouble(item, &out[count]) || !std::isfinite(out[count])) return false;
-    ++count;
-  }
-  return count == n;
+  const std::vector<double> v = gmm_mcl::parseNumberList(text);
+  if (static_cast<int>(v.size()) != n) return false;
+  std::copy(v.begin(), v.end(), out);
+  return true;
 }
 
 CommandLine::CommandLine(std::string tool, std::string usage)

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "gmm_mcl/common/number_list.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/replay/sequence_base.h"
 #include "gmm_mcl/replay/sequence_writer.h"
@@ -46,21 +47,6 @@ const char* kUsage =
       "  --dropout P   probability that a pixel is missing at random (default 0.005)\n"
       "  --down        gravity direction in world coordinates (default 0,0,-1: z up)\n"
       "  --save-map    the built-in scene's tiled GMM (0.4 m tiles, 1.5 cm normal sigma)\n";
-
-std::vector<double> csvNumbers(const std::string& s) {
-  std::vector<double> v;
-  std::stringstream ss(s);
-  std::string tok;
-  while (std::getline(ss, tok, ',')) {
-    char* end = nullptr;
-    const double x = std::strtod(tok.c_str(), &end);
-    if (end == tok.c_str() || *end != '\0' || !std::isfinite(x)) {
-      throw std::runtime_error("'" + s + "' is not a list of numbers");
-    }
-    v.push_back(x);
-  }
-  return v;
-}
 
 // True when the first pose line of a file has 16 numbers (a 4x4 matrix per line).
 bool isMatrixTrajectory(const std::string& path) {
@@ -187,7 +173,7 @@ int run(int argc, char** argv) {
       double units;
       sim::readReplicaCamera(camera, &K, &units);
     } else {
-      const std::vector<double> v = csvNumbers(camera);
+      const std::vector<double> v = parseNumberList(camera);
       if (v.size() != 6) throw std::runtime_error("--camera: expected fx,fy,cx,cy,width,height");
       const double Km[9] = {v[0], 0, v[2], 0, v[1], v[3], 0, 0, 1};
       K = makeIntrinsics(Km, static_cast<int>(v[4]), static_cast<int>(v[5]));
@@ -225,7 +211,7 @@ int run(int argc, char** argv) {
     }
   }
 
-  const std::vector<double> g = csvNumbers(down);
+  const std::vector<double> g = parseNumberList(down);
   if (g.size() != 3 || Eigen::Vector3d(g[0], g[1], g[2]).norm() < 1e-9) {
     throw std::runtime_error("--down: expected a non-zero gx,gy,gz");
   }

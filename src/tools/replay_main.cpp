@@ -17,7 +17,7 @@
 #include "gmm_mcl/replay/replay.h"
 #include "gmm_mcl/replay/sequence_writer.h"
 #include "gmm_mcl/replay/sim_sequence.h"
-#include "gmm_mcl/tools/command_line.h"
+#include "gmm_mcl/tools/sequence_flags.h"
 
 using namespace gmm_mcl;
 
@@ -125,14 +125,12 @@ int main(int argc, char** argv) {
   cl.flags({{"map", &map_path}, {"dataset", &dataset}, {"trials", &trials},
             {"first-seed", &first_seed}, {"frames", &frames}, {"stride", &stride},
             {"particles", &particles}, {"min-particles", &min_particles}, {"backend", &backend},
-            {"out", &out_dir}, {"format", &format}, {"intrinsics", &so.intrinsics},
-            {"depth-scale", &so.depth_units_per_m}, {"tolerance", &so.association_tolerance_s},
-            {"gravity", &so.gravity}, {"trajectory", &so.trajectory}, {"rate", &so.frame_rate_hz},
-            {"init-half-extent", &init_half_extent_m},
+            {"out", &out_dir}, {"format", &format}, {"init-half-extent", &init_half_extent_m},
             {"init-yaw-half-range", &init_yaw_half_range_rad}, {"init", &init}, {"width", &width},
             {"hold-frames", &hold_frames}, {"tail-frames", &tail_frames},
             {"convert-stride", &convert_stride}, {"convert", &convert}, {"make-fixture", &fixture},
             {"quiet", &quiet}, {"host-filter", &host_filter}});
+  cli::addSequenceFlags(&cl, &so);
   cl.addLocalizerParams(&lp, {"num_particles", "min_particles", "pixel_stride", "backend",
                               "device_filter", "seed", "init_centre", "init_half_extent",
                               "init_yaw_centre", "init_yaw_half_range"});

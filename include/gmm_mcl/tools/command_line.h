@@ -13,6 +13,7 @@
 
 #include <boost/program_options.hpp>
 
+#include "gmm_mcl/common/number_list.h"
 #include "gmm_mcl/filter/parameter_table.h"
 
 namespace gmm_mcl {
