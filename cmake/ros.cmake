@@ -43,17 +43,17 @@ add_dependencies(gmm_mcl_ros ${PROJECT_NAME}_generate_messages_cpp ${PROJECT_NAM
 add_executable(gmm_mcl_node src/ros/localization_node.cpp)
 target_link_libraries(gmm_mcl_node PRIVATE gmm_mcl_ros)
 # Prints what the parameter tables generate (cfg/Localizer.cfg, docs/parameters.md, defaults).
-add_executable(gmm_mcl_params src/ros/params_main.cpp)
+add_executable(gmm_mcl_params src/ros_tools/params_main.cpp)
 target_link_libraries(gmm_mcl_params PRIVATE gmm_mcl_ros)
 # Writes the built-in synthetic scene as a bag (depth, CameraInfo, IMU, odometry, tf, truth).
-add_executable(make_sim_bag src/ros/make_sim_bag.cpp)
+add_executable(make_sim_bag src/ros_tools/make_sim_bag.cpp)
 target_link_libraries(make_sim_bag PRIVATE gmm_mcl_datasets_ros gmm_mcl_cli)
 # Converts a 7-Scenes sequence (and its world-frame map) into such a bag: the replay library's
 # sequence reader (cmake/replay.cmake) and the accuracy protocol's odometry and attitude noise.
-add_executable(make_7scenes_bag src/ros/make_7scenes_bag.cpp)
+add_executable(make_7scenes_bag src/ros_tools/make_7scenes_bag.cpp)
 target_link_libraries(make_7scenes_bag PRIVATE gmm_mcl_ros gmm_mcl_replay gmm_mcl_cli)
 # Reads a recorded pose bag against ground truth: ATE and a plot (CSV + gnuplot/SVG).
-add_executable(evaluate_pose_bag src/ros/evaluate_pose_bag.cpp)
+add_executable(evaluate_pose_bag src/ros_tools/evaluate_pose_bag.cpp)
 target_link_libraries(evaluate_pose_bag PRIVATE gmm_mcl_ros gmm_mcl_cli)
 set_target_properties(gmm_mcl_node gmm_mcl_params make_sim_bag make_7scenes_bag evaluate_pose_bag PROPERTIES
   RUNTIME_OUTPUT_DIRECTORY ${CATKIN_DEVEL_PREFIX}/${CATKIN_PACKAGE_BIN_DESTINATION})
