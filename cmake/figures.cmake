@@ -21,20 +21,14 @@ target_compile_options(gmm_mcl_figures PRIVATE -Wall -Wextra)
 
 add_executable(gmm_mcl_figures_tool src/tools/figures_main.cpp)
 set_target_properties(gmm_mcl_figures_tool PROPERTIES OUTPUT_NAME gmm_mcl_figures)
-target_link_libraries(gmm_mcl_figures_tool PRIVATE gmm_mcl_figures)
+target_link_libraries(gmm_mcl_figures_tool PRIVATE gmm_mcl_figures gmm_mcl_cli)
 target_compile_options(gmm_mcl_figures_tool PRIVATE -Wall -Wextra)
 
 if(GMM_MCL_BUILD_TESTS)
-  enable_testing()
-  if(NOT TARGET GTest::gtest)
-    include(${CMAKE_CURRENT_LIST_DIR}/gtest.cmake)
-  endif()
   foreach(src test/figures/test_nll_sweep.cpp test/figures/test_gaussian_kl.cpp
               test/figures/test_sensitivity.cpp)
     get_filename_component(name ${src} NAME_WE)
-    add_executable(${name} ${src})
-    target_link_libraries(${name} PRIVATE gmm_mcl_figures gmm_mcl_test_utils GTest::gtest_main)
-    add_test(NAME ${name} COMMAND ${name})
+    gmm_mcl_add_gtest(${name} ${src} gmm_mcl_figures gmm_mcl_test_utils)
   endforeach()
   # The plot scripts on fixture folders they write themselves; exit code 77 = skipped (no
   # /usr/bin/python3 with matplotlib), shown by ctest as a skip.

@@ -12,21 +12,15 @@ target_link_libraries(gmm_mcl_fit PUBLIC gmm_mcl_core)
 target_compile_options(gmm_mcl_fit PRIVATE -Wall -Wextra)
 
 add_executable(gmm_fit src/tools/gmm_fit_main.cpp)
-target_link_libraries(gmm_fit PRIVATE gmm_mcl_fit)
+target_link_libraries(gmm_fit PRIVATE gmm_mcl_fit gmm_mcl_cli)
 add_executable(gmm_inspect src/tools/gmm_inspect_main.cpp)
-target_link_libraries(gmm_inspect PRIVATE gmm_mcl_fit)
+target_link_libraries(gmm_inspect PRIVATE gmm_mcl_fit gmm_mcl_cli)
 
 if(GMM_MCL_BUILD_TESTS)
-  enable_testing()
-  if(NOT TARGET GTest::gtest)
-    include(${CMAKE_CURRENT_LIST_DIR}/gtest.cmake)
-  endif()
   foreach(src test/fit/test_point_cloud_io.cpp test/fit/test_em_fitter.cpp
               test/fit/test_map_inspect.cpp)
     get_filename_component(name ${src} NAME_WE)
-    add_executable(${name} ${src})
-    target_link_libraries(${name} PRIVATE gmm_mcl_fit GTest::gtest_main)
-    add_test(NAME ${name} COMMAND ${name})
+    gmm_mcl_add_gtest(${name} ${src} gmm_mcl_fit)
   endforeach()
   # Data-set tests read $GMM_MCL_DATASETS, else ../shared/datasets, and skip when absent.
   target_compile_definitions(test_point_cloud_io PRIVATE

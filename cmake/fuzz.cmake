@@ -22,13 +22,11 @@ if(GMM_MCL_BUILD_TESTS)
                      ${GMM_MCL_FUZZ_DIR}/regressions/${name})
   endforeach()
   # The fixed faults as named gtest cases with their messages.
-  add_executable(test_input_validation ${GMM_MCL_FUZZ_DIR}/test_input_validation.cpp)
-  target_link_libraries(test_input_validation PRIVATE gmm_mcl_core GTest::gtest_main)
-  add_test(NAME test_input_validation COMMAND test_input_validation)
+  gmm_mcl_add_gtest(test_input_validation ${GMM_MCL_FUZZ_DIR}/test_input_validation.cpp
+                    gmm_mcl_core)
   # The CPU backend's OpenMP path, short enough for the sanitizer stage of scripts/test.sh.
-  add_executable(test_backend_threads ${GMM_MCL_FUZZ_DIR}/test_backend_threads.cpp)
-  target_link_libraries(test_backend_threads PRIVATE gmm_mcl_test_utils GTest::gtest_main)
-  add_test(NAME test_backend_threads COMMAND test_backend_threads)
+  gmm_mcl_add_gtest(test_backend_threads ${GMM_MCL_FUZZ_DIR}/test_backend_threads.cpp
+                    gmm_mcl_test_utils)
 endif()
 
 if(GMM_MCL_BUILD_FUZZERS)

@@ -23,3 +23,11 @@ if(NOT TARGET GTest::gtest)
   add_library(GTest::gtest ALIAS gtest)
   add_library(GTest::gtest_main ALIAS gtest_main)
 endif()
+
+# gmm_mcl_add_gtest(name source [libraries...]): a gtest suite linked with gtest_main and the
+# given libraries, registered with ctest under its name.
+function(gmm_mcl_add_gtest name src)
+  add_executable(${name} ${src})
+  target_link_libraries(${name} PRIVATE ${ARGN} GTest::gtest_main)
+  add_test(NAME ${name} COMMAND ${name})
+endfunction()

@@ -13,32 +13,23 @@ add_library(gmm_mcl_replay STATIC
   src/replay/evaluation.cpp
   src/replay/replay.cpp
 )
-target_link_libraries(gmm_mcl_replay PUBLIC gmm_mcl_core)
+target_link_libraries(gmm_mcl_replay PUBLIC gmm_mcl_sim)
 target_compile_options(gmm_mcl_replay PRIVATE -Wall -Wextra)
 add_executable(gmm_mcl_replay_tool src/tools/replay_main.cpp)
 set_target_properties(gmm_mcl_replay_tool PROPERTIES OUTPUT_NAME gmm_mcl_replay)
-target_link_libraries(gmm_mcl_replay_tool PRIVATE gmm_mcl_replay)
+target_link_libraries(gmm_mcl_replay_tool PRIVATE gmm_mcl_replay gmm_mcl_cli)
 add_executable(gmm_mcl_score src/tools/score_main.cpp)
-target_link_libraries(gmm_mcl_score PRIVATE gmm_mcl_replay)
+target_link_libraries(gmm_mcl_score PRIVATE gmm_mcl_replay gmm_mcl_cli)
 
 if(GMM_MCL_BUILD_TESTS)
-  enable_testing()
-  if(NOT TARGET GTest::gtest)
-    include(${CMAKE_CURRENT_LIST_DIR}/gtest.cmake)
-  endif()
-  add_executable(test_evaluation test/replay/test_evaluation.cpp)
-  target_link_libraries(test_evaluation PRIVATE gmm_mcl_replay GTest::gtest_main)
-  add_test(NAME test_evaluation COMMAND test_evaluation)
-  add_executable(test_odometry_synthesizer test/replay/test_odometry_synthesizer.cpp)
-  target_link_libraries(test_odometry_synthesizer PRIVATE gmm_mcl_replay GTest::gtest_main)
-  add_test(NAME test_odometry_synthesizer COMMAND test_odometry_synthesizer)
+  gmm_mcl_add_gtest(test_evaluation test/replay/test_evaluation.cpp gmm_mcl_replay)
+  gmm_mcl_add_gtest(test_odometry_synthesizer test/replay/test_odometry_synthesizer.cpp
+                    gmm_mcl_replay)
   if(PNG_FOUND)
     # Readers on fixtures the tests write (TUM, Stanford from the synthetic scene), bad input,
     # and replay over each folder format; 7-Scenes reader checks on the shared data.
     foreach(name test_sequences test_replay_formats)
-      add_executable(${name} test/replay/${name}.cpp)
-      target_link_libraries(${name} PRIVATE gmm_mcl_replay gmm_mcl_test_utils GTest::gtest_main)
-      add_test(NAME ${name} COMMAND ${name})
+      gmm_mcl_add_gtest(${name} test/replay/${name}.cpp gmm_mcl_replay gmm_mcl_test_utils)
     endforeach()
     # The tool end to end on a TUM fixture (written by the tool's --write-fixture).
     add_test(NAME test_replay_tool_tum
@@ -48,10 +39,8 @@ if(GMM_MCL_BUILD_TESTS)
   endif()
   # Needs the map builder (gmm_mcl_fit) and libpng for the depth frames.
   if(TARGET gmm_mcl_fit AND PNG_FOUND)
-    add_executable(test_seven_scenes_regression test/replay/test_seven_scenes_regression.cpp)
-    target_link_libraries(test_seven_scenes_regression PRIVATE gmm_mcl_replay gmm_mcl_fit
-                          gmm_mcl_test_utils GTest::gtest_main)
-    add_test(NAME test_seven_scenes_regression COMMAND test_seven_scenes_regression)
+    gmm_mcl_add_gtest(test_seven_scenes_regression test/replay/test_seven_scenes_regression.cpp
+                      gmm_mcl_replay gmm_mcl_fit gmm_mcl_test_utils)
     set_tests_properties(test_seven_scenes_regression PROPERTIES TIMEOUT 1200)
   endif()
 endif()

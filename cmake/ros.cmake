@@ -43,18 +43,18 @@ add_dependencies(gmm_mcl_ros ${PROJECT_NAME}_generate_messages_cpp ${PROJECT_NAM
 add_executable(gmm_mcl_node src/ros/localization_node.cpp)
 target_link_libraries(gmm_mcl_node PRIVATE gmm_mcl_ros)
 # Prints what the parameter tables generate (cfg/Localizer.cfg, docs/parameters.md, defaults).
-add_executable(gmm_mcl_params src/ros/params_main.cpp)
+add_executable(gmm_mcl_params src/ros_tools/params_main.cpp)
 target_link_libraries(gmm_mcl_params PRIVATE gmm_mcl_ros)
 # Writes the built-in synthetic scene as a bag (depth, CameraInfo, IMU, odometry, tf, truth).
-add_executable(make_sim_bag src/ros/make_sim_bag.cpp)
-target_link_libraries(make_sim_bag PRIVATE gmm_mcl_ros)
+add_executable(make_sim_bag src/ros_tools/make_sim_bag.cpp)
+target_link_libraries(make_sim_bag PRIVATE gmm_mcl_datasets_ros gmm_mcl_cli)
 # Converts a 7-Scenes sequence (and its world-frame map) into such a bag: the replay library's
 # sequence reader (cmake/replay.cmake) and the accuracy protocol's odometry and attitude noise.
-add_executable(make_7scenes_bag src/ros/make_7scenes_bag.cpp)
-target_link_libraries(make_7scenes_bag PRIVATE gmm_mcl_ros gmm_mcl_replay)
+add_executable(make_7scenes_bag src/ros_tools/make_7scenes_bag.cpp)
+target_link_libraries(make_7scenes_bag PRIVATE gmm_mcl_ros gmm_mcl_replay gmm_mcl_cli)
 # Reads a recorded pose bag against ground truth: ATE and a plot (CSV + gnuplot/SVG).
-add_executable(evaluate_pose_bag src/ros/evaluate_pose_bag.cpp)
-target_link_libraries(evaluate_pose_bag PRIVATE gmm_mcl_ros)
+add_executable(evaluate_pose_bag src/ros_tools/evaluate_pose_bag.cpp)
+target_link_libraries(evaluate_pose_bag PRIVATE gmm_mcl_ros gmm_mcl_cli)
 set_target_properties(gmm_mcl_node gmm_mcl_params make_sim_bag make_7scenes_bag evaluate_pose_bag PROPERTIES
   RUNTIME_OUTPUT_DIRECTORY ${CATKIN_DEVEL_PREFIX}/${CATKIN_PACKAGE_BIN_DESTINATION})
 
@@ -68,7 +68,7 @@ if(CATKIN_ENABLE_TESTING AND GMM_MCL_BUILD_TESTS)
   find_package(rostest REQUIRED)
   # Conversions, parameters: plain gtest, no master.
   add_executable(test_ros_conversions test/ros/test_conversions.cpp)
-  target_link_libraries(test_ros_conversions PRIVATE gmm_mcl_ros GTest::gtest_main)
+  target_link_libraries(test_ros_conversions PRIVATE gmm_mcl_ros gmm_mcl_sim GTest::gtest_main)
   add_test(NAME test_ros_conversions COMMAND test_ros_conversions)
   # The parameter tables against cfg/Localizer.cfg, docs/parameters.md and dynamic_reconfigure;
   # frame accounting, ~status and /diagnostics.
@@ -94,7 +94,7 @@ if(CATKIN_ENABLE_TESTING AND GMM_MCL_BUILD_TESTS)
   # Test nodes (gtest against a live master) and the rostests that launch them.
   foreach(name rostest_localization rostest_bad_inputs rostest_nodelet)
     add_executable(${name} test/ros/${name}.cpp)
-    target_link_libraries(${name} PRIVATE gmm_mcl_ros GTest::gtest)
+    target_link_libraries(${name} PRIVATE gmm_mcl_ros gmm_mcl_sim GTest::gtest)
     set_target_properties(${name} PROPERTIES
       RUNTIME_OUTPUT_DIRECTORY ${CATKIN_DEVEL_PREFIX}/${CATKIN_PACKAGE_BIN_DESTINATION})
     add_dependencies(${name} gmm_mcl_ros_test_data gmm_mcl_node)

@@ -4,20 +4,20 @@
 
 # Bag writing shared by the converters (make_sim_bag can adopt it) and sequence -> bag.
 add_library(gmm_mcl_datasets_ros STATIC
-  src/ros/bag_writer.cpp
-  src/ros/sequence_bag.cpp)
+  src/ros_tools/bag_writer.cpp
+  src/ros_tools/sequence_bag.cpp)
 target_link_libraries(gmm_mcl_datasets_ros PUBLIC gmm_mcl_ros gmm_mcl_replay)
 target_compile_options(gmm_mcl_datasets_ros PRIVATE -Wall -Wextra)
 
 # gmm_mcl_make_bag: 7-Scenes / TUM / Stanford folders or the synthetic scene -> bag.
-add_executable(gmm_mcl_make_bag src/ros/make_bag_main.cpp)
+add_executable(gmm_mcl_make_bag src/ros_tools/make_bag_main.cpp)
 # gmm_mcl_ground_truth_odometry: a ground-truth stream -> noisy odometry, IMU, truth (node).
-add_executable(gmm_mcl_ground_truth_odometry src/ros/ground_truth_odometry_node.cpp)
+add_executable(gmm_mcl_ground_truth_odometry src/ros_tools/ground_truth_odometry_node.cpp)
 # gmm_mcl_replay_bag: a bag through the core localizer with the rosbag API, no master.
-add_executable(gmm_mcl_replay_bag src/ros/replay_bag_main.cpp)
+add_executable(gmm_mcl_replay_bag src/ros_tools/replay_bag_main.cpp)
 set(GMM_MCL_DATASET_TOOLS gmm_mcl_make_bag gmm_mcl_ground_truth_odometry gmm_mcl_replay_bag)
 foreach(t ${GMM_MCL_DATASET_TOOLS})
-  target_link_libraries(${t} PRIVATE gmm_mcl_datasets_ros)
+  target_link_libraries(${t} PRIVATE gmm_mcl_datasets_ros gmm_mcl_cli)
   target_compile_options(${t} PRIVATE -Wall -Wextra)
   set_target_properties(${t} PROPERTIES
     RUNTIME_OUTPUT_DIRECTORY ${CATKIN_DEVEL_PREFIX}/${CATKIN_PACKAGE_BIN_DESTINATION})

@@ -2,8 +2,8 @@
 # scripts/soak_monitor.py and the driver scripts/soak.sh (docs/soak.md). Included by the
 # top-level CMakeLists.txt when GMM_MCL_BUILD_ROS is ON, after cmake/ros.cmake (catkin,
 # messages, gmm_mcl_ros).
-add_executable(gmm_mcl_soak_publisher src/ros/soak_publisher.cpp)
-target_link_libraries(gmm_mcl_soak_publisher PRIVATE gmm_mcl_ros)
+add_executable(gmm_mcl_soak_publisher src/ros_tools/soak_publisher.cpp)
+target_link_libraries(gmm_mcl_soak_publisher PRIVATE gmm_mcl_datasets_ros gmm_mcl_cli)
 target_compile_options(gmm_mcl_soak_publisher PRIVATE -Wall -Wextra)
 # The monitor imports the Python messages (FilterStatus): build them with the publisher.
 add_dependencies(gmm_mcl_soak_publisher ${PROJECT_NAME}_generate_messages)

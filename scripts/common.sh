@@ -24,7 +24,7 @@ ensure_packages() {
 }
 
 # Build dependencies of the ROS-free core, tools and tests.
-CORE_PACKAGES=(build-essential cmake libeigen3-dev libpng-dev libgtest-dev googletest python3-matplotlib)
+CORE_PACKAGES=(build-essential cmake libeigen3-dev libpng-dev libboost-program-options-dev libgtest-dev googletest python3-matplotlib)
 # libFuzzer targets (scripts/fuzz.sh): clang, its sanitizer/fuzzer runtimes and OpenMP runtime.
 FUZZ_PACKAGES=(clang libclang-rt-14-dev libomp-14-dev)
 

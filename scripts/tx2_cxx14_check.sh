@@ -47,8 +47,8 @@ start=$(date +%s)
 /usr/bin/python3 - "$DB" "$GMM_MCL_ROOT" "$SCOPE" > "$BUILD/cxx14_commands.txt" <<'EOF'
 import json, os, shlex, sys
 db, root, everything = sys.argv[1], os.path.realpath(sys.argv[2]), sys.argv[3] == "all"
-# The core (with the CPU backend), the CUDA backend's host code and the ROS nodelet.
-CORE_DIRS = ("map", "camera", "measurement", "backend", "filter", "sim", "ros")
+# The core (with the CPU backend), the CUDA backend's host code, the ROS nodelet and ROS tools.
+CORE_DIRS = ("map", "camera", "measurement", "backend", "filter", "sim", "ros", "ros_tools")
 seen = set()
 eigen_defs = {}
 for e in json.load(open(db)):

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "gmm_mcl/sim/box_scene.h"
+#include "gmm_mcl/sim/mesh_scene.h"
 #if defined(GMM_MCL_HAVE_PNG)
 #include "gmm_mcl/camera/png_io.h"
 #endif
@@ -37,21 +38,11 @@ void get(std::ifstream& f, T* v, const std::string& path) {
 }
 }  // namespace
 
-Intrinsics sevenScenesCamera() {
-  Intrinsics K;
-  K.fx_px = K.fy_px = 585.f;
-  K.cx_px = 320.f;
-  K.cy_px = 240.f;
-  K.width_px = 640;
-  K.height_px = 480;
-  return K;
-}
-
 FrameSet loadSevenScenes(const std::string& dir, int first, int count) {
 #if defined(GMM_MCL_HAVE_PNG)
   FrameSet set;
   set.source = "7-Scenes " + dir;
-  set.K = sevenScenesCamera();
+  set.K = sim::sevenScenesCamera();
   for (int i = first; i < first + count; ++i) {
     set.images.push_back(loadDepthPng16(framePath(dir, i, "depth.png")));
     std::ifstream pf(framePath(dir, i, "pose.txt"));
@@ -146,7 +137,7 @@ void makeSyntheticScene(int count, GmmMap* map, FrameSet* frames) {
   const sim::BoxScene scene = sim::makeDefaultScene();
   *map = sim::tileScene(scene, 0.4, 0.015);
   frames->source = "synthetic box scene";
-  frames->K = sevenScenesCamera();
+  frames->K = sim::sevenScenesCamera();
   frames->images.clear();
   frames->T_map_cam.clear();
   const std::vector<Eigen::Isometry3d> traj = sim::makeTrajectory(count);

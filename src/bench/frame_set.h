@@ -20,9 +20,6 @@ struct FrameSet {
   std::vector<Eigen::Isometry3d> T_map_cam;  // ground truth, camera optical frame -> map
 };
 
-// 7-Scenes camera (fx = fy = 585, cx = 320, cy = 240, 640x480).
-Intrinsics sevenScenesCamera();
-
 // Frames first..first+count-1 of a 7-Scenes sequence folder (frame-NNNNNN.depth.png and
 // .pose.txt). Throws std::runtime_error when libpng is not built in or a file is bad.
 FrameSet loadSevenScenes(const std::string& dir, int first, int count);

@@ -7,6 +7,7 @@
 #include "gmm_mcl/fit/seven_scenes_cloud.h"
 #include "gmm_mcl/replay/replay.h"
 #include "gmm_mcl/sim/box_scene.h"
+#include "gmm_mcl/sim/mesh_scene.h"
 
 namespace gmm_mcl {
 namespace figures {
@@ -18,12 +19,7 @@ PointCloud scenarioCloud(const Scenario& scenario) {
   }
   // Synthetic: one loop of the trajectory (0.25 rad/s: 25 s), every 15th frame.
   const sim::BoxScene scene = sim::makeDefaultScene();
-  Intrinsics K;
-  K.fx_px = K.fy_px = 292.5f;
-  K.width_px = 320;
-  K.height_px = 240;
-  K.cx_px = 159.5f;
-  K.cy_px = 119.5f;
+  const Intrinsics K = sim::defaultCamera(320);
   const std::vector<Eigen::Isometry3d> traj = sim::makeTrajectory(760);
   const Eigen::Isometry3d T_base_cam = sim::defaultBaseToCamera();
   VoxelAccumulator voxels(0.02f);

@@ -10,6 +10,7 @@
 #include "gmm_mcl/replay/replay.h"
 #include "gmm_mcl/replay/seven_scenes_sequence.h"
 #include "gmm_mcl/sim/box_scene.h"
+#include "gmm_mcl/sim/mesh_scene.h"
 
 namespace gmm_mcl {
 namespace figures {
@@ -65,12 +66,7 @@ Scenario syntheticScenario(int first_frame, int frames, int width_px, uint64_t n
   Scenario s;
   s.name = "synthetic box scene frames " + std::to_string(first_frame) + "-" +
            std::to_string(first_frame + frames - 1);
-  const float scale = width_px / 640.f;
-  s.intrinsics.fx_px = s.intrinsics.fy_px = 585.f * scale;
-  s.intrinsics.width_px = width_px;
-  s.intrinsics.height_px = width_px * 3 / 4;
-  s.intrinsics.cx_px = 0.5f * (s.intrinsics.width_px - 1);
-  s.intrinsics.cy_px = 0.5f * (s.intrinsics.height_px - 1);
+  s.intrinsics = sim::defaultCamera(width_px);
   s.T_base_cam = sim::defaultBaseToCamera();
   s.max_range_m = 6.0f;  // as the demo: the room is 8 m long
   const std::vector<Eigen::Isometry3d> traj = sim::makeTrajectory(first_frame + frames);

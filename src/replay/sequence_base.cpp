@@ -14,6 +14,7 @@
 #include "gmm_mcl/replay/tum_sequence.h"
 #include "sequence_io.h"
 
+#include "gmm_mcl/common/number_list.h"
 #include "gmm_mcl/filter/pose.h"
 
 #if defined(GMM_MCL_HAVE_PNG)
@@ -117,19 +118,6 @@ Intrinsics preset(double fx, double fy, double cx, double cy, int w, int h) {
   return makeIntrinsics(K, w, h);
 }
 
-std::vector<double> parseCsvNumbers(const std::string& s) {
-  std::vector<double> v;
-  std::stringstream ss(s);
-  std::string tok;
-  while (std::getline(ss, tok, ',')) {
-    char* end = nullptr;
-    const double x = std::strtod(tok.c_str(), &end);
-    if (tok.empty() || end == tok.c_str() || *end != '\0' || !std::isfinite(x)) return {};
-    v.push_back(x);
-  }
-  return v;
-}
-
 }  // namespace
 
 Intrinsics parseIntrinsicsOption(const std::string& value, int width_px, int height_px,
@@ -145,7 +133,7 @@ Intrinsics parseIntrinsicsOption(const std::string& value, int width_px, int hei
     if (value == "icl") return preset(481.20, 480.0, 319.5, 239.5, w, h);
     if (value == "kinect") return preset(525.0, 525.0, 319.5, 239.5, w, h);
     if (value.find(',') != std::string::npos) {
-      const std::vector<double> v = parseCsvNumbers(value);
+      const std::vector<double> v = parseNumberList(value);
       if (v.size() != 4) {
         throw std::runtime_error("'" + value + "' is not fx,fy,cx,cy (four numbers)");
       }
@@ -228,7 +216,7 @@ Eigen::Matrix3d resolveGravity(const std::string& option, const std::string& dir
     *source = assumed.empty() ? "first-camera" : assumed;
     return gravityAlignment(T_world_first_cam.linear() * Eigen::Vector3d::UnitY());
   }
-  const std::vector<double> g = parseCsvNumbers(mode);
+  const std::vector<double> g = parseNumberList(mode);
   if (g.size() != 3 || Eigen::Vector3d(g[0], g[1], g[2]).norm() < 1e-9) {
     throw std::runtime_error(dir + ": gravity option '" + mode +
                              "' is not x-up, y-up, z-up, x-down, y-down, z-down, first-camera or "

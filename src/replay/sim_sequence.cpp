@@ -3,6 +3,8 @@
 #include <random>
 #include <stdexcept>
 
+#include "gmm_mcl/sim/mesh_scene.h"
+
 namespace gmm_mcl {
 
 SimSequence::SimSequence(const SimSequenceParams& params)
@@ -12,12 +14,7 @@ SimSequence::SimSequence(const SimSequenceParams& params)
   }
   source_ = "synthetic box scene (" + std::to_string(params.frames) + " frames, " +
             std::to_string(params.width_px) + " px, seed " + std::to_string(params.seed) + ")";
-  const double scale = params.width_px / 640.0;
-  intrinsics_.fx_px = intrinsics_.fy_px = static_cast<float>(585.0 * scale);
-  intrinsics_.width_px = params.width_px;
-  intrinsics_.height_px = params.width_px * 3 / 4;
-  intrinsics_.cx_px = 0.5f * (intrinsics_.width_px - 1);
-  intrinsics_.cy_px = 0.5f * (intrinsics_.height_px - 1);
+  intrinsics_ = sim::defaultCamera(params.width_px);
   const Eigen::Isometry3d T_base_cam = sim::defaultBaseToCamera();
   for (const Eigen::Isometry3d& T : sim::makeTrajectory(params.frames)) {
     T_world_cam_.push_back(T * T_base_cam);

@@ -255,6 +255,16 @@ Intrinsics defaultCamera(int width_px) {
   return K;
 }
 
+Intrinsics sevenScenesCamera() {
+  Intrinsics K;
+  K.fx_px = K.fy_px = 585.f;
+  K.cx_px = 320.f;
+  K.cy_px = 240.f;
+  K.width_px = 640;
+  K.height_px = 480;
+  return K;
+}
+
 uint64_t frameSeed(uint64_t seed, int frame) {
   return seed * 0x9e3779b97f4a7c15ull + static_cast<uint64_t>(frame) + 1;
 }

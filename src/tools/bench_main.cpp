@@ -33,6 +33,7 @@
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/measurement/likelihood.h"
+#include "gmm_mcl/tools/command_line.h"
 #if defined(GMM_MCL_HAVE_CUDA)
 #include "gmm_mcl/backend/cuda_backend.h"
 #include "gmm_mcl/filter/cuda_particle_filter.h"
@@ -84,8 +85,7 @@ bool exists(const std::string& p) {
   return !p.empty() && stat(p.c_str(), &st) == 0;
 }
 
-void usage() {
-  std::printf(
+const char* kUsage =
       "gmm_mcl_bench [options]\n"
       "  --backend cpu|cuda|all      (all: cpu, and cuda when built and a device is present)\n"
       "  --workload paper|cpu|full|scale|large|all   (comma-separated list accepted)\n"
@@ -109,8 +109,7 @@ void usage() {
       "                              form for all particles)\n"
       "  --step                      the whole filter step per stage at each workload's N (scale:\n"
       "                              100,000; cpu: 1068): the particle set on the host and, with\n"
-      "                              CUDA, on the GPU; then Localizer::step with either filter\n");
-}
+      "                              CUDA, on the GPU; then Localizer::step with either filter\n";
 
 bool listed(const std::string& list, const std::string& name) {
   if (list == "all") return true;
@@ -601,64 +600,18 @@ void runSteps(const std::vector<LikelihoodBackend*>& backends, const GmmMap& map
 
 int run(int argc, char** argv) {
   Options opt;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&](const char* what) -> std::string {
-      if (i + 1 >= argc) throw std::invalid_argument(std::string("missing value for ") + what);
-      return argv[++i];
-    };
-    if (a == "--backend")
-      opt.backends = next("--backend");
-    else if (a == "--workload")
-      opt.workloads = next("--workload");
-    else if (a == "--map")
-      opt.map_path = next("--map");
-    else if (a == "--large-map")
-      opt.large_map_path = next("--large-map");
-    else if (a == "--patch")
-      opt.patch_px = std::stoi(next("--patch"));
-    else if (a == "--exact")
-      opt.exact_particles = std::stoi(next("--exact"));
-    else if (a == "--exact-frames")
-      opt.exact_frames = std::stoi(next("--exact-frames"));
-    else if (a == "--frames-dir")
-      opt.frames_dir = next("--frames-dir");
-    else if (a == "--frames-raw")
-      opt.frames_raw = next("--frames-raw");
-    else if (a == "--export-frames")
-      opt.export_frames = next("--export-frames");
-    else if (a == "--frames")
-      opt.frames = std::stoi(next("--frames"));
-    else if (a == "--warmup")
-      opt.warmup = std::stoi(next("--warmup"));
-    else if (a == "--budget-s")
-      opt.budget_s = std::stod(next("--budget-s"));
-    else if (a == "--min-timed")
-      opt.min_timed = std::stoi(next("--min-timed"));
-    else if (a == "--threads")
-      opt.threads = std::stoi(next("--threads"));
-    else if (a == "--particles")
-      opt.particles = std::stoi(next("--particles"));
-    else if (a == "--seed")
-      opt.seed = static_cast<unsigned>(std::stoul(next("--seed")));
-    else if (a == "--no-depth-noise")
-      opt.depth_noise = false;
-    else if (a == "--spread-m")
-      opt.spread_m = std::stod(next("--spread-m"));
-    else if (a == "--spread-rad")
-      opt.spread_rad = std::stod(next("--spread-rad"));
-    else if (a == "--synthetic")
-      opt.synthetic = true;
-    else if (a == "--cuda-host-prep")
-      opt.cuda_host_prep = true;
-    else if (a == "--step")
-      opt.step = true;
-    else if (a == "-h" || a == "--help") {
-      usage();
-      return 0;
-    } else
-      throw std::invalid_argument("unknown option " + a);
-  }
+  cli::CommandLine cl("gmm_mcl_bench", kUsage);
+  cl.flags({{"backend", &opt.backends}, {"workload", &opt.workloads}, {"map", &opt.map_path},
+            {"large-map", &opt.large_map_path}, {"patch", &opt.patch_px},
+            {"exact", &opt.exact_particles}, {"exact-frames", &opt.exact_frames},
+            {"frames-dir", &opt.frames_dir}, {"frames-raw", &opt.frames_raw},
+            {"export-frames", &opt.export_frames}, {"frames", &opt.frames}, {"warmup", &opt.warmup},
+            {"budget-s", &opt.budget_s}, {"min-timed", &opt.min_timed}, {"threads", &opt.threads},
+            {"particles", &opt.particles}, {"seed", &opt.seed},
+            {"no-depth-noise", cli::Clear{&opt.depth_noise}}, {"spread-m", &opt.spread_m},
+            {"spread-rad", &opt.spread_rad}, {"synthetic", &opt.synthetic},
+            {"cuda-host-prep", &opt.cuda_host_prep}, {"step", &opt.step}});
+  cl.parse(argc, argv);
   if (opt.frames < 1 || opt.warmup < 0) throw std::invalid_argument("--frames >= 1, --warmup >= 0");
   if (opt.patch_px < 1) throw std::invalid_argument("--patch must be >= 1");
   if (opt.exact_particles < 0 || opt.exact_frames < 0) {

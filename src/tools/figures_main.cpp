@@ -22,6 +22,7 @@
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/replay/replay.h"
+#include "gmm_mcl/tools/command_line.h"
 #if defined(GMM_MCL_FIGURES_HAVE_FIT)
 #include "gmm_mcl/figures/map_series.h"
 #endif
@@ -36,8 +37,7 @@ double secondsSince(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-void usage() {
-  std::printf(
+const char* kUsage =
       "usage: gmm_mcl_figures nll-sweep   [common] [--frame F] [--stride PX] [--range-m R]\n"
       "                                   [--step-m S] [--range-rad R] [--step-rad S] [--no-exact]\n"
       "       gmm_mcl_figures sensitivity [common] [--sweep particles|components|both]\n"
@@ -54,8 +54,7 @@ void usage() {
       "the data set's world frame (scripts/build_map_7scenes.sh); without it the M=1000 map is\n"
       "fitted in-process as that script does. --width: synthetic image width (640).\n"
       "Writes OUT/nll_sweep.{csv,txt} or OUT/sensitivity_{samples,summary}.csv and\n"
-      "sensitivity_summary.md; plot them with scripts/plot_figures.py OUT.\n");
-}
+      "sensitivity_summary.md; plot them with scripts/plot_figures.py OUT.\n";
 
 std::vector<int> parseList(const std::string& s) {
   std::vector<int> out;
@@ -63,9 +62,10 @@ std::vector<int> parseList(const std::string& s) {
   std::string item;
   while (std::getline(ss, item, ',')) {
     if (item.empty()) continue;
-    const int v = std::atoi(item.c_str());
-    if (v <= 0) throw std::invalid_argument("bad list entry '" + item + "' in '" + s + "'");
-    out.push_back(v);
+    char* end = nullptr;
+    const long v = std::strtol(item.c_str(), &end, 10);
+    if (*end != '\0' || v <= 0 || v > 1000000000) throw std::invalid_argument("bad list entry '" + item + "' in '" + s + "'");
+    out.push_back(static_cast<int>(v));
   }
   if (out.empty()) throw std::invalid_argument("empty list '" + s + "'");
   return out;
@@ -110,64 +110,37 @@ struct Options {
 };
 
 void parseArgs(int argc, char** argv, Options* o) {
-  if (argc < 2) {
-    usage();
-    std::exit(2);
-  }
-  o->command = argv[1];
-  if (o->command == "--help" || o->command == "-h") {
-    usage();
-    std::exit(0);
-  }
-  for (int i = 2; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> std::string {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "missing value after %s\n", a.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (a == "--scene") o->scene = next();
-    else if (a == "--dataset") o->dataset = next();
-    else if (a == "--map") o->map_path = next();
-    else if (a == "--out") o->out_dir = next();
-    else if (a == "--width") o->width_px = std::atoi(next().c_str());
-    else if (a == "--quiet") o->quiet = true;
-    else if (a == "--frame") {
-      o->frame = std::atoi(next().c_str());
-      o->frame_given = true;
-    } else if (a == "--stride") {
-      o->stride = std::atoi(next().c_str());
-      o->stride_given = true;
-    } else if (a == "--range-m") o->sweep.half_range_m = std::atof(next().c_str());
-    else if (a == "--step-m") o->sweep.step_m = std::atof(next().c_str());
-    else if (a == "--range-rad") o->sweep.half_range_rad = std::atof(next().c_str());
-    else if (a == "--step-rad") o->sweep.step_rad = std::atof(next().c_str());
-    else if (a == "--no-exact") o->sweep.exact = false;
-    else if (a == "--sweep") o->which = next();
-    else if (a == "--particles-list") o->particle_counts = parseList(next());
-    else if (a == "--reference-particles") o->reference_particles = std::atoi(next().c_str());
-    else if (a == "--components-list") o->component_counts = parseList(next());
-    else if (a == "--reference-components") o->reference_components = std::atoi(next().c_str());
-    else if (a == "--component-particles") o->component_particles = std::atoi(next().c_str());
-    else if (a == "--component-reference-particles") {
-      o->component_reference_particles = std::atoi(next().c_str());
-    } else if (a == "--runs") o->runs = std::atoi(next().c_str());
-    else if (a == "--frames") o->frames = std::atoi(next().c_str());
-    else if (a == "--first-frame") o->first_frame = std::atoi(next().c_str()); else if (a == "--eval-from") o->eval_from = std::atoi(next().c_str());
-    else if (a == "--init") o->init = next();
-    else if (a == "--data-seed") o->data_seed = std::strtoull(next().c_str(), nullptr, 10);
-    else if (a == "--max-iter") o->max_iter = std::atoi(next().c_str());
-    else if (a == "--help" || a == "-h") {
-      usage();
-      std::exit(0);
-    } else {
-      std::fprintf(stderr, "unknown option %s\n", a.c_str());
-      usage();
-      std::exit(2);
+  std::string particle_list, component_list;
+  cli::CommandLine cl("gmm_mcl_figures", kUsage);
+  cl.flags({{"command", &o->command}, {"scene", &o->scene}, {"dataset", &o->dataset},
+            {"map", &o->map_path}, {"out", &o->out_dir}, {"width", &o->width_px},
+            {"quiet", &o->quiet}, {"frame", &o->frame}, {"stride", &o->stride},
+            {"range-m", &o->sweep.half_range_m}, {"step-m", &o->sweep.step_m},
+            {"range-rad", &o->sweep.half_range_rad}, {"step-rad", &o->sweep.step_rad},
+            {"no-exact", cli::Clear{&o->sweep.exact}}, {"sweep", &o->which},
+            {"particles-list", &particle_list}, {"reference-particles", &o->reference_particles},
+            {"components-list", &component_list},
+            {"reference-components", &o->reference_components},
+            {"component-particles", &o->component_particles},
+            {"component-reference-particles", &o->component_reference_particles},
+            {"runs", &o->runs}, {"frames", &o->frames}, {"first-frame", &o->first_frame},
+            {"eval-from", &o->eval_from}, {"init", &o->init}, {"data-seed", &o->data_seed},
+            {"max-iter", &o->max_iter}});
+  cl.positional("command");
+  cl.parse(argc, argv);
+  if (o->command.empty()) cl.fail("a command is needed (nll-sweep or sensitivity)");
+  o->frame_given = cl.given("frame");
+  o->stride_given = cl.given("stride");
+  auto list = [&cl](const char* flag, const std::string& text, std::vector<int>* out) {
+    if (text.empty()) return;
+    try {
+      *out = parseList(text);
+    } catch (const std::invalid_argument& e) {
+      cl.fail(std::string("--") + flag + ": " + e.what());
     }
-  }
+  };
+  list("particles-list", particle_list, &o->particle_counts);
+  list("components-list", component_list, &o->component_counts);
 }
 
 std::string exeDir(const char* argv0) {
@@ -399,8 +372,7 @@ int main(int argc, char** argv) {
   try {
     if (o.command == "nll-sweep") return runNllSweep(o, argv[0]);
     if (o.command == "sensitivity") return runSensitivity(o, argv[0]);
-    std::fprintf(stderr, "unknown command '%s'\n", o.command.c_str());
-    usage();
+    std::fprintf(stderr, "gmm_mcl_figures: unknown command '%s'\n\n%s", o.command.c_str(), kUsage);
     return 2;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "gmm_mcl_figures: %s\n", e.what());

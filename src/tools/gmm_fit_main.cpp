@@ -19,6 +19,7 @@
 #include "gmm_mcl/fit/point_cloud_io.h"
 #include "gmm_mcl/fit/seven_scenes_cloud.h"
 #include "gmm_mcl/map/gmm_map_io.h"
+#include "gmm_mcl/tools/command_line.h"
 
 namespace {
 
@@ -71,29 +72,6 @@ const char* kUsage =
   std::exit(2);
 }
 
-struct Args {
-  std::vector<std::string> v;
-  size_t i = 1;
-  std::string next(const std::string& opt) {
-    if (i >= v.size()) usageError(opt + " needs a value");
-    return v[i++];
-  }
-  double number(const std::string& opt) {
-    const std::string s = next(opt);
-    char* end = nullptr;
-    const double x = std::strtod(s.c_str(), &end);
-    if (end == s.c_str() || *end != '\0') usageError(opt + ": '" + s + "' is not a number");
-    return x;
-  }
-  long integer(const std::string& opt) {
-    const std::string s = next(opt);
-    char* end = nullptr;
-    const long x = std::strtol(s.c_str(), &end, 10);
-    if (end == s.c_str() || *end != '\0') usageError(opt + ": '" + s + "' is not an integer");
-    return x;
-  }
-};
-
 std::string jsonNumber(double v) {
   if (!std::isfinite(v)) return "null";
   std::ostringstream o;
@@ -105,95 +83,51 @@ std::string jsonNumber(double v) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  Args a;
-  a.v.assign(argv, argv + argc);
   std::string input, output, save_cloud, stats_json, init_means_path, seven_dir, import_path;
-  bool quiet = false, use_vertices = false, voxel_set = false;
-  size_t mesh_samples = 1000000;
+  bool quiet = false, use_vertices = false;
+  long mesh_samples = 1000000;
   int threads = 0;
   EmParams em;
   CloudFilterParams filter;
   SevenScenesCloudParams seven;
-  while (a.i < a.v.size()) {
-    const std::string opt = a.v[a.i++];
-    if (opt == "-h" || opt == "--help") {
-      std::cout << kUsage;
-      return 0;
-    } else if (opt == "--import") {
-      import_path = a.next(opt);
-    } else if (opt == "-o" || opt == "--output") {
-      output = a.next(opt);
-    } else if (opt == "--save-cloud") {
-      save_cloud = a.next(opt);
-    } else if (opt == "--stats-json") {
-      stats_json = a.next(opt);
-    } else if (opt == "-q" || opt == "--quiet") {
-      quiet = true;
-    } else if (opt == "-m" || opt == "--components") {
-      em.components = static_cast<int>(a.integer(opt));
-    } else if (opt == "--max-iter") {
-      em.max_iterations = static_cast<int>(a.integer(opt));
-    } else if (opt == "--tol") {
-      em.tolerance = a.number(opt);
-    } else if (opt == "--reg-covar") {
-      em.reg_covar_m2 = a.number(opt);
-    } else if (opt == "--init") {
-      const std::string s = a.next(opt);
-      if (s == "kmeans")
-        em.init = EmInit::kKMeans;
-      else if (s == "kmeans++" || s == "k-means++")
-        em.init = EmInit::kKMeansPlusPlus;
-      else
-        usageError("--init must be kmeans or kmeans++");
-    } else if (opt == "--kmeans-iter") {
-      em.kmeans_iterations = static_cast<int>(a.integer(opt));
-    } else if (opt == "--init-means") {
-      init_means_path = a.next(opt);
-    } else if (opt == "--seed") {
-      em.seed = static_cast<uint64_t>(a.integer(opt));
-    } else if (opt == "--prune-sigma") {
-      em.prune_sigma = a.number(opt);
-    } else if (opt == "--cell-size") {
-      em.cell_size_m = a.number(opt);
-    } else if (opt == "--threads") {
-      threads = static_cast<int>(a.integer(opt));
-    } else if (opt == "--crop-box") {
-      filter.use_box = true;
-      for (int k = 0; k < 3; ++k) filter.box_min_m[k] = static_cast<float>(a.number(opt));
-      for (int k = 0; k < 3; ++k) filter.box_max_m[k] = static_cast<float>(a.number(opt));
-    } else if (opt == "--crop-range") {
-      filter.min_range_m = static_cast<float>(a.number(opt));
-      filter.max_range_m = static_cast<float>(a.number(opt));
-    } else if (opt == "--range-centre" || opt == "--range-center") {
-      for (int k = 0; k < 3; ++k) filter.range_centre_m[k] = static_cast<float>(a.number(opt));
-    } else if (opt == "--voxel") {
-      filter.voxel_m = static_cast<float>(a.number(opt));
-      voxel_set = true;
-    } else if (opt == "--mesh-samples") {
-      const long n = a.integer(opt);
-      if (n < 1) usageError("--mesh-samples must be >= 1");
-      mesh_samples = static_cast<size_t>(n);
-    } else if (opt == "--use-vertices") {
-      use_vertices = true;
-    } else if (opt == "--7scenes") {
-      seven_dir = a.next(opt);
-    } else if (opt == "--first") {
-      seven.first_frame = static_cast<int>(a.integer(opt));
-    } else if (opt == "--last") {
-      seven.last_frame = static_cast<int>(a.integer(opt));
-    } else if (opt == "--step") {
-      seven.frame_step = static_cast<int>(a.integer(opt));
-    } else if (opt == "--min-depth") {
-      seven.min_depth_m = static_cast<float>(a.number(opt));
-    } else if (opt == "--max-depth") {
-      seven.max_depth_m = static_cast<float>(a.number(opt));
-    } else if (!opt.empty() && opt[0] == '-') {
-      usageError("unknown option " + opt);
-    } else if (input.empty()) {
-      input = opt;
-    } else {
-      usageError("more than one input given ('" + input + "', '" + opt + "')");
-    }
+  std::string init = "kmeans";
+  std::vector<double> crop_box, crop_range, range_centre;
+  cli::CommandLine cl("gmm_fit", kUsage);
+  cl.flags({{"input", &input}, {"import", &import_path}, {"output,o", &output},
+            {"save-cloud", &save_cloud}, {"stats-json", &stats_json}, {"quiet,q", &quiet},
+            {"components,m", &em.components}, {"max-iter", &em.max_iterations},
+            {"tol", &em.tolerance}, {"reg-covar", &em.reg_covar_m2}, {"init", &init},
+            {"kmeans-iter", &em.kmeans_iterations}, {"init-means", &init_means_path},
+            {"seed", &em.seed}, {"prune-sigma", &em.prune_sigma}, {"cell-size", &em.cell_size_m},
+            {"threads", &threads}, {"voxel", &filter.voxel_m}, {"mesh-samples", &mesh_samples},
+            {"use-vertices", &use_vertices}, {"7scenes", &seven_dir}, {"first", &seven.first_frame},
+            {"last", &seven.last_frame}, {"step", &seven.frame_step},
+            {"min-depth", &seven.min_depth_m}, {"max-depth", &seven.max_depth_m}});
+  cl.addNumbers("crop-box", 6, &crop_box);
+  cl.addNumbers("crop-range", 2, &crop_range);
+  cl.addNumbers("range-centre", 3, &range_centre);
+  cl.alias("range-center", "range-centre");
+  cl.positional("input");
+  cl.parse(argc, argv);
+  const bool voxel_set = cl.given("voxel");
+  if (init == "kmeans")
+    em.init = EmInit::kKMeans;
+  else if (init == "kmeans++" || init == "k-means++")
+    em.init = EmInit::kKMeansPlusPlus;
+  else
+    usageError("--init must be kmeans or kmeans++");
+  if (mesh_samples < 1) usageError("--mesh-samples must be >= 1");
+  if (!crop_box.empty()) {
+    filter.use_box = true;
+    for (int k = 0; k < 3; ++k) filter.box_min_m[k] = static_cast<float>(crop_box[k]);
+    for (int k = 0; k < 3; ++k) filter.box_max_m[k] = static_cast<float>(crop_box[3 + k]);
+  }
+  if (!crop_range.empty()) {
+    filter.min_range_m = static_cast<float>(crop_range[0]);
+    filter.max_range_m = static_cast<float>(crop_range[1]);
+  }
+  for (size_t k = 0; k < range_centre.size(); ++k) {
+    filter.range_centre_m[k] = static_cast<float>(range_centre[k]);
   }
   if (!import_path.empty()) {
     if (!input.empty() || !seven_dir.empty()) usageError("--import takes no INPUT or --7scenes");

@@ -12,24 +12,25 @@
 
 #include "gmm_mcl/reliability/kidnap.h"
 #include "gmm_mcl/sim/mesh_scene.h"
+#include "gmm_mcl/tools/command_line.h"
 
 using namespace gmm_mcl;
 using namespace gmm_mcl::reliability;
 
 namespace {
 
-void usage() {
-  std::printf(
+const char* kUsage =
       "usage: gmm_mcl_kidnap [--scene synthetic|box|7scenes|tum|stanford] [--map MAP.gmm]\n"
       "                      [--dataset DIR]\n"
       "                      [--trials N] [--first-seed S] [--stride PX] [--particles MAX]\n"
       "                      [--width PX] [--track-frames N] [--after-frames N] [--start-frame F]\n"
       "                      [--backend cpu|cuda]\n"
       "                      [--weighting paper|tempered] [--temperature T]\n"
-      "                      [--process-noise M,RAD] [--attitude-noise DEG]\n"
-      "                      [--no-lost-detector]\n"
-      "                      [--candidates K] [--reinit-fraction F] [--margin NATS]\n"
-      "                      [--grace FRAMES] [--lost-frames FRAMES] [--min-particles MIN]\n"
+      "                      [--sigma-translation-m M] [--sigma-yaw-rad RAD]\n"
+      "                      [--attitude-noise DEG] [--no-lost-detector]\n"
+      "                      [--lost-candidates-per-particle K] [--lost-reinit-fraction F]\n"
+      "                      [--lost-margin-nats NATS] [--lost-grace-frames FRAMES]\n"
+      "                      [--lost-frames FRAMES] [--min-particles MIN]\n"
       "                      [--depth-noise A,B,Z0] [--out DIR] [--init region|map]\n"
       "Particles: MIN..MAX by KLD-sampling (default 1068..3000 on the CPU, 1068..100000 with\n"
       "CUDA; MIN = MAX: fixed).\n"
@@ -37,13 +38,13 @@ void usage() {
       "region around the start, or with --init map over the whole map (its bounds, full yaw).\n"
       "--width: the synthetic scenes' camera width (f = 585 px at 640, scaled; default 640).\n"
       "7scenes needs --map (scripts/build_map_7scenes.sh); DIR defaults to\n"
-      "$GMM_MCL_DATASETS/7scenes_redkitchen/data, else ../shared/datasets/...\n");
-}
+      "$GMM_MCL_DATASETS/7scenes_redkitchen/data, else ../shared/datasets/...\n"
+      "Filter parameters: every one as --name-with-dashes (the list under --help).\n";
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string scene = "synthetic", map_path, backend = "cpu", weighting = "tempered";
+  std::string scene = "synthetic", map_path, backend = "cpu";
   const char* env = std::getenv("GMM_MCL_DATASETS");
   std::string dataset =
       std::string(env && *env ? env : "../shared/datasets") + "/7scenes_redkitchen/data";
@@ -51,86 +52,40 @@ int main(int argc, char** argv) {
   uint64_t first_seed = 1;
   KidnapParams kp;
   bool lost_detector = true;
-  std::string out_dir;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> const char* {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "missing value after %s\n", a.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (a == "--scene") scene = next();
-    else if (a == "--map") map_path = next();
-    else if (a == "--dataset") dataset = next();
-    else if (a == "--trials") trials = std::atoi(next());
-    else if (a == "--first-seed") first_seed = std::strtoull(next(), nullptr, 10);
-    else if (a == "--stride") stride = std::atoi(next());
-    else if (a == "--width") width = std::atoi(next());
-    else if (a == "--particles") particles = std::atoi(next());
-    else if (a == "--track-frames") kp.track_frames = std::atoi(next());
-    else if (a == "--after-frames") kp.after_frames = std::atoi(next());
-    else if (a == "--start-frame") kp.start_frame = std::atoi(next());
-    else if (a == "--backend") backend = next();
-    else if (a == "--weighting") weighting = next();
-    else if (a == "--temperature") kp.localizer.filter.temperature = std::atof(next());
-    else if (a == "--attitude-noise") kp.attitude_sigma_rad = std::atof(next()) * M_PI / 180.0;
-    else if (a == "--process-noise") {
-      double t = 0, y = 0;
-      if (std::sscanf(next(), "%lf,%lf", &t, &y) != 2) {
-        std::fprintf(stderr, "gmm_mcl_kidnap: --process-noise: expected M,RAD\n");
-        return 2;
-      }
-      kp.localizer.filter.sigma_translation_m = t;
-      kp.localizer.filter.sigma_yaw_rad = y;
-    }
-    else if (a == "--no-lost-detector") lost_detector = false;
-    else if (a == "--candidates") kp.localizer.lost.candidates_per_particle = std::atoi(next());
-    else if (a == "--reinit-fraction") kp.localizer.lost.reinit_fraction = std::atof(next());
-    else if (a == "--margin") kp.localizer.lost.margin_nats = std::atof(next());
-    else if (a == "--grace") kp.localizer.lost.grace_frames = std::atoi(next());
-    else if (a == "--lost-frames") kp.localizer.lost.frames = std::atoi(next());
-    else if (a == "--out") out_dir = next();
-    else if (a == "--init") {
-      const std::string v = next();
-      if (v != "region" && v != "map") {
-        std::fprintf(stderr, "--init: region or map (got '%s')\n", v.c_str());
-        return 2;
-      }
-      kp.whole_map_start = v == "map";
-    }
-    else if (a == "--min-particles") min_particles = std::atoi(next());
-    else if (a == "--depth-noise") {
-      const char* v = next();
-      DepthNoiseModel& n = kp.localizer.measurement.depth_noise;
-      if (std::sscanf(v, "%f,%f,%f", &n.a_m, &n.b_per_m, &n.z0_m) != 3) {
-        std::fprintf(stderr, "--depth-noise: expected A,B,Z0 (got '%s')\n", v);
-        return 2;
-      }
-    }
-    else {
-      usage();
-      return a == "--help" || a == "-h" ? 0 : 2;
-    }
-  }
+  std::string out_dir, init = "region";
+  double attitude_noise_deg = kp.attitude_sigma_rad * 180.0 / M_PI;
+  cli::CommandLine cl("gmm_mcl_kidnap", kUsage);
+  cl.flags({{"scene", &scene}, {"map", &map_path}, {"dataset", &dataset}, {"trials", &trials},
+            {"first-seed", &first_seed}, {"stride", &stride}, {"width", &width},
+            {"particles", &particles}, {"min-particles", &min_particles},
+            {"track-frames", &kp.track_frames}, {"after-frames", &kp.after_frames},
+            {"start-frame", &kp.start_frame}, {"backend", &backend},
+            {"attitude-noise", &attitude_noise_deg},
+            {"no-lost-detector", cli::Clear{&lost_detector}}, {"out", &out_dir}, {"init", &init}});
+  cl.addLocalizerParams(&kp.localizer, {"num_particles", "min_particles", "pixel_stride",
+                                        "backend", "device_filter", "seed", "init_centre",
+                                        "init_half_extent", "init_yaw_centre",
+                                        "init_yaw_half_range"});
+  cl.addDepthNoise(&kp.localizer.measurement.depth_noise);
+  cl.parse(argc, argv);
+  if (cl.given("attitude-noise")) kp.attitude_sigma_rad = attitude_noise_deg * M_PI / 180.0;
+  if (init != "region" && init != "map") cl.fail("--init: region or map (got '" + init + "')");
+  kp.whole_map_start = init == "map";
   try {
     std::unique_ptr<FrameSource> src;
     if (scene == "synthetic" || scene == "box") {
       const Intrinsics K = sim::defaultCamera(width);  // f = 585 px at 640 px, scaled
       src = scene == "box" ? makeBoxSceneSource(K, 1500) : makeSyntheticSource(K, 1500);
       kp.localizer.frame.pixel_stride = stride > 0 ? stride : 8;
-      kp.localizer.frame.max_range_m = 8.f;
+      if (!cl.given("max-range-m")) kp.localizer.frame.max_range_m = 8.f;
     } else if (scene == "7scenes" || scene == "tum" || scene == "stanford") {
       if (map_path.empty() || (scene != "7scenes" && dataset.empty())) {
-        usage();
-        return 2;
+        cl.fail("--scene " + scene + " needs --map" + (scene == "7scenes" ? "" : " and --dataset"));
       }
       src = makeSequenceSource(scene, dataset, map_path);
       kp.localizer.frame.pixel_stride = stride > 0 ? stride : 8;
     } else {
-      usage();
-      return 2;
+      cl.fail("--scene: unknown scene '" + scene + "'");
     }
     if (kp.whole_map_start && kp.track_frames != 0) {
       std::fprintf(stderr, "--init map is for global localisation trials (--track-frames 0)\n");
@@ -143,16 +98,12 @@ int main(int argc, char** argv) {
     kp.localizer.filter.num_particles = particles;
     kp.localizer.filter.min_particles = min_particles;
     kp.localizer.backend = backend;
-    if (!parseWeightingMode(weighting, &kp.localizer.filter.weighting)) {
-      std::fprintf(stderr, "unknown weighting '%s'\n", weighting.c_str());
-      return 2;
-    }
     if (!lost_detector) kp.localizer.lost.margin_nats = 0.0;
     std::printf("gmm_mcl kidnap: %s, %d..%d particles, stride %d, %s weighting, lost detector %s, "
                 "%d tracked + %d frames after the kidnap; %d candidates per redrawn particle, "
                 "redraw fraction %.2f, margin %.1f nats/px\n\n",
                 src->name().c_str(), min_particles, particles, kp.localizer.frame.pixel_stride,
-                weighting.c_str(), lost_detector ? "on" : "off", kp.track_frames,
+                weightingModeName(kp.localizer.filter.weighting), lost_detector ? "on" : "off", kp.track_frames,
                 kp.after_frames, kp.localizer.lost.candidates_per_particle,
                 kp.localizer.lost.reinit_fraction, kp.localizer.lost.margin_nats);
     std::printf("| seed | frames | jump (m) | yaw jump (deg) | error before (cm) | recovered in (s) "

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "gmm_mcl/common/number_list.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/replay/sequence_base.h"
 #include "gmm_mcl/replay/sequence_writer.h"
@@ -21,13 +22,13 @@
 #include "gmm_mcl/sim/mesh_renderer.h"
 #include "gmm_mcl/sim/mesh_scene.h"
 #include "gmm_mcl/sim/trajectory_io.h"
+#include "gmm_mcl/tools/command_line.h"
 
 using namespace gmm_mcl;
 
 namespace {
 
-void usage() {
-  std::printf(
+const char* kUsage =
       "usage: gmm_mcl_render --out DIR [--mesh FILE.ply] [--trajectory FILE] [--camera SPEC]\n"
       "                      [--first I] [--frames N] [--stride K] [--rate HZ] [--start-time S]\n"
       "                      [--seed S] [--no-noise] [--dropout P] [--max-range M]\n"
@@ -45,23 +46,7 @@ void usage() {
       "  --no-noise    ideal depth (only the range window of --max-range)\n"
       "  --dropout P   probability that a pixel is missing at random (default 0.005)\n"
       "  --down        gravity direction in world coordinates (default 0,0,-1: z up)\n"
-      "  --save-map    the built-in scene's tiled GMM (0.4 m tiles, 1.5 cm normal sigma)\n");
-}
-
-std::vector<double> csvNumbers(const std::string& s) {
-  std::vector<double> v;
-  std::stringstream ss(s);
-  std::string tok;
-  while (std::getline(ss, tok, ',')) {
-    char* end = nullptr;
-    const double x = std::strtod(tok.c_str(), &end);
-    if (end == tok.c_str() || *end != '\0' || !std::isfinite(x)) {
-      throw std::runtime_error("'" + s + "' is not a list of numbers");
-    }
-    v.push_back(x);
-  }
-  return v;
-}
+      "  --save-map    the built-in scene's tiled GMM (0.4 m tiles, 1.5 cm normal sigma)\n";
 
 // True when the first pose line of a file has 16 numbers (a 4x4 matrix per line).
 bool isMatrixTrajectory(const std::string& path) {
@@ -140,44 +125,19 @@ int run(int argc, char** argv) {
   double rate_hz = 30.0, start_s = 0.0, max_range_m = 10.0;
   uint64_t seed = 1;
   bool noise = true, quiet = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> std::string {
-      if (i + 1 >= argc) throw std::runtime_error("missing value after " + a);
-      return argv[++i];
-    };
-    if (a == "--out") out = next();
-    else if (a == "--mesh") mesh_path = next();
-    else if (a == "--trajectory") traj_path = next();
-    else if (a == "--camera") camera = next();
-    else if (a == "--first") first = std::atoi(next().c_str());
-    else if (a == "--frames") frames = std::atoi(next().c_str());
-    else if (a == "--stride") stride = std::atoi(next().c_str());
-    else if (a == "--rate") rate_hz = std::atof(next().c_str());
-    else if (a == "--start-time") start_s = std::atof(next().c_str());
-    else if (a == "--seed") seed = std::strtoull(next().c_str(), nullptr, 10);
-    else if (a == "--no-noise") noise = false;
-    else if (a == "--dropout") sensor.random_dropout = std::atof(next().c_str());
-    else if (a == "--max-range") max_range_m = std::atof(next().c_str());
-    else if (a == "--down") down = next();
-    else if (a == "--width") width_px = std::atoi(next().c_str());
-    else if (a == "--save-map") save_map = next();
-    else if (a == "--save-mesh") save_mesh = next();
-    else if (a == "--quiet") quiet = true;
-    else if (a == "--help" || a == "-h") {
-      usage();
-      return 0;
-    } else {
-      usage();
-      return 2;
-    }
-  }
+  cli::CommandLine cl("gmm_mcl_render", kUsage);
+  cl.flags({{"out", &out}, {"mesh", &mesh_path}, {"trajectory", &traj_path}, {"camera", &camera},
+            {"first", &first}, {"frames", &frames}, {"stride", &stride}, {"rate", &rate_hz},
+            {"start-time", &start_s}, {"seed", &seed}, {"no-noise", cli::Clear{&noise}},
+            {"dropout", &sensor.random_dropout}, {"max-range", &max_range_m}, {"down", &down},
+            {"width", &width_px}, {"save-map", &save_map}, {"save-mesh", &save_mesh},
+            {"quiet", &quiet}});
+  cl.parse(argc, argv);
   const std::string sensor_err = sensor.validate();
   if (!sensor_err.empty()) throw std::runtime_error("sensor model: " + sensor_err);
-  if (out.empty() || stride < 1 || first < 0 || !(rate_hz > 0.0) || !(max_range_m > 0.0) ||
-      width_px < 16) {
-    usage();
-    return 2;
+  if (out.empty()) cl.fail("--out is needed");
+  if (stride < 1 || first < 0 || !(rate_hz > 0.0) || !(max_range_m > 0.0) || width_px < 16) {
+    cl.fail("--stride >= 1, --first >= 0, --rate > 0, --max-range > 0 and --width >= 16");
   }
 
   // Mesh.
@@ -213,7 +173,7 @@ int run(int argc, char** argv) {
       double units;
       sim::readReplicaCamera(camera, &K, &units);
     } else {
-      const std::vector<double> v = csvNumbers(camera);
+      const std::vector<double> v = parseNumberList(camera);
       if (v.size() != 6) throw std::runtime_error("--camera: expected fx,fy,cx,cy,width,height");
       const double Km[9] = {v[0], 0, v[2], 0, v[1], v[3], 0, 0, 1};
       K = makeIntrinsics(Km, static_cast<int>(v[4]), static_cast<int>(v[5]));
@@ -251,7 +211,7 @@ int run(int argc, char** argv) {
     }
   }
 
-  const std::vector<double> g = csvNumbers(down);
+  const std::vector<double> g = parseNumberList(down);
   if (g.size() != 3 || Eigen::Vector3d(g[0], g[1], g[2]).norm() < 1e-9) {
     throw std::runtime_error("--down: expected a non-zero gx,gy,gz");
   }

@@ -17,22 +17,23 @@
 #include "gmm_mcl/replay/replay.h"
 #include "gmm_mcl/replay/sequence_writer.h"
 #include "gmm_mcl/replay/sim_sequence.h"
+#include "gmm_mcl/tools/sequence_flags.h"
 
 using namespace gmm_mcl;
 
 namespace {
 
-void usage() {
-  std::printf(
+const char* kUsage =
       "usage: gmm_mcl_replay --map MAP.gmm [--format 7scenes|tum|stanford] [--dataset DIR]\n"
       "                      [--trials N] [--first-seed S] [--frames N] [--stride PX]\n"
       "                      [--particles MAX] [--min-particles MIN] [--weighting paper|tempered]\n"
       "                      [--temperature T]\n"
       "                      [--backend cpu|cuda] [--host-filter]\n"
-      "                      [--neff-floor F] [--init-half-extent M] [--init-yaw-half-range RAD]\n"
-      "                      [--init cube|map] [--depth-noise A,B,Z0] [--min-range M]\n"
-      "                      [--max-range M] [--floor NATS]\n"
-      "                      [--lost-margin NATS] [--lost-grace FRAMES] [--candidates K]\n"
+      "                      [--neff-floor-fraction F] [--init-half-extent M]\n"
+      "                      [--init-yaw-half-range RAD] [--init cube|map] [--depth-noise A,B,Z0]\n"
+      "                      [--min-range-m M] [--max-range-m M] [--floor-log-density NATS]\n"
+      "                      [--lost-margin-nats NATS] [--lost-grace-frames FRAMES]\n"
+      "                      [--lost-candidates-per-particle K]\n"
       "                      [--hold-frames N (30)] [--tail-frames N (100)]\n"
       "                      [--out DIR] [--quiet]\n"
       "       folder options: [--intrinsics fr1|fr2|fr3|icl|kinect|fx,fy,cx,cy|FILE]\n"
@@ -54,8 +55,8 @@ void usage() {
       "--make-fixture writes the synthetic scene as a folder of that format and DIR/map.gmm;\n"
       "--convert writes the data set in another folder format (with intrinsics.txt and\n"
       "gravity-direction.txt); --convert-stride keeps only the pixels on that stride's grid (the\n"
-      "same input for a filter of that stride, a fraction of the bytes; TUM only).\n");
-}
+      "same input for a filter of that stride, a fraction of the bytes; TUM only).\n"
+      "Filter parameters: every one as --name-with-dashes (the list under --help).\n";
 
 int makeFixture(const std::string& format, const std::string& dir, int frames, int width,
                 uint64_t seed) {
@@ -107,93 +108,44 @@ std::string defaultDataset() {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string dataset, map_path, out_dir, weighting = "tempered", format = "7scenes";
+  std::string dataset, map_path, out_dir, format = "7scenes";
   std::string backend = "cpu";
-  std::string fixture_format, fixture_dir, convert_format, convert_dir;
+  std::vector<std::string> fixture, convert;
   int trials = 10, frames = -1, stride = 4, particles = -1, width = 160;
   int min_particles = -1, convert_stride = 1;
   uint64_t first_seed = 1;
-  double temperature = -1.0, neff_floor = -1.0;
-  LostDetectionParams lost;
   double init_half_extent_m = 2.0, init_yaw_half_range_rad = 0.5 * M_PI;
   SequenceOptions so;
   int hold_frames = -1, tail_frames = -1;
   bool quiet = false;
   bool host_filter = false;
   std::string init = "cube";
-  MeasurementParams measurement;
-  FrameParams frame_params;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> const char* {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "missing value after %s\n", a.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (a == "--map") map_path = next();
-    else if (a == "--dataset") dataset = next();
-    else if (a == "--trials") trials = std::atoi(next());
-    else if (a == "--first-seed") first_seed = std::strtoull(next(), nullptr, 10);
-    else if (a == "--frames") frames = std::atoi(next());
-    else if (a == "--stride") stride = std::atoi(next());
-    else if (a == "--particles") particles = std::atoi(next());
-    else if (a == "--min-particles") min_particles = std::atoi(next());
-    else if (a == "--weighting") weighting = next();
-    else if (a == "--backend") backend = next();
-    else if (a == "--temperature") temperature = std::atof(next());
-    else if (a == "--neff-floor") neff_floor = std::atof(next());
-    else if (a == "--lost-margin") lost.margin_nats = std::atof(next());
-    else if (a == "--lost-grace") lost.grace_frames = std::atoi(next());
-    else if (a == "--candidates") lost.candidates_per_particle = std::atoi(next());
-    else if (a == "--out") out_dir = next();
-    else if (a == "--format") format = next();
-    else if (a == "--intrinsics") so.intrinsics = next();
-    else if (a == "--depth-scale") so.depth_units_per_m = std::atof(next());
-    else if (a == "--tolerance") so.association_tolerance_s = std::atof(next());
-    else if (a == "--gravity") so.gravity = next();
-    else if (a == "--trajectory") so.trajectory = next();
-    else if (a == "--rate") so.frame_rate_hz = std::atof(next());
-    else if (a == "--init-half-extent") init_half_extent_m = std::atof(next());
-    else if (a == "--init") init = next();
-    else if (a == "--depth-noise") {
-      const std::string v = next();
-      if (std::sscanf(v.c_str(), "%f,%f,%f", &measurement.depth_noise.a_m,
-                      &measurement.depth_noise.b_per_m, &measurement.depth_noise.z0_m) != 3) {
-        std::fprintf(stderr, "--depth-noise: expected A,B,Z0 (got '%s')\n", v.c_str());
-        return 2;
-      }
-    }
-    else if (a == "--min-range") frame_params.min_range_m = static_cast<float>(std::atof(next()));
-    else if (a == "--max-range") frame_params.max_range_m = static_cast<float>(std::atof(next()));
-    else if (a == "--floor") measurement.floor_log_density = static_cast<float>(std::atof(next()));
-    else if (a == "--init-yaw-half-range") init_yaw_half_range_rad = std::atof(next());
-    else if (a == "--width") width = std::atoi(next());
-    else if (a == "--hold-frames") hold_frames = std::atoi(next());
-    else if (a == "--tail-frames") tail_frames = std::atoi(next());
-    else if (a == "--seed") first_seed = std::strtoull(next(), nullptr, 10);
-    else if (a == "--convert-stride") convert_stride = std::atoi(next());
-    else if (a == "--convert") {
-      convert_format = next();
-      convert_dir = next();
-    } else if (a == "--make-fixture") {
-      fixture_format = next();
-      fixture_dir = next();
-    }
-    else if (a == "--quiet") quiet = true;
-    else if (a == "--host-filter") host_filter = true;
-    else {
-      usage();
-      return a == "--help" || a == "-h" ? 0 : 2;
-    }
-  }
+  LocalizerParams lp;  // the filter parameters given on the command line
+  cli::CommandLine cl("gmm_mcl_replay", kUsage);
+  cl.flags({{"map", &map_path}, {"dataset", &dataset}, {"trials", &trials},
+            {"first-seed", &first_seed}, {"frames", &frames}, {"stride", &stride},
+            {"particles", &particles}, {"min-particles", &min_particles}, {"backend", &backend},
+            {"out", &out_dir}, {"format", &format}, {"init-half-extent", &init_half_extent_m},
+            {"init-yaw-half-range", &init_yaw_half_range_rad}, {"init", &init}, {"width", &width},
+            {"hold-frames", &hold_frames}, {"tail-frames", &tail_frames},
+            {"convert-stride", &convert_stride}, {"convert", &convert}, {"make-fixture", &fixture},
+            {"quiet", &quiet}, {"host-filter", &host_filter}});
+  cli::addSequenceFlags(&cl, &so);
+  cl.addLocalizerParams(&lp, {"num_particles", "min_particles", "pixel_stride", "backend",
+                              "device_filter", "seed", "init_centre", "init_half_extent",
+                              "init_yaw_centre", "init_yaw_half_range"});
+  cl.addDepthNoise(&lp.measurement.depth_noise);
+  cl.alias("seed", "first-seed");
+  cl.parse(argc, argv);
+  if (fixture.size() == 1 || fixture.size() > 2) cl.fail("--make-fixture: expected FORMAT DIR");
+  if (convert.size() == 1 || convert.size() > 2) cl.fail("--convert: expected FORMAT DIR");
+  const std::string fixture_format = fixture.empty() ? "" : fixture[0];
+  const std::string fixture_dir = fixture.empty() ? "" : fixture[1];
+  const std::string convert_format = convert.empty() ? "" : convert[0];
+  const std::string convert_dir = convert.empty() ? "" : convert[1];
   try {
     if (!fixture_dir.empty()) return makeFixture(fixture_format, fixture_dir, frames, width, first_seed);
-    if (map_path.empty() && convert_dir.empty()) {
-      usage();
-      return 2;
-    }
+    if (map_path.empty() && convert_dir.empty()) cl.fail("--map is needed");
     if (dataset.empty()) {
       if (format != "7scenes") {
         std::fprintf(stderr, "--format %s needs --dataset DIR\n", format.c_str());
@@ -235,6 +187,7 @@ int main(int argc, char** argv) {
       return 2;
     }
     rp.whole_map_start = init == "map";
+    rp.localizer = lp;
     int default_min, default_max;
     defaultParticleRange(backend, &default_min, &default_max);
     if (particles < 0) particles = default_max;
@@ -243,16 +196,8 @@ int main(int argc, char** argv) {
     rp.localizer.filter.min_particles = min_particles;
     rp.localizer.backend = backend;
     rp.localizer.device_filter = !host_filter;
-    rp.localizer.measurement = measurement;
-    rp.localizer.frame = frame_params;
     rp.localizer.frame.pixel_stride = stride;
-    if (!parseWeightingMode(weighting, &rp.localizer.filter.weighting)) {
-      std::fprintf(stderr, "unknown weighting '%s' (paper, tempered)\n", weighting.c_str());
-      return 2;
-    }
-    if (temperature > 0.0) rp.localizer.filter.temperature = temperature;
-    if (neff_floor >= 0.0) rp.localizer.filter.neff_floor_fraction = neff_floor;
-    rp.localizer.lost = lost;
+    const MeasurementParams& measurement = rp.localizer.measurement;
     if (!out_dir.empty()) mkdir(out_dir.c_str(), 0755);
 
     const Intrinsics& K = seq.intrinsics();
@@ -266,7 +211,7 @@ int main(int argc, char** argv) {
                 map.size(), particles, min_particles > 0 ? min_particles : particles,
                 init == "map" ? "whole map" : "cube", measurement.depth_noise.a_m,
                 measurement.depth_noise.b_per_m, measurement.depth_noise.z0_m, stride,
-                weighting.c_str(), rp.localizer.filter.temperature,
+                weightingModeName(rp.localizer.filter.weighting), rp.localizer.filter.temperature,
                 rp.localizer.filter.neff_floor_fraction, backend.c_str(),
                 backend == "cuda" && !host_filter ? "on the GPU" : "on the host", trials,
                 static_cast<unsigned long long>(first_seed));

@@ -20,16 +20,17 @@
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/measurement/likelihood.h"
 #include "gmm_mcl/replay/replay.h"
+#include "gmm_mcl/tools/command_line.h"
 
 using namespace gmm_mcl;
 
 namespace {
 
-void usage() {
-  std::printf(
+const char* kUsage =
       "usage: gmm_mcl_score --map MAP.gmm [--format 7scenes|tum|stanford] [--dataset DIR]\n"
       "                     [--frame I] [--pose X,Y,Z,YAW] [--stride PX] [--depth-noise A,B,Z0]\n"
-      "                     [--floor NATS] [--min-range M] [--max-range M] [--gravity G]\n"
+      "                     [--floor-log-density NATS] [--min-range-m M] [--max-range-m M]\n"
+      "                     [--gravity G]\n"
       "                     [--per-pixel OUT.csv] [--refine] [--frames FIRST:LAST:STEP]\n"
       "                     [--attitude-noise DEG]\n"
       "The pose is the base in the gravity-aligned map frame (as gmm_mcl_replay's estimates),\n"
@@ -43,23 +44,8 @@ void usage() {
       "(with --refine: where the likelihood's own maximum lies, per frame as CSV on stdout and\n"
       "summarised on stderr): the accuracy that the map and the ground truth allow together.\n"
       "--attitude-noise: with --frames --refine, the refinement's attitude prior at the true roll\n"
-      "and pitch plus this much Gaussian noise (the DESIGN.md protocol's IMU: 0.5).\n");
-}
-
-bool parseNumbers(const char* text, int n, double* out) {
-  std::string s(text);
-  for (int k = 0; k < n; ++k) {
-    char* end = nullptr;
-    out[k] = std::strtod(s.c_str(), &end);
-    if (end == s.c_str() || !std::isfinite(out[k])) return false;
-    s = end;
-    if (k + 1 < n) {
-      if (s.empty() || s[0] != ',') return false;
-      s = s.substr(1);
-    }
-  }
-  return s.empty();
-}
+      "and pitch plus this much Gaussian noise (the DESIGN.md protocol's IMU: 0.5).\n"
+      "Frame and measurement parameters: every one as --name-with-dashes (list under --help).\n";
 
 double median(std::vector<double> v) {
   if (v.empty()) return 0.0;
@@ -155,98 +141,43 @@ int main(int argc, char** argv) {
   double attitude_noise_rad = 0.0;
   bool have_pose = false;
   double pose[4] = {0, 0, 0, 0};
-  MeasurementParams measurement;
-  FrameParams fp;
-  fp.pixel_stride = 8;
+  LocalizerParams lp;  // its frame and measurement parameters
+  lp.frame.pixel_stride = 8;
   SequenceOptions so;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--help" || a == "-h") {
-      usage();
-      return 0;
+  std::string frames_text, pose_text;
+  double attitude_noise_deg = 0.0;
+  cli::CommandLine cl("gmm_mcl_score", kUsage);
+  cl.flags({{"map", &map_path}, {"format", &format}, {"dataset", &dataset},
+            {"gravity", &so.gravity}, {"per-pixel", &per_pixel_path}, {"frame", &frame_index},
+            {"attitude-noise", &attitude_noise_deg}, {"frames", &frames_text},
+            {"stride", &lp.frame.pixel_stride}, {"pose", &pose_text}, {"refine", &refine}});
+  cl.addLocalizerParams(&lp, {"pixel_stride"}, {"frame", "measurement"});
+  cl.addDepthNoise(&lp.measurement.depth_noise);
+  cl.parse(argc, argv);
+  attitude_noise_rad = attitude_noise_deg * M_PI / 180.0;
+  if (!frames_text.empty()) {
+    const std::string& r = frames_text;
+    const size_t c1 = r.find(':'), c2 = r.find(':', c1 == std::string::npos ? c1 : c1 + 1);
+    double a3[3];
+    if (c1 == std::string::npos || c2 == std::string::npos ||
+        !cli::parseNumberList(r.substr(0, c1), 1, &a3[0]) ||
+        !cli::parseNumberList(r.substr(c1 + 1, c2 - c1 - 1), 1, &a3[1]) ||
+        !cli::parseNumberList(r.substr(c2 + 1), 1, &a3[2]) || a3[0] < 0 || a3[1] < a3[0] ||
+        a3[2] < 1) {
+      cl.fail("--frames: expected FIRST:LAST:STEP (got '" + r + "')");
     }
-    if (a == "--refine") {
-      refine = true;
-      continue;
-    }
-    if (i + 1 >= argc) {
-      std::fprintf(stderr, "gmm_mcl_score: %s needs a value\n", a.c_str());
-      return 2;
-    }
-    const char* v = argv[++i];
-    double num[3];
-    auto number = [&](double* out) {
-      if (!parseNumbers(v, 1, out)) {
-        std::fprintf(stderr, "gmm_mcl_score: %s: '%s' is not a number\n", a.c_str(), v);
-        std::exit(2);
-      }
-    };
-    if (a == "--map")
-      map_path = v;
-    else if (a == "--format")
-      format = v;
-    else if (a == "--dataset")
-      dataset = v;
-    else if (a == "--gravity")
-      so.gravity = v;
-    else if (a == "--per-pixel")
-      per_pixel_path = v;
-    else if (a == "--frame") {
-      number(num);
-      frame_index = static_cast<int>(num[0]);
-    } else if (a == "--attitude-noise") {
-      number(num);
-      attitude_noise_rad = num[0] * M_PI / 180.0;
-    } else if (a == "--frames") {
-      const std::string r(v);
-      const size_t c1 = r.find(':'), c2 = r.find(':', c1 == std::string::npos ? c1 : c1 + 1);
-      double a3[3];
-      if (c1 == std::string::npos || c2 == std::string::npos ||
-          !parseNumbers(r.substr(0, c1).c_str(), 1, &a3[0]) ||
-          !parseNumbers(r.substr(c1 + 1, c2 - c1 - 1).c_str(), 1, &a3[1]) ||
-          !parseNumbers(r.substr(c2 + 1).c_str(), 1, &a3[2]) || a3[0] < 0 || a3[1] < a3[0] ||
-          a3[2] < 1) {
-        std::fprintf(stderr, "gmm_mcl_score: --frames: expected FIRST:LAST:STEP (got '%s')\n", v);
-        return 2;
-      }
-      range_first = static_cast<int>(a3[0]);
-      range_last = static_cast<int>(a3[1]);
-      range_step = static_cast<int>(a3[2]);
-    } else if (a == "--stride") {
-      number(num);
-      fp.pixel_stride = static_cast<int>(num[0]);
-    } else if (a == "--floor") {
-      number(num);
-      measurement.floor_log_density = static_cast<float>(num[0]);
-    } else if (a == "--min-range") {
-      number(num);
-      fp.min_range_m = static_cast<float>(num[0]);
-    } else if (a == "--max-range") {
-      number(num);
-      fp.max_range_m = static_cast<float>(num[0]);
-    } else if (a == "--pose") {
-      if (!parseNumbers(v, 4, pose)) {
-        std::fprintf(stderr, "gmm_mcl_score: --pose: expected X,Y,Z,YAW (got '%s')\n", v);
-        return 2;
-      }
-      have_pose = true;
-    } else if (a == "--depth-noise") {
-      if (!parseNumbers(v, 3, num)) {
-        std::fprintf(stderr, "gmm_mcl_score: --depth-noise: expected A,B,Z0 (got '%s')\n", v);
-        return 2;
-      }
-      measurement.depth_noise.a_m = static_cast<float>(num[0]);
-      measurement.depth_noise.b_per_m = static_cast<float>(num[1]);
-      measurement.depth_noise.z0_m = static_cast<float>(num[2]);
-    } else {
-      usage();
-      return 2;
-    }
+    range_first = static_cast<int>(a3[0]);
+    range_last = static_cast<int>(a3[1]);
+    range_step = static_cast<int>(a3[2]);
   }
-  if (map_path.empty()) {
-    usage();
-    return 2;
+  if (!pose_text.empty()) {
+    if (!cli::parseNumberList(pose_text, 4, pose))
+      cl.fail("--pose: expected X,Y,Z,YAW (got '" + pose_text + "')");
+    have_pose = true;
   }
+  const MeasurementParams& measurement = lp.measurement;
+  const FrameParams& fp = lp.frame;
+  if (map_path.empty()) cl.fail("--map is needed");
   try {
     const std::string err = measurement.validate() + fp.validate();
     if (!err.empty()) throw std::invalid_argument(err);

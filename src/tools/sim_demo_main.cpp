@@ -17,60 +17,39 @@
 #include "gmm_mcl/sim/box_scene.h"
 #include "gmm_mcl/sim/mesh_renderer.h"
 #include "gmm_mcl/sim/mesh_scene.h"
+#include "gmm_mcl/tools/command_line.h"
 
 using namespace gmm_mcl;
 
 namespace {
 
-void usage() {
-  std::printf(
+const char* kUsage =
       "usage: gmm_mcl_sim_demo [--frames N] [--particles N] [--seed S] [--stride PX]\n"
       "                        [--weighting paper|tempered] [--temperature T] [--backend cpu|cuda]\n"
       "                        [--width PX] [--map-spacing M] [--map-normal-sigma M]\n"
       "                        [--scene mesh|box] [--no-sensor-noise] [--save-map FILE]\n"
-      "                        [--save-mesh FILE.ply] [--quiet]\n");
-}
+      "                        [--save-mesh FILE.ply] [--quiet]\n"
+      "Filter parameters: every one as --name-with-dashes (the list under --help).\n";
 
 }  // namespace
 
 int main(int argc, char** argv) {
   int frames = 300, particles = kDefaultParticleCount, stride = 8;
-  double temperature = LocalizerParams().filter.temperature;
-  double spacing_m = 0.4, normal_sigma_m = 0.015, neff_floor = -1.0;
+  double spacing_m = 0.4, normal_sigma_m = 0.015;
   int width_px = 640;
   uint64_t seed = 1;
-  std::string weighting = "tempered", backend = "cpu", save_map, save_mesh, scene_name = "mesh";
+  std::string backend = "cpu", save_map, save_mesh, scene_name = "mesh";
   bool quiet = false, sensor_noise = true;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> const char* {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "missing value after %s\n", a.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (a == "--frames") frames = std::atoi(next());
-    else if (a == "--particles") particles = std::atoi(next());
-    else if (a == "--seed") seed = std::strtoull(next(), nullptr, 10);
-    else if (a == "--stride") stride = std::atoi(next());
-    else if (a == "--weighting") weighting = next();
-    else if (a == "--temperature") temperature = std::atof(next());
-    else if (a == "--map-spacing") spacing_m = std::atof(next());
-    else if (a == "--map-normal-sigma") normal_sigma_m = std::atof(next());
-    else if (a == "--width") width_px = std::atoi(next());
-    else if (a == "--neff-floor") neff_floor = std::atof(next());
-    else if (a == "--backend") backend = next();
-    else if (a == "--save-map") save_map = next();
-    else if (a == "--scene") scene_name = next();
-    else if (a == "--no-sensor-noise") sensor_noise = false;
-    else if (a == "--save-mesh") save_mesh = next();
-    else if (a == "--quiet") quiet = true;
-    else {
-      usage();
-      return a == "--help" || a == "-h" ? 0 : 2;
-    }
-  }
+  LocalizerParams params;
+  cli::CommandLine cl("gmm_mcl_sim_demo", kUsage);
+  cl.flags({{"frames", &frames}, {"particles", &particles}, {"seed", &seed}, {"stride", &stride},
+            {"map-spacing", &spacing_m}, {"map-normal-sigma", &normal_sigma_m},
+            {"width", &width_px}, {"backend", &backend}, {"save-map", &save_map},
+            {"scene", &scene_name}, {"no-sensor-noise", cli::Clear{&sensor_noise}},
+            {"save-mesh", &save_mesh}, {"quiet", &quiet}});
+  cl.addLocalizerParams(&params, {"num_particles", "seed", "pixel_stride", "backend",
+                                  "init_centre", "init_yaw_centre"});
+  cl.parse(argc, argv);
 
   if (scene_name != "mesh" && scene_name != "box") {
     std::fprintf(stderr, "unknown scene '%s' (mesh, box)\n", scene_name.c_str());
@@ -93,17 +72,10 @@ int main(int argc, char** argv) {
   const Eigen::Isometry3d T_base_cam = sim::defaultBaseToCamera();
   const Intrinsics K = sim::defaultCamera(width_px);
 
-  LocalizerParams params;
   params.filter.num_particles = particles;
   params.filter.seed = seed;
-  if (!parseWeightingMode(weighting, &params.filter.weighting)) {
-    std::fprintf(stderr, "unknown weighting '%s' (paper, tempered)\n", weighting.c_str());
-    return 2;
-  }
-  params.filter.temperature = temperature;
-  if (neff_floor >= 0.0) params.filter.neff_floor_fraction = neff_floor;
   params.frame.pixel_stride = stride;
-  params.frame.max_range_m = 6.0f;
+  if (!cl.given("max-range-m")) params.frame.max_range_m = 6.0f;
   params.T_base_cam = T_base_cam;
   params.backend = backend;
   const Particle start = poseToParticle(truth[0]);
@@ -115,7 +87,7 @@ int main(int argc, char** argv) {
   }
   std::printf("gmm_mcl demo: synthetic %s scene, %zu components, %d particles, %dx%d depth, stride %d, "
               "%s weighting, %s backend, seed %llu\n",
-              mesh_scene ? "mesh (boxes and cylinders)" : "box", map.size(), particles, K.width_px, K.height_px, stride, weighting.c_str(),
+              mesh_scene ? "mesh (boxes and cylinders)" : "box", map.size(), particles, K.width_px, K.height_px, stride, weightingModeName(params.filter.weighting),
               localizer.backend().name().c_str(), static_cast<unsigned long long>(seed));
 
   // Odometry and attitude noise per the DESIGN.md protocol; depth noise seeded per frame.

@@ -4,6 +4,7 @@
 #include <sys/stat.h>
 
 #include "gmm_mcl/filter/pose.h"
+#include "gmm_mcl/sim/mesh_scene.h"
 
 namespace gmm_mcl {
 namespace test {
@@ -18,15 +19,7 @@ Intrinsics smallCamera() {
   return K;
 }
 
-Intrinsics vgaCamera() {
-  Intrinsics K;
-  K.fx_px = K.fy_px = 585.f;
-  K.cx_px = 320.f;
-  K.cy_px = 240.f;
-  K.width_px = 640;
-  K.height_px = 480;
-  return K;
-}
+Intrinsics vgaCamera() { return sim::sevenScenesCamera(); }
 
 const SyntheticWorld& world() {
   static const SyntheticWorld w = [] {

@@ -54,6 +54,9 @@ MeshScene makeDefaultMeshScene();
 // height 3/4 of it, principal point at the image centre.
 Intrinsics defaultCamera(int width_px);
 
+// The 7-Scenes Kinect camera: 640x480, f = 585 px, principal point (320, 240).
+Intrinsics sevenScenesCamera();
+
 // A per-frame noise seed from a run's seed and the frame index (distinct streams).
 uint64_t frameSeed(uint64_t seed, int frame);
 

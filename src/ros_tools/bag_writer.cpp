@@ -14,6 +14,7 @@
 #include <tf2_msgs/TFMessage.h>
 
 #include "gmm_mcl/camera/depth_frame.h"
+#include "gmm_mcl/common/number_list.h"
 #include "gmm_mcl/ros/conversions.h"
 
 namespace gmm_mcl {
@@ -187,15 +188,7 @@ void writeInitRegionYaml(const std::string& path, const std::string& comment,
 }
 
 bool parseTransform(const std::string& text, Eigen::Isometry3d* out) {
-  std::vector<double> v;
-  std::stringstream ss(text);
-  std::string tok;
-  while (std::getline(ss, tok, ',')) {
-    char* end = nullptr;
-    const double x = std::strtod(tok.c_str(), &end);
-    if (tok.empty() || *end != '\0' || !std::isfinite(x)) return false;
-    v.push_back(x);
-  }
+  const std::vector<double> v = parseNumberList(text);
   if (v.size() != 7) return false;
   const Eigen::Quaterniond q(v[6], v[3], v[4], v[5]);
   if (std::abs(q.norm() - 1.0) > 1e-3) return false;

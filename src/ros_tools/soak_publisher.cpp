@@ -37,8 +37,11 @@
 #include "gmm_mcl/FilterStatus.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/map/gmm_map_io.h"
+#include "gmm_mcl/ros/bag_writer.h"
 #include "gmm_mcl/ros/conversions.h"
 #include "gmm_mcl/sim/box_scene.h"
+#include "gmm_mcl/sim/mesh_scene.h"
+#include "gmm_mcl/tools/command_line.h"
 
 using namespace gmm_mcl;
 
@@ -61,57 +64,32 @@ struct Options {
   double init_half_extent_m = 0.3, init_yaw_half_range_rad = 0.2;
 };
 
-void usage() {
-  std::printf(
-      "usage: gmm_mcl_soak_publisher [--frames N] [--render-frames F] [--width PX] [--period S]\n"
-      "                              [--timeout S] [--first-timeout S] [--linger S] [--seed S]\n"
-      "                              [--status-topic T] [--no-wait-for-monitor]\n"
-      "       gmm_mcl_soak_publisher --write-map FILE.gmm [--write-params FILE.yaml]\n"
-      "                              [--init-half-extent M] [--init-yaw-half-range RAD]\n"
-      "Publishes /camera/depth/image_raw + camera_info, /imu/data, tf odom -> base_link,\n"
-      "/tf_static base_link -> %s, /ground_truth; /soak/sent, /soak/timeouts, /soak/done.\n",
-      kCameraFrame);
-}
-
-bool parse(int argc, char** argv, Options* o) {
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> const char* {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "missing value after %s\n", a.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (a == "--frames") o->frames = std::atoll(next());
-    else if (a == "--render-frames") o->render_frames = std::atoi(next());
-    else if (a == "--width") o->width_px = std::atoi(next());
-    else if (a == "--period") o->period_s = std::atof(next());
-    else if (a == "--timeout") o->timeout_s = std::atof(next());
-    else if (a == "--first-timeout") o->first_timeout_s = std::atof(next());
-    else if (a == "--linger") o->linger_s = std::atof(next());
-    else if (a == "--seed") o->seed = std::strtoull(next(), nullptr, 10);
-    else if (a == "--status-topic") o->status_topic = next();
-    else if (a == "--no-wait-for-monitor") o->wait_for_monitor = false;
-    else if (a == "--write-map") o->write_map = next();
-    else if (a == "--write-params") o->write_params = next();
-    else if (a == "--init-half-extent") o->init_half_extent_m = std::atof(next());
-    else if (a == "--init-yaw-half-range") o->init_yaw_half_range_rad = std::atof(next());
-    else return false;
+// Parses the command line into *o (exits with status 2 on a malformed one).
+void parse(int argc, char** argv, Options* o) {
+  const std::string usage =
+      std::string(
+          "usage: gmm_mcl_soak_publisher [--frames N] [--render-frames F] [--width PX] [--period S]\n"
+          "                              [--timeout S] [--first-timeout S] [--linger S] [--seed S]\n"
+          "                              [--status-topic T] [--no-wait-for-monitor]\n"
+          "       gmm_mcl_soak_publisher --write-map FILE.gmm [--write-params FILE.yaml]\n"
+          "                              [--init-half-extent M] [--init-yaw-half-range RAD]\n"
+          "Publishes /camera/depth/image_raw + camera_info, /imu/data, tf odom -> base_link,\n"
+          "/tf_static base_link -> ") +
+      kCameraFrame + ", /ground_truth; /soak/sent, /soak/timeouts, /soak/done.\n";
+  cli::CommandLine cl("gmm_mcl_soak_publisher", usage);
+  cl.flags({{"frames", &o->frames}, {"render-frames", &o->render_frames}, {"width", &o->width_px},
+            {"period", &o->period_s}, {"timeout", &o->timeout_s},
+            {"first-timeout", &o->first_timeout_s}, {"linger", &o->linger_s}, {"seed", &o->seed},
+            {"status-topic", &o->status_topic},
+            {"no-wait-for-monitor", cli::Clear{&o->wait_for_monitor}}, {"write-map", &o->write_map},
+            {"write-params", &o->write_params}, {"init-half-extent", &o->init_half_extent_m},
+            {"init-yaw-half-range", &o->init_yaw_half_range_rad}});
+  cl.parse(argc, argv);
+  if (!(o->frames >= 1 && o->render_frames >= 2 && o->width_px >= 64 && o->period_s > 0.0 &&
+        o->timeout_s > 0.0 && o->first_timeout_s > 0.0 && o->linger_s >= 0.0)) {
+    cl.fail("--frames >= 1, --render-frames >= 2, --width >= 64, --period, --timeout and "
+            "--first-timeout > 0, --linger >= 0");
   }
-  return o->frames >= 1 && o->render_frames >= 2 && o->width_px >= 64 && o->period_s > 0.0 &&
-         o->timeout_s > 0.0 && o->first_timeout_s > 0.0 && o->linger_s >= 0.0;
-}
-
-Intrinsics camera(int width_px) {
-  // The synthetic scenes' camera: f = 585 px at 640 px wide, scaled; centre of the image.
-  Intrinsics K;
-  K.width_px = width_px;
-  K.height_px = width_px * 3 / 4;
-  K.fx_px = K.fy_px = 585.f * static_cast<float>(width_px) / 640.f;
-  K.cx_px = 0.5f * static_cast<float>(K.width_px - 1);
-  K.cy_px = 0.5f * static_cast<float>(K.height_px - 1);
-  return K;
 }
 
 // The fixed map -> odom offset that the published odometry carries (the nodelet must find it).
@@ -127,15 +105,13 @@ int writeMapAndParams(const Options& o) {
   saveMap(sim::tileScene(scene, 0.4, 0.015), o.write_map);
   if (o.write_params.empty()) return 0;
   const Particle start = poseToParticle(sim::makeTrajectory(2)[0]);
-  std::ofstream y(o.write_params);
-  y << "# Initial region around the soak trajectory's true start (gmm_mcl_soak_publisher)\n"
-    << "init_centre: [" << start.x_m << ", " << start.y_m << ", " << start.z_m << "]\n"
-    << "init_half_extent: [" << o.init_half_extent_m << ", " << o.init_half_extent_m << ", "
-    << o.init_half_extent_m << "]\n"
-    << "init_yaw_centre: " << start.yaw_rad << "\n"
-    << "init_yaw_half_range: " << o.init_yaw_half_range_rad << "\n";
-  if (!y) {
-    std::fprintf(stderr, "cannot write %s\n", o.write_params.c_str());
+  try {
+    ros_bag::writeInitRegionYaml(
+        o.write_params,
+        "Initial region around the soak trajectory's true start (gmm_mcl_soak_publisher)", start,
+        o.init_half_extent_m, o.init_yaw_half_range_rad);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s\n", e.what());
     return 1;
   }
   return 0;
@@ -150,7 +126,7 @@ struct Frame {
 
 class SoakPublisher {
  public:
-  explicit SoakPublisher(const Options& o) : o_(o), K_(camera(o.width_px)) {
+  explicit SoakPublisher(const Options& o) : o_(o), K_(sim::defaultCamera(o.width_px)) {
     image_pub_ = nh_.advertise<sensor_msgs::Image>("/camera/depth/image_raw", 2);
     info_pub_ = nh_.advertise<sensor_msgs::CameraInfo>("/camera/depth/camera_info", 2);
     imu_pub_ = nh_.advertise<sensor_msgs::Imu>("/imu/data", 10);
@@ -351,10 +327,7 @@ class SoakPublisher {
 int main(int argc, char** argv) {
   ros::init(argc, argv, "soak_publisher");  // strips remappings and __name before parsing
   Options o;
-  if (!parse(argc, argv, &o)) {
-    usage();
-    return 2;
-  }
+  parse(argc, argv, &o);
   if (!o.write_map.empty()) return writeMapAndParams(o);
   SoakPublisher pub(o);
   pub.render();

@@ -33,15 +33,15 @@
 #include "gmm_mcl/replay/replay.h"
 #include "gmm_mcl/ros/bag_writer.h"
 #include "gmm_mcl/ros/conversions.h"
+#include "gmm_mcl/tools/command_line.h"
 
 using namespace gmm_mcl;
 
 namespace {
 
-void usage() {
-  std::printf(
+const char* kUsage =
       "usage: gmm_mcl_replay_bag BAG --map MAP.gmm [--out DIR] [--seed S] [--frames N]\n"
-      "  [--particles N] [--stride PX] [--max-range M (4)] [--weighting paper|tempered]\n"
+      "  [--particles N] [--stride PX] [--max-range-m M (4)] [--weighting paper|tempered]\n"
       "  [--init-half-extent M (2)] [--init-yaw-half-range RAD (pi/2)] (around the true start;\n"
       "   without ground truth the whole map)\n"
       "  [--depth-topic T (/camera/depth/image_raw)] [--info-topic T (.../camera_info)]\n"
@@ -51,8 +51,8 @@ void usage() {
       "  [--marker-to-camera x,y,z,qx,qy,qz,qw] (TransformStamped truth: marker -> camera)\n"
       "  [--odom-frame odom] [--base-frame base_link] [--quiet]\n"
       "  --cow-and-lady: --cloud-topic /camera/depth_registered/points --truth-topic\n"
-      "                  /kinect/vrpn_client/estimated_transform --odometry truth\n");
-}
+      "                  /kinect/vrpn_client/estimated_transform --odometry truth\n"
+      "Filter parameters: every one as --name-with-dashes (the list under --help).\n";
 
 // Stamped tracks of the whole bag (no age limit), looked up as the nodelet looks up its
 // buffers: interpolated between neighbours, else the nearest within a tolerance.
@@ -62,62 +62,37 @@ constexpr double kWholeBagS = 1e18;
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string bag_path, map_path, out_dir, weighting = "tempered", odometry_mode;
+  std::string bag_path, map_path, out_dir, odometry_mode;
   std::string depth_topic = "/camera/depth/image_raw", info_topic, cloud_topic;
   std::string imu_topic = "/imu/data", odom_topic = "/odom", truth_topic = "/ground_truth";
   std::string odom_frame = "odom", base_frame = "base_link", marker_to_camera;
   int frames = -1, particles = kDefaultParticleCount, stride = 4;
-  double max_range_m = FrameParams().max_range_m;
   uint64_t seed = 1;
   double init_half_extent_m = 2.0, init_yaw_half_range_rad = 0.5 * M_PI;
   bool quiet = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> const char* {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "missing value after %s\n", a.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (a == "--map") map_path = next();
-    else if (a == "--out") out_dir = next();
-    else if (a == "--seed") seed = std::strtoull(next(), nullptr, 10);
-    else if (a == "--frames") frames = std::atoi(next());
-    else if (a == "--particles") particles = std::atoi(next());
-    else if (a == "--stride") stride = std::atoi(next());
-    else if (a == "--max-range") max_range_m = std::atof(next());
-    else if (a == "--weighting") weighting = next();
-    else if (a == "--init-half-extent") init_half_extent_m = std::atof(next());
-    else if (a == "--init-yaw-half-range") init_yaw_half_range_rad = std::atof(next());
-    else if (a == "--depth-topic") depth_topic = next();
-    else if (a == "--info-topic") info_topic = next();
-    else if (a == "--cloud-topic") cloud_topic = next();
-    else if (a == "--imu-topic") imu_topic = next();
-    else if (a == "--odom-topic") odom_topic = next();
-    else if (a == "--truth-topic") truth_topic = next();
-    else if (a == "--odometry") odometry_mode = next();
-    else if (a == "--marker-to-camera") marker_to_camera = next();
-    else if (a == "--odom-frame") odom_frame = next();
-    else if (a == "--base-frame") base_frame = next();
-    else if (a == "--quiet") quiet = true;
-    else if (a == "--cow-and-lady") {
-      cloud_topic = "/camera/depth_registered/points";
-      truth_topic = "/kinect/vrpn_client/estimated_transform";
-      odometry_mode = "truth";
-    } else if (a == "--help" || a == "-h") {
-      usage();
-      return 0;
-    } else if (a[0] != '-' && bag_path.empty()) bag_path = a;
-    else {
-      usage();
-      return 2;
-    }
+  bool cow_and_lady = false;
+  LocalizerParams lp;  // the filter parameters given on the command line
+  cli::CommandLine cl("gmm_mcl_replay_bag", kUsage);
+  cl.flags({{"bag", &bag_path}, {"map", &map_path}, {"out", &out_dir}, {"seed", &seed},
+            {"frames", &frames}, {"particles", &particles}, {"stride", &stride},
+            {"init-half-extent", &init_half_extent_m},
+            {"init-yaw-half-range", &init_yaw_half_range_rad}, {"depth-topic", &depth_topic},
+            {"info-topic", &info_topic}, {"cloud-topic", &cloud_topic}, {"imu-topic", &imu_topic},
+            {"odom-topic", &odom_topic}, {"truth-topic", &truth_topic},
+            {"odometry", &odometry_mode}, {"marker-to-camera", &marker_to_camera},
+            {"odom-frame", &odom_frame}, {"base-frame", &base_frame}, {"quiet", &quiet},
+            {"cow-and-lady", &cow_and_lady}});
+  cl.addLocalizerParams(&lp, {"num_particles", "pixel_stride", "seed", "init_centre",
+                              "init_half_extent", "init_yaw_centre", "init_yaw_half_range"});
+  cl.alias("max-range", "max-range-m");
+  cl.positional("bag");
+  cl.parse(argc, argv);
+  if (cow_and_lady) {
+    cloud_topic = "/camera/depth_registered/points";
+    truth_topic = "/kinect/vrpn_client/estimated_transform";
+    odometry_mode = "truth";
   }
-  if (bag_path.empty() || map_path.empty()) {
-    usage();
-    return 2;
-  }
+  if (bag_path.empty() || map_path.empty()) cl.fail("need BAG and --map");
   if (info_topic.empty()) info_topic = depth_topic.substr(0, depth_topic.rfind('/')) + "/camera_info";
   Eigen::Isometry3d T_marker_cam = Eigen::Isometry3d::Identity();
   if (!marker_to_camera.empty() && !ros_bag::parseTransform(marker_to_camera, &T_marker_cam)) {
@@ -194,16 +169,10 @@ int main(int argc, char** argv) {
     }
 
     const GmmMap map = loadMap(map_path);
-    LocalizerParams lp;
     lp.filter.num_particles = particles;
     lp.frame.pixel_stride = stride;
-    lp.frame.max_range_m = static_cast<float>(max_range_m);
     lp.filter.seed = seed;
     lp.T_base_cam = T_base_cam;
-    if (!parseWeightingMode(weighting, &lp.filter.weighting)) {
-      std::fprintf(stderr, "unknown weighting '%s'\n", weighting.c_str());
-      return 2;
-    }
     std::unique_ptr<Localizer> loc;
     OdometrySynthesizer synth(ProtocolNoise(), seed);
     TrialResult result;

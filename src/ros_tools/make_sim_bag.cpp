@@ -22,15 +22,17 @@
 
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/map/gmm_map_io.h"
+#include "gmm_mcl/ros/bag_writer.h"
 #include "gmm_mcl/ros/conversions.h"
 #include "gmm_mcl/sim/box_scene.h"
+#include "gmm_mcl/sim/mesh_scene.h"
+#include "gmm_mcl/tools/command_line.h"
 
 using namespace gmm_mcl;
 
 namespace {
 
-void usage() {
-  std::printf(
+const char* kUsage =
       "usage: make_sim_bag --bag FILE [--map FILE] [--params FILE] [--frames N] [--width PX]\n"
       "                    [--seed S] [--encoding 16UC1|32FC1] [--start-time S]\n"
       "                    [--init-half-extent M] [--init-yaw-half-range RAD] [--compressed] [--cloud] [--quiet]\n"
@@ -38,8 +40,7 @@ void usage() {
       "/tf_static, /ground_truth (base pose in map); --compressed adds\n"
       "/camera/depth/image_raw/compressedDepth, --cloud /camera/depth/points (organized).\n"
       "Frames map, odom, base_link,\n"
-      "camera_depth_optical_frame; 30 Hz.\n");
-}
+      "camera_depth_optical_frame; 30 Hz.\n";
 
 }  // namespace
 
@@ -49,36 +50,16 @@ int main(int argc, char** argv) {
   double start_s = 1000.0, init_half_extent_m = 0.5, init_yaw_half_range_rad = 0.3;
   std::string bag_path, map_path, params_path, encoding = "16UC1";
   bool quiet = false, compressed = false, cloud = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> const char* {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "missing value after %s\n", a.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (a == "--bag") bag_path = next();
-    else if (a == "--map") map_path = next();
-    else if (a == "--params") params_path = next();
-    else if (a == "--frames") frames = std::atoi(next());
-    else if (a == "--width") width_px = std::atoi(next());
-    else if (a == "--seed") seed = std::strtoull(next(), nullptr, 10);
-    else if (a == "--encoding") encoding = next();
-    else if (a == "--start-time") start_s = std::atof(next());
-    else if (a == "--init-half-extent") init_half_extent_m = std::atof(next());
-    else if (a == "--init-yaw-half-range") init_yaw_half_range_rad = std::atof(next());
-    else if (a == "--quiet") quiet = true;
-    else if (a == "--compressed") compressed = true;
-    else if (a == "--cloud") cloud = true;
-    else {
-      usage();
-      return a == "--help" || a == "-h" ? 0 : 2;
-    }
-  }
-  if (bag_path.empty() || frames < 2 || width_px < 64 || (encoding != "16UC1" && encoding != "32FC1")) {
-    usage();
-    return 2;
+  cli::CommandLine cl("make_sim_bag", kUsage);
+  cl.flags({{"bag", &bag_path}, {"map", &map_path}, {"params", &params_path}, {"frames", &frames},
+            {"width", &width_px}, {"seed", &seed}, {"encoding", &encoding},
+            {"start-time", &start_s}, {"init-half-extent", &init_half_extent_m},
+            {"init-yaw-half-range", &init_yaw_half_range_rad}, {"quiet", &quiet},
+            {"compressed", &compressed}, {"cloud", &cloud}});
+  cl.parse(argc, argv);
+  if (bag_path.empty()) cl.fail("--bag is needed");
+  if (frames < 2 || width_px < 64 || (encoding != "16UC1" && encoding != "32FC1")) {
+    cl.fail("--frames >= 2, --width >= 64, --encoding 16UC1 or 32FC1");
   }
   if (params_path.empty()) {
     params_path = bag_path.substr(0, bag_path.rfind('.')) + "_init.yaml";
@@ -90,27 +71,17 @@ int main(int argc, char** argv) {
   saveMap(map, map_path);
   const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(frames);
   const Eigen::Isometry3d T_base_cam = sim::defaultBaseToCamera();
-  Intrinsics K;
-  const float scale = width_px / 640.f;
-  K.fx_px = K.fy_px = 585.f * scale;
-  K.width_px = width_px;
-  K.height_px = width_px * 3 / 4;
-  K.cx_px = 0.5f * (K.width_px - 1);
-  K.cy_px = 0.5f * (K.height_px - 1);
+  const Intrinsics K = sim::defaultCamera(width_px);
 
   const Particle start = poseToParticle(truth[0]);
-  {
-    std::ofstream y(params_path);
-    y << "# Initial region around the true start of " << bag_path << " (make_sim_bag)\n"
-      << "init_centre: [" << start.x_m << ", " << start.y_m << ", " << start.z_m << "]\n"
-      << "init_half_extent: [" << init_half_extent_m << ", " << init_half_extent_m << ", "
-      << init_half_extent_m << "]\n"
-      << "init_yaw_centre: " << start.yaw_rad << "\n"
-      << "init_yaw_half_range: " << init_yaw_half_range_rad << "\n";
-    if (!y) {
-      std::fprintf(stderr, "cannot write %s\n", params_path.c_str());
-      return 1;
-    }
+  try {
+    ros_bag::writeInitRegionYaml(params_path,
+                                 "Initial region around the true start of " + bag_path +
+                                     " (make_sim_bag)",
+                                 start, init_half_extent_m, init_yaw_half_range_rad);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s\n", e.what());
+    return 1;
   }
 
   rosbag::Bag bag;
@@ -187,48 +158,11 @@ int main(int argc, char** argv) {
     bag.write("/tf", t_before, tf);
 
     const DepthImage depth = sim::renderDepth(scene, K, truth[f] * T_base_cam, enc, 8.0, noise, &rng);
-    sensor_msgs::Image img;
-    img.header.stamp = t;
-    img.header.frame_id = cam_frame;
-    img.width = depth.width_px;
-    img.height = depth.height_px;
-    img.encoding = encoding;
-    img.is_bigendian = 0;
-    img.step = static_cast<uint32_t>(depth.row_bytes);
-    img.data = depth.data;
-    sensor_msgs::CameraInfo info;
-    info.header = img.header;
-    info.width = img.width;
-    info.height = img.height;
-    info.distortion_model = "plumb_bob";
-    info.D.assign(5, 0.0);
-    info.K = {K.fx_px, 0, K.cx_px, 0, K.fy_px, K.cy_px, 0, 0, 1};
-    info.R = {1, 0, 0, 0, 1, 0, 0, 0, 1};
-    info.P = {K.fx_px, 0, K.cx_px, 0, 0, K.fy_px, K.cy_px, 0, 0, 0, 1, 0};
+    const sensor_msgs::Image img = ros_bag::imageFromDepth(depth, t, cam_frame);
     bag.write("/camera/depth/image_raw", t, img);
-    bag.write("/camera/depth/camera_info", t, info);
+    bag.write("/camera/depth/camera_info", t, ros_bag::cameraInfoFromIntrinsics(K, t, cam_frame));
     if (cloud) {
-      sensor_msgs::PointCloud2 pc;
-      sensor_msgs::PointCloud2Modifier mod(pc);
-      mod.setPointCloud2FieldsByString(1, "xyz");
-      mod.resize(static_cast<size_t>(depth.width_px) * depth.height_px);
-      pc.header = img.header;
-      pc.width = depth.width_px;
-      pc.height = depth.height_px;
-      pc.row_step = pc.width * pc.point_step;
-      pc.is_dense = false;
-      sensor_msgs::PointCloud2Iterator<float> x(pc, "x"), y(pc, "y"), z(pc, "z");
-      for (int v = 0; v < depth.height_px; ++v) {
-        for (int u = 0; u < depth.width_px; ++u, ++x, ++y, ++z) {
-          const float d = depth.depthMetres(u, v);
-          float p[3] = {NAN, NAN, NAN};
-          if (std::isfinite(d) && d > 0.f) backProject(K, static_cast<float>(u), static_cast<float>(v), d, p);
-          *x = p[0];
-          *y = p[1];
-          *z = p[2];
-        }
-      }
-      bag.write("/camera/depth/points", t, pc);
+      bag.write("/camera/depth/points", t, ros_bag::organizedCloudFromDepth(depth, K, t, cam_frame));
     }
     if (compressed) {
       sensor_msgs::CompressedImage c;

@@ -17,6 +17,7 @@
 
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/ros/conversions.h"
+#include "gmm_mcl/tools/command_line.h"
 
 using namespace gmm_mcl;
 
@@ -44,20 +45,14 @@ std::string polyline(const std::vector<std::pair<double, double>>& pts, const st
 int main(int argc, char** argv) {
   std::string bag_path, pose_topic = "/gmm_mcl/pose", gt_topic = "/ground_truth", out_prefix;
   double skip_s = 2.0;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (i + 1 < argc && a == "--pose-topic") pose_topic = argv[++i];
-    else if (i + 1 < argc && a == "--truth-topic") gt_topic = argv[++i];
-    else if (i + 1 < argc && a == "--skip") skip_s = std::atof(argv[++i]);
-    else if (i + 1 < argc && a == "--out") out_prefix = argv[++i];
-    else if (a[0] != '-' && bag_path.empty()) bag_path = a;
-    else {
-      std::printf("usage: evaluate_pose_bag BAG [--pose-topic T] [--truth-topic T] [--skip S] "
-                  "[--out PREFIX]\n");
-      return 2;
-    }
-  }
-  if (bag_path.empty()) return 2;
+  cli::CommandLine cl("evaluate_pose_bag",
+                      "usage: evaluate_pose_bag BAG [--pose-topic T] [--truth-topic T] "
+                      "[--skip S] [--out PREFIX]\n");
+  cl.flags({{"bag", &bag_path}, {"pose-topic", &pose_topic}, {"truth-topic", &gt_topic},
+            {"skip", &skip_s}, {"out", &out_prefix}});
+  cl.positional("bag");
+  cl.parse(argc, argv);
+  if (bag_path.empty()) cl.fail("no bag given");
   if (out_prefix.empty()) out_prefix = bag_path.substr(0, bag_path.rfind('.'));
   std::map<uint64_t, Eigen::Isometry3d> est, gt;
   try {

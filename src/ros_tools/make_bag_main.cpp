@@ -10,13 +10,13 @@
 #include "gmm_mcl/replay/sim_sequence.h"
 #include "gmm_mcl/ros/bag_writer.h"
 #include "gmm_mcl/ros/sequence_bag.h"
+#include "gmm_mcl/tools/sequence_flags.h"
 
 using namespace gmm_mcl;
 
 namespace {
 
-void usage() {
-  std::printf(
+const char* kUsage =
       "usage: gmm_mcl_make_bag --format 7scenes|tum|stanford DIR OUT.bag [--map WORLD_MAP.gmm]\n"
       "       gmm_mcl_make_bag --format sim OUT.bag [--width PX] (map: the scene's own)\n"
       "  [--frames N] [--seed S] [--layout image|cow_and_lady]\n"
@@ -29,8 +29,7 @@ void usage() {
       "image layout: /camera/depth/image_raw (16UC1) + camera_info, /imu/data, /odom, /tf,\n"
       "/tf_static, /ground_truth (replay.launch). cow_and_lady layout: organized cloud on\n"
       "/camera/depth_registered/points and TransformStamped on\n"
-      "/kinect/vrpn_client/estimated_transform (cow_and_lady.launch).\n");
-}
+      "/kinect/vrpn_client/estimated_transform (cow_and_lady.launch).\n";
 
 }  // namespace
 
@@ -40,46 +39,24 @@ int main(int argc, char** argv) {
   ros_bag::SequenceBagOptions bo;
   int width = 320;
   bool quiet = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> const char* {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "missing value after %s\n", a.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (a == "--format") format = next();
-    else if (a == "--map") map_path = next();
-    else if (a == "--frames") so.max_frames = bo.max_frames = std::atoi(next());
-    else if (a == "--seed") bo.seed = std::strtoull(next(), nullptr, 10);
-    else if (a == "--layout") bo.layout = next();
-    else if (a == "--marker-to-camera") marker_to_camera = next();
-    else if (a == "--init-half-extent") bo.init_half_extent_m = std::atof(next());
-    else if (a == "--init-yaw-half-range") bo.init_yaw_half_range_rad = std::atof(next());
-    else if (a == "--start-time") bo.start_s = std::atof(next());
-    else if (a == "--width") width = std::atoi(next());
-    else if (a == "--intrinsics") so.intrinsics = next();
-    else if (a == "--depth-scale") so.depth_units_per_m = std::atof(next());
-    else if (a == "--tolerance") so.association_tolerance_s = std::atof(next());
-    else if (a == "--gravity") so.gravity = next();
-    else if (a == "--trajectory") so.trajectory = next();
-    else if (a == "--rate") so.frame_rate_hz = std::atof(next());
-    else if (a == "--quiet") quiet = true;
-    else if (a == "--help" || a == "-h") {
-      usage();
-      return 0;
-    } else if (a[0] != '-' && format != "sim" && dir.empty()) dir = a;
-    else if (a[0] != '-' && bag_path.empty()) bag_path = a;
-    else {
-      usage();
-      return 2;
-    }
+  int frames = -1;
+  std::vector<std::string> paths;
+  cli::CommandLine cl("gmm_mcl_make_bag", kUsage);
+  cl.flags({{"format", &format}, {"map", &map_path}, {"frames", &frames}, {"seed", &bo.seed},
+            {"layout", &bo.layout}, {"marker-to-camera", &marker_to_camera},
+            {"init-half-extent", &bo.init_half_extent_m},
+            {"init-yaw-half-range", &bo.init_yaw_half_range_rad}, {"start-time", &bo.start_s},
+            {"width", &width}, {"quiet", &quiet}, {"paths", &paths}});
+  cli::addSequenceFlags(&cl, &so);
+  cl.positional("paths", 2);
+  cl.parse(argc, argv);
+  if (cl.given("frames")) so.max_frames = bo.max_frames = frames;
+  const size_t wanted = format == "sim" ? 1 : 2;
+  if (format.empty() || paths.size() != wanted) {
+    cl.fail(format == "sim" ? "--format sim needs OUT.bag" : "need --format, DIR and OUT.bag");
   }
-  if (format.empty() || bag_path.empty() || (format != "sim" && dir.empty())) {
-    usage();
-    return 2;
-  }
+  if (wanted == 2) dir = paths[0];
+  bag_path = paths.back();
   if (!marker_to_camera.empty() && !ros_bag::parseTransform(marker_to_camera, &bo.T_marker_cam)) {
     std::fprintf(stderr, "--marker-to-camera '%s' is not x,y,z,qx,qy,qz,qw (unit quaternion)\n",
                  marker_to_camera.c_str());

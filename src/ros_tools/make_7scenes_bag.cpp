@@ -11,6 +11,7 @@
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/replay/seven_scenes_sequence.h"
 #include "gmm_mcl/ros/sequence_bag.h"
+#include "gmm_mcl/tools/command_line.h"
 
 using namespace gmm_mcl;
 
@@ -18,34 +19,19 @@ int main(int argc, char** argv) {
   std::string data_dir, map_in, bag_path;
   int frames = -1;
   ros_bag::SequenceBagOptions bo;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> const char* {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "missing value after %s\n", a.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (a == "--map") map_in = next();
-    else if (a == "--bag") bag_path = next();
-    else if (a == "--frames") frames = std::atoi(next());
-    else if (a == "--seed") bo.seed = std::strtoull(next(), nullptr, 10);
-    else if (a == "--init-half-extent") bo.init_half_extent_m = std::atof(next());
-    else if (a == "--init-yaw-half-range") bo.init_yaw_half_range_rad = std::atof(next());
-    else if (a[0] != '-' && data_dir.empty()) data_dir = a;
-    else {
-      std::printf(
-          "usage: make_7scenes_bag DATA_DIR --map WORLD_MAP.gmm --bag OUT.bag [--frames N] [--seed S]\n"
-          "                        [--init-half-extent M (2)] [--init-yaw-half-range RAD (pi/2)]\n"
-          "Writes OUT.bag, OUT.gmm (the map in the gravity-aligned frame) and OUT_init.yaml.\n"
-          "Same as: gmm_mcl_make_bag --format 7scenes DATA_DIR OUT.bag --map WORLD_MAP.gmm\n");
-      return a == "--help" || a == "-h" ? 0 : 2;
-    }
-  }
+  cli::CommandLine cl(
+      "make_7scenes_bag",
+      "usage: make_7scenes_bag DATA_DIR --map WORLD_MAP.gmm --bag OUT.bag [--frames N] [--seed S]\n"
+      "                        [--init-half-extent M (2)] [--init-yaw-half-range RAD (pi/2)]\n"
+      "Writes OUT.bag, OUT.gmm (the map in the gravity-aligned frame) and OUT_init.yaml.\n"
+      "Same as: gmm_mcl_make_bag --format 7scenes DATA_DIR OUT.bag --map WORLD_MAP.gmm\n");
+  cl.flags({{"data-dir", &data_dir}, {"map", &map_in}, {"bag", &bag_path}, {"frames", &frames},
+            {"seed", &bo.seed}, {"init-half-extent", &bo.init_half_extent_m},
+            {"init-yaw-half-range", &bo.init_yaw_half_range_rad}});
+  cl.positional("data-dir");
+  cl.parse(argc, argv);
   if (data_dir.empty() || map_in.empty() || bag_path.empty()) {
-    std::fprintf(stderr, "need DATA_DIR, --map and --bag (see --help)\n");
-    return 2;
+    cl.fail("need DATA_DIR, --map and --bag");
   }
   try {
     const SevenScenesSequence seq(data_dir, frames);
