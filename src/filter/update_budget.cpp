@@ -71,6 +71,7 @@ void UpdateBudget::clampToBounds() {
   state_.pixel_stride = std::min(std::max(state_.pixel_stride, strideFloor()), strideCeil());
   state_.particle_cap =
       std::min(std::max(state_.particle_cap, particleFloor()), configured_particles_);
+  state_.at_limit = state_.pixel_stride == strideCeil() && state_.particle_cap == particleFloor();
 }
 
 double UpdateBudget::budgetMs() const {
@@ -133,6 +134,7 @@ bool UpdateBudget::updateTook(double update_ms, int particles) {
       const int wanted = static_cast<int>(std::floor(from / factor));
       state_.particle_cap = std::max(particleFloor(), std::min(cap - 1, wanted));
     }
+    clampToBounds();
     if (state_.pixel_stride == stride && state_.particle_cap == cap) return false;
     ++state_.cuts;
     return true;
@@ -161,6 +163,7 @@ bool UpdateBudget::updateTook(double update_ms, int particles) {
   headroom_count_ = 0;
   state_.pixel_stride = next_stride;
   state_.particle_cap = next_cap;
+  clampToBounds();
   ++state_.restores;
   return true;
 }

@@ -60,6 +60,8 @@ bool LocalizationNodelet::configure(std::vector<std::string>* unknown) {
   if (localizer_) health_.setBackend(localizer_->backend().name(), localizer_->backendWarning());
   if (!error.empty()) return false;
   gate_.setThresholds(opts_.update_min_d_m, opts_.update_min_a_rad);
+  budget_ = UpdateBudget(opts_.budget, params_.filter, params_.frame);
+  health_.set([this](NodeHealth* h) { h->budget = budget_.state(); });
   if (opts_.hasInitialPose()) {  // a single-pose start (or the pose saved by save_pose_rate)
     PoseResetRequest start;
     initialPose(opts_, &start.T_map_base, &start.covariance);
@@ -109,8 +111,17 @@ void LocalizationNodelet::advertise() {
         "odom", 1000, [this](const nav_msgs::OdometryConstPtr& m) { inputs_->addOdometry(*m); });
   }
   DepthInput::Callbacks cb;
-  cb.arrived = [this](const std_msgs::Header& h) { health_.arrived(h.seq, nowS()); };
-  cb.camera_info = [this] { health_.cameraInfo(nowS()); };
+  // The frame period from every CameraInfo (their queue holds a second of them while an update
+  // runs; depth images beyond the newest are dropped before they arrive), else every cloud.
+  const bool period_from_info = opts_.depth_input != "cloud";
+  cb.arrived = [this, period_from_info](const std_msgs::Header& h) {
+    health_.arrived(h.seq, nowS());
+    if (!period_from_info) budgetFrame(h);
+  };
+  cb.camera_info = [this](const std_msgs::Header& h) {
+    health_.cameraInfo(nowS());
+    budgetFrame(h);
+  };
   cb.dropped = [this](FrameDrop d, const std::string& why) { onDrop(d, why); };
   cb.frame = [this](const std_msgs::Header& h, const DepthImage& d, const Intrinsics& K) {
     onFrame(h, d, K);
@@ -191,6 +202,10 @@ void LocalizationNodelet::onFrame(const std_msgs::Header& header, const DepthIma
   const double ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   publish(header, last_result_, T_map_base, depth, K, ms, gaps.warnings, gated);
+  if (!gated) {
+    budgetUpdate(last_result_, std::chrono::duration<double, std::milli>(
+                                   std::chrono::steady_clock::now() - t0).count());
+  }
   const double rate = opts_.save_pose_rate_hz;  // amcl's pose persistence
   if (!gated && rate > 0 && (last_save_.isZero() || (stamp - last_save_).toSec() >= 1.0 / rate)) {
     last_save_ = stamp;
@@ -233,6 +248,7 @@ void LocalizationNodelet::publish(const std_msgs::Header& header, const StepResu
                     localizer_->backendWarning(), callback_ms, warnings, inputs_->imuReceived(),
                     inputs_->odometryReceived());
   s.header = header;
+  fillBudgetStatus(budget_.state(), &s);
   status_pub_.publish(s);
   if (debug_image_pub_.getNumSubscribers() > 0) {  // lazy: only while someone listens
     sensor_msgs::Image img;
@@ -241,6 +257,28 @@ void LocalizationNodelet::publish(const std_msgs::Header& header, const StepResu
     img.header = header;
     debug_image_pub_.publish(img);
   }
+}
+
+void LocalizationNodelet::budgetFrame(const std_msgs::Header& header) {
+  budget_.frameArrived(header.stamp.toSec(), header.seq, nowS(), ros::WallTime::now().toSec());
+}
+
+void LocalizationNodelet::budgetUpdate(const StepResult& r, double callback_ms) {
+  // Only a plain update says what an update costs: a uniform start or a lost redraw scores
+  // many candidates once, a failed frame scores none.
+  if (r.status != StepStatus::kOk || r.screened_candidates > 0) return;
+  if (budget_.updateTook(callback_ms, r.particles)) {
+    const BudgetState& b = budget_.state();
+    try {
+      localizer_->setParams(budget_.apply(params_));  // cheap: the particles are kept
+      NODELET_INFO("gmm_mcl: update budget %.1f ms (last update %.1f ms): pixel stride %d, at "
+                   "most %d particles",
+                   b.budget_ms, b.last_update_ms, b.pixel_stride, b.particle_cap);
+    } catch (const std::exception& e) {
+      NODELET_ERROR("gmm_mcl: update budget not applied: %s", e.what());
+    }
+  }
+  health_.set([this](NodeHealth* h) { h->budget = budget_.state(); });
 }
 
 // ---- resets, services, parameters -----------------------------------------------------------
@@ -324,14 +362,26 @@ bool LocalizationNodelet::onLoadMap(LoadMap::Request& req, LoadMap::Response& re
 
 void LocalizationNodelet::onReconfigure(LocalizerConfig& config, uint32_t) {
   std::string changes;
+  // The new values within the budget's current choice (the budget's own new bounds follow).
   const std::string error = reconfigure(
-      &config, &params_, &opts_, [this](const LocalizerParams& p) { localizer_->setParams(p); },
-      &changes);
+      &config, &params_, &opts_,
+      [this](const LocalizerParams& p) { localizer_->setParams(budget_.apply(p)); }, &changes);
   if (!error.empty()) {
     NODELET_ERROR("gmm_mcl: reconfigure refused, previous values kept: %s", error.c_str());
     return;
   }
   inputs_->setOptions(opts_);
+  const BudgetState before = budget_.state();
+  budget_.configure(opts_.budget, params_.filter, params_.frame);
+  if (budget_.state().pixel_stride != before.pixel_stride ||
+      budget_.state().particle_cap != before.particle_cap) {
+    try {
+      localizer_->setParams(budget_.apply(params_));
+    } catch (const std::exception& e) {
+      NODELET_ERROR("gmm_mcl: update budget not applied: %s", e.what());
+    }
+  }
+  health_.set([this](NodeHealth* h) { h->budget = budget_.state(); });
   gate_.setThresholds(opts_.update_min_d_m, opts_.update_min_a_rad);
   markers_.setPeriod(opts_.markers_period_s);
   health_.setWarnLimits(opts_.warn_sigma_xy_m, opts_.warn_sigma_yaw_rad);

@@ -99,6 +99,7 @@ TEST(UpdateBudget, CutsStrideFirstThenParticlesWithinBounds) {
   EXPECT_EQ(b.state().pixel_stride, 12);
   EXPECT_EQ(b.state().particle_cap, 200);
   EXPECT_FALSE(b.updateTook(1000.0, 200));
+  EXPECT_TRUE(b.state().at_limit);
 
   const LocalizerParams p = b.apply(LocalizerParams());
   EXPECT_EQ(p.frame.pixel_stride, 12);

@@ -45,6 +45,7 @@ struct BudgetState {
   int pixel_stride = 1;         // the stride in force
   int particle_cap = 1;         // the largest particle count in force
   int cuts = 0, restores = 0;   // changes so far
+  bool at_limit = false;        // the coarsest stride and the fewest particles it may choose
   double last_update_ms = 0.0;
 };
 
