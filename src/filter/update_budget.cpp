@@ -37,22 +37,24 @@ std::string UpdateBudgetParams::validate() const {
   return err.str();
 }
 
-UpdateBudget::UpdateBudget(const UpdateBudgetParams& params, const ParticleFilterParams& filter,
-                           const FrameParams& frame) {
-  state_.pixel_stride = frame.pixel_stride;
-  state_.particle_cap = filter.num_particles;
-  configure(params, filter, frame);
+UpdateBudget::UpdateBudget(const UpdateBudgetParams& params, const LocalizerParams& configured) {
+  state_.pixel_stride = configured.frame.pixel_stride;
+  state_.particle_cap = configured.filter.num_particles;
+  state_.refine = configured.refinement.enabled;
+  configure(params, configured);
 }
 
-void UpdateBudget::configure(const UpdateBudgetParams& params, const ParticleFilterParams& filter,
-                             const FrameParams& frame) {
+void UpdateBudget::configure(const UpdateBudgetParams& params, const LocalizerParams& configured) {
   params_ = params;
-  configured_stride_ = frame.pixel_stride;
-  configured_particles_ = filter.num_particles;
+  configured_stride_ = configured.frame.pixel_stride;
+  configured_particles_ = configured.filter.num_particles;
+  if (configured.refinement.enabled && !configured_refine_) state_.refine = true;  // turned on
+  configured_refine_ = configured.refinement.enabled;
   state_.enabled = params.enabled;
   if (!params.enabled) {
     state_.pixel_stride = configured_stride_;
     state_.particle_cap = configured_particles_;
+    state_.refine = configured_refine_;
   }
   clampToBounds();
   over_count_ = headroom_count_ = 0;
@@ -71,7 +73,9 @@ void UpdateBudget::clampToBounds() {
   state_.pixel_stride = std::min(std::max(state_.pixel_stride, strideFloor()), strideCeil());
   state_.particle_cap =
       std::min(std::max(state_.particle_cap, particleFloor()), configured_particles_);
-  state_.at_limit = state_.pixel_stride == strideCeil() && state_.particle_cap == particleFloor();
+  state_.refine = state_.refine && configured_refine_;
+  state_.at_limit = state_.pixel_stride == strideCeil() && !state_.refine &&
+                    state_.particle_cap == particleFloor();
 }
 
 double UpdateBudget::budgetMs() const {
@@ -112,14 +116,16 @@ void UpdateBudget::frameArrived(double stamp_s, uint32_t seq, double clock_s, do
   state_.budget_ms = budgetMs();
 }
 
-bool UpdateBudget::updateTook(double update_ms, int particles) {
+bool UpdateBudget::updateTook(double update_ms, int particles, double refine_ms) {
   state_.last_update_ms = update_ms;
+  if (refine_ms > 0.0) last_refine_ms_ = refine_ms;
   const double budget = budgetMs();
   state_.budget_ms = budget;
   if (!params_.enabled || budget <= 0.0 || !std::isfinite(update_ms) || update_ms < 0.0)
     return false;
   const int stride = state_.pixel_stride;
   const int cap = state_.particle_cap;
+  const bool refine = state_.refine;
   if (update_ms > budget) {
     headroom_count_ = 0;
     if (++over_count_ < params_.over_updates) return false;
@@ -129,25 +135,32 @@ bool UpdateBudget::updateTook(double update_ms, int particles) {
     if (stride < strideCeil()) {
       const int wanted = static_cast<int>(std::ceil(stride * std::sqrt(factor)));
       state_.pixel_stride = std::min(strideCeil(), std::max(stride + 1, wanted));
+    } else if (refine) {
+      state_.refine = false;
     } else {
       const int from = std::max(1, std::min(cap, particles));
       const int wanted = static_cast<int>(std::floor(from / factor));
       state_.particle_cap = std::max(particleFloor(), std::min(cap - 1, wanted));
     }
     clampToBounds();
-    if (state_.pixel_stride == stride && state_.particle_cap == cap) return false;
+    if (state_.pixel_stride == stride && state_.particle_cap == cap && state_.refine == refine)
+      return false;
     ++state_.cuts;
     return true;
   }
   over_count_ = 0;
-  // The step back and what it would cost: particles first, then the stride.
+  // The step back and what it would cost, in the reverse order of the cuts.
   int next_stride = stride, next_cap = cap;
+  bool next_refine = refine;
   double predicted_ms = update_ms;
   if (cap < configured_particles_) {
-    next_cap =
-        std::min(configured_particles_,
-                 std::max(cap + 1, static_cast<int>(std::ceil(cap * kRestoreParticleFactor))));
+    next_cap = std::min(configured_particles_,
+                        std::max(cap + 1, static_cast<int>(std::ceil(cap * kRestoreParticleFactor))));
     predicted_ms = update_ms * next_cap / std::max(1, std::min(cap, particles));
+  } else if (!refine && configured_refine_) {
+    next_refine = true;
+    // What it cost when last seen (at a finer stride, so no less); never seen: as much again.
+    predicted_ms = update_ms + (last_refine_ms_ >= 0.0 ? last_refine_ms_ : update_ms);
   } else if (stride > strideFloor()) {
     next_stride = stride - 1;
     predicted_ms = update_ms * (static_cast<double>(stride) * stride) / (next_stride * next_stride);
@@ -163,6 +176,7 @@ bool UpdateBudget::updateTook(double update_ms, int particles) {
   headroom_count_ = 0;
   state_.pixel_stride = next_stride;
   state_.particle_cap = next_cap;
+  state_.refine = next_refine;
   clampToBounds();
   ++state_.restores;
   return true;
@@ -172,6 +186,7 @@ LocalizerParams UpdateBudget::apply(const LocalizerParams& configured) const {
   LocalizerParams p = configured;
   if (!params_.enabled) return p;
   p.frame.pixel_stride = state_.pixel_stride;
+  p.refinement.enabled = p.refinement.enabled && state_.refine;
   ParticleFilterParams& f = p.filter;
   f.num_particles = std::min(f.num_particles, state_.particle_cap);
   if (f.min_particles > f.num_particles) f.min_particles = f.num_particles;

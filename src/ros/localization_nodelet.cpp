@@ -60,7 +60,7 @@ bool LocalizationNodelet::configure(std::vector<std::string>* unknown) {
   if (localizer_) health_.setBackend(localizer_->backend().name(), localizer_->backendWarning());
   if (!error.empty()) return false;
   gate_.setThresholds(opts_.update_min_d_m, opts_.update_min_a_rad);
-  budget_ = UpdateBudget(opts_.budget, params_.filter, params_.frame);
+  budget_ = UpdateBudget(opts_.budget, params_);
   health_.set([this](NodeHealth* h) { h->budget = budget_.state(); });
   if (opts_.hasInitialPose()) {  // a single-pose start (or the pose saved by save_pose_rate)
     PoseResetRequest start;
@@ -267,13 +267,14 @@ void LocalizationNodelet::budgetUpdate(const StepResult& r, double callback_ms) 
   // Only a plain update says what an update costs: a uniform start or a lost redraw scores
   // many candidates once, a failed frame scores none.
   if (r.status != StepStatus::kOk || r.screened_candidates > 0) return;
-  if (budget_.updateTook(callback_ms, r.particles)) {
+  if (budget_.updateTook(callback_ms, r.particles, r.timings.refine_ms)) {
     const BudgetState& b = budget_.state();
     try {
       localizer_->setParams(budget_.apply(params_));  // cheap: the particles are kept
-      NODELET_INFO("gmm_mcl: update budget %.1f ms (last update %.1f ms): pixel stride %d, at "
-                   "most %d particles",
-                   b.budget_ms, b.last_update_ms, b.pixel_stride, b.particle_cap);
+      NODELET_INFO("gmm_mcl: update budget %.1f ms (last update %.1f ms): pixel stride %d, "
+                   "refinement %s, at most %d particles",
+                   b.budget_ms, b.last_update_ms, b.pixel_stride, b.refine ? "on" : "off",
+                   b.particle_cap);
     } catch (const std::exception& e) {
       NODELET_ERROR("gmm_mcl: update budget not applied: %s", e.what());
     }
@@ -372,9 +373,10 @@ void LocalizationNodelet::onReconfigure(LocalizerConfig& config, uint32_t) {
   }
   inputs_->setOptions(opts_);
   const BudgetState before = budget_.state();
-  budget_.configure(opts_.budget, params_.filter, params_.frame);
+  budget_.configure(opts_.budget, params_);
   if (budget_.state().pixel_stride != before.pixel_stride ||
-      budget_.state().particle_cap != before.particle_cap) {
+      budget_.state().particle_cap != before.particle_cap ||
+      budget_.state().refine != before.refine) {
     try {
       localizer_->setParams(budget_.apply(params_));
     } catch (const std::exception& e) {

@@ -125,6 +125,7 @@ void fillBudgetStatus(const BudgetState& b, FilterStatus* s) {
   s->budget_frame_period_s = b.frame_period_s;
   s->budget_pixel_stride = b.pixel_stride;
   s->budget_particle_cap = b.particle_cap;
+  s->budget_refine = b.refine;
   s->budget_cuts = b.cuts;
   s->budget_restores = b.restores;
 }
@@ -186,8 +187,8 @@ Diagnosis diagnose(const NodeHealth& h) {
     m.str("");
     m.precision(3);
     m << "updates take " << h.budget.last_update_ms << " ms, over the budget of "
-      << h.budget.budget_ms << " ms at the coarsest setting (pixel stride "
-      << h.budget.pixel_stride << ", " << h.budget.particle_cap
+      << h.budget.budget_ms << " ms at the cheapest setting (pixel stride "
+      << h.budget.pixel_stride << ", no refinement, " << h.budget.particle_cap
       << " particles): frames are skipped";
     find(S::WARN, m.str());
   }
@@ -223,6 +224,7 @@ Diagnosis diagnose(const NodeHealth& h) {
                                            : "no frame period yet");
   add("pixel stride", std::to_string(h.budget.pixel_stride));
   add("particle cap", std::to_string(h.budget.particle_cap));
+  add("refinement", h.budget.refine ? "as configured" : "off (budget)");
   add("budget cuts / restores",
       std::to_string(h.budget.cuts) + " / " + std::to_string(h.budget.restores));
   add("reinitialised particles (total)", std::to_string(c.reinitialised_total));

@@ -145,9 +145,9 @@ const ParamTable<RosOptions>& rosOptionsTable() {
     g = "budget";
     add(paramSpec<R>("update_budget", GMM_MCL_PARAM_FIELD(R, budget.enabled), "", g, {}, kRuntime,
                      "Frame-rate budget: when updates take longer than max_update_ms, use a "
-                     "coarser pixel stride (up to budget_max_pixel_stride), then fewer particles "
-                     "(down to budget_min_particles); step back when there is headroom. ~status "
-                     "and /diagnostics report the stride and particle cap in force"));
+                     "coarser pixel stride (up to budget_max_pixel_stride), then skip the pose "
+                     "refinement, then fewer particles (down to budget_min_particles); step back "
+                     "when there is headroom. ~status and /diagnostics report what is in force"));
     add(paramSpec<R>("max_update_ms", GMM_MCL_PARAM_FIELD(R, budget.max_update_ms), "ms", g,
                      {0, 1e5}, kRuntime,
                      "Budget per update, wall time (the whole depth callback); 0: the camera's "

@@ -15,15 +15,15 @@ constexpr double kTolMs = 1e-6;
 
 struct BudgetSetup {
   UpdateBudgetParams budget;
-  ParticleFilterParams filter;
-  FrameParams frame;
+  LocalizerParams configured;
   BudgetSetup() {
-    filter.num_particles = 1000;
-    frame.pixel_stride = 4;
+    configured.filter.num_particles = 1000;
+    configured.frame.pixel_stride = 4;
+    configured.refinement.enabled = true;
     budget.max_pixel_stride = 12;
     budget.min_particles = 200;
   }
-  UpdateBudget make() const { return UpdateBudget(budget, filter, frame); }
+  UpdateBudget make() const { return UpdateBudget(budget, configured); }
 };
 
 // n frames at `period_s` on a clock running at `rate` times wall time, seq from seq0 by seq_step.
@@ -86,24 +86,29 @@ TEST(UpdateBudget, CutsStrideFirstThenParticlesWithinBounds) {
   EXPECT_GT(stride1, 4);
   EXPECT_LE(stride1, 12);
   EXPECT_EQ(b.state().particle_cap, 1000);  // stride first
-  // Always far over: the stride reaches its ceiling, then the particles their floor, no further.
+  EXPECT_TRUE(b.state().refine);
+  // Always far over: the stride reaches its ceiling, then the refinement goes, then the particles
+  // reach their floor, no further.
   int prev_stride = stride1, prev_cap = 1000;
   for (int i = 0; i < 60; ++i) {
-    b.updateTook(1000.0, b.state().particle_cap);
+    b.updateTook(1000.0, b.state().particle_cap, 10.0);
     EXPECT_GE(b.state().pixel_stride, prev_stride);
     EXPECT_LE(b.state().particle_cap, prev_cap);
-    if (b.state().particle_cap < 1000) EXPECT_EQ(b.state().pixel_stride, 12);
+    if (!b.state().refine) EXPECT_EQ(b.state().pixel_stride, 12);
+    if (b.state().particle_cap < 1000) EXPECT_FALSE(b.state().refine);
     prev_stride = b.state().pixel_stride;
     prev_cap = b.state().particle_cap;
   }
   EXPECT_EQ(b.state().pixel_stride, 12);
+  EXPECT_FALSE(b.state().refine);
   EXPECT_EQ(b.state().particle_cap, 200);
   EXPECT_FALSE(b.updateTook(1000.0, 200));
   EXPECT_TRUE(b.state().at_limit);
 
-  const LocalizerParams p = b.apply(LocalizerParams());
+  const LocalizerParams p = b.apply(s.configured);
   EXPECT_EQ(p.frame.pixel_stride, 12);
   EXPECT_EQ(p.filter.num_particles, 200);
+  EXPECT_FALSE(p.refinement.enabled);
 }
 
 TEST(UpdateBudget, StepsBackParticlesFirstOnlyAfterSustainedHeadroom) {
@@ -120,23 +125,23 @@ TEST(UpdateBudget, StepsBackParticlesFirstOnlyAfterSustainedHeadroom) {
   EXPECT_TRUE(b.updateTook(1.0, 200));
   EXPECT_GT(b.state().particle_cap, 200);
   EXPECT_EQ(b.state().pixel_stride, 12);  // particles first
-  // Plenty of headroom for long: everything back to the configured values, in that order.
-  bool stride_moved_before_particles_done = false;
+  EXPECT_FALSE(b.state().refine);
+  // Plenty of headroom for long: everything back to the configured values, in the reverse order
+  // of the cuts: particles, refinement, stride.
+  bool out_of_order = false;
   for (int i = 0; i < 2000; ++i) {
-    b.updateTook(1.0, b.state().particle_cap);
-    if (b.state().pixel_stride < 12 && b.state().particle_cap < 1000)
-      stride_moved_before_particles_done = true;
+    b.updateTook(1.0, b.state().particle_cap, b.state().refine ? 0.5 : 0.0);
+    if (b.state().refine && b.state().particle_cap < 1000) out_of_order = true;
+    if (b.state().pixel_stride < 12 && !b.state().refine) out_of_order = true;
   }
-  EXPECT_FALSE(stride_moved_before_particles_done);
+  EXPECT_FALSE(out_of_order);
   EXPECT_EQ(b.state().particle_cap, 1000);
+  EXPECT_TRUE(b.state().refine);
   EXPECT_EQ(b.state().pixel_stride, 4);
-  const LocalizerParams configured;
-  LocalizerParams c = configured;
-  c.filter.num_particles = 1000;
-  c.frame.pixel_stride = 4;
-  const LocalizerParams p = b.apply(c);
+  const LocalizerParams p = b.apply(s.configured);
   EXPECT_EQ(p.frame.pixel_stride, 4);
   EXPECT_EQ(p.filter.num_particles, 1000);
+  EXPECT_TRUE(p.refinement.enabled);
 }
 
 // A machine where an update costs a fixed part plus a part proportional to particles times
@@ -147,20 +152,22 @@ TEST(UpdateBudget, SettlesUnderTheBudgetWithoutOscillating) {
   s.budget.min_particles = 100;
   UpdateBudget b = s.make();
   const double budget_ms = 1000.0 * kPeriod30HzS;
-  auto cost = [](int stride, int particles) {
+  const double refine_ms = 12.0;
+  auto cost = [refine_ms](int stride, int particles, bool refine) {
     const double pixels = (640.0 / stride) * (480.0 / stride);
-    return 4.0 + 0.02 * particles + 1.2e-5 * particles * pixels;  // ms
+    return 4.0 + 0.02 * particles + 1.2e-5 * particles * pixels + (refine ? refine_ms : 0.0);
   };
   feedFrames(&b, 10, kPeriod30HzS);
-  ASSERT_GT(cost(4, 1000), 3 * budget_ms);  // far over at the configured values
+  ASSERT_GT(cost(4, 1000, true), 3 * budget_ms);  // far over at the configured values
   int changes_late = 0;
   for (int i = 0; i < 3000; ++i) {
     const int n = b.state().particle_cap;
-    const bool changed = b.updateTook(cost(b.state().pixel_stride, n), n);
+    const bool r = b.state().refine;
+    const bool changed = b.updateTook(cost(b.state().pixel_stride, n, r), n, r ? refine_ms : 0.0);
     if (i >= 1000 && changed) ++changes_late;
   }
   EXPECT_EQ(changes_late, 0);
-  EXPECT_LE(cost(b.state().pixel_stride, b.state().particle_cap), budget_ms);
+  EXPECT_LE(cost(b.state().pixel_stride, b.state().particle_cap, b.state().refine), budget_ms);
   // ... and not needlessly far under it: the next step back would not fit in the headroom.
   EXPECT_GT(b.state().particle_cap, 100);
   EXPECT_GE(b.state().cuts, 1);
@@ -178,17 +185,16 @@ TEST(UpdateBudget, DisabledChangesNothing) {
 
 TEST(UpdateBudget, ApplyKeepsAdaptiveRangesValidAndReconfigureClamps) {
   BudgetSetup s;
-  s.filter.num_particles = 3000;
-  s.filter.min_particles = 1068;
-  s.filter.resample_groups = 4;
+  s.configured.filter.num_particles = 3000;
+  s.configured.filter.min_particles = 1068;
+  s.configured.filter.resample_groups = 4;
   s.budget.min_particles = 3;
   UpdateBudget b = s.make();
   feedFrames(&b, 10, kPeriod30HzS);
   for (int i = 0; i < 200; ++i) b.updateTook(1e5, b.state().particle_cap);
   ASSERT_EQ(b.state().particle_cap, 3);
   LocalizerParams c;
-  c.filter = s.filter;
-  c.frame = s.frame;
+  c = s.configured;
   const LocalizerParams p = b.apply(c);
   EXPECT_EQ(p.validate(), "");
   EXPECT_EQ(p.filter.num_particles, 3);
@@ -196,12 +202,12 @@ TEST(UpdateBudget, ApplyKeepsAdaptiveRangesValidAndReconfigureClamps) {
   // A larger floor and a smaller ceiling from dynamic_reconfigure clamp the choice.
   s.budget.min_particles = 500;
   s.budget.max_pixel_stride = 8;
-  b.configure(s.budget, s.filter, s.frame);
+  b.configure(s.budget, s.configured);
   EXPECT_EQ(b.state().particle_cap, 500);
   EXPECT_EQ(b.state().pixel_stride, 8);
   // Switched off: back to the configured values at once.
   s.budget.enabled = false;
-  b.configure(s.budget, s.filter, s.frame);
+  b.configure(s.budget, s.configured);
   EXPECT_EQ(b.state().particle_cap, 3000);
   EXPECT_EQ(b.state().pixel_stride, 4);
   EXPECT_EQ(b.apply(c).filter.num_particles, 3000);

@@ -220,11 +220,10 @@ TEST(NodeStatusTest, UpdateBudgetReportedAndWarnsOnlyAtItsLimit) {
   UpdateBudgetParams params;
   params.max_pixel_stride = 12;
   params.min_particles = 200;
-  ParticleFilterParams filter;
-  filter.num_particles = 1000;
-  FrameParams frame;
-  frame.pixel_stride = 4;
-  UpdateBudget budget(params, filter, frame);
+  LocalizerParams configured;
+  configured.filter.num_particles = 1000;
+  configured.frame.pixel_stride = 4;
+  UpdateBudget budget(params, configured);
   for (int i = 0; i < 10; ++i) budget.frameArrived(i / 30.0, i, i / 30.0, i / 30.0);
   NodeHealth h = tracking(10.0);
   h.budget = budget.state();
@@ -254,10 +253,11 @@ TEST(NodeStatusTest, UpdateBudgetReportedAndWarnsOnlyAtItsLimit) {
   EXPECT_NE(d.message.find("over the budget"), std::string::npos) << d.message;
   EXPECT_EQ(value(d, "pixel stride"), "12");
   EXPECT_EQ(value(d, "particle cap"), "200");
+  EXPECT_EQ(value(d, "refinement"), "off (budget)");
 
   UpdateBudgetParams off = params;
   off.enabled = false;
-  budget.configure(off, filter, frame);
+  budget.configure(off, configured);
   h.budget = budget.state();
   d = diagnose(h);
   EXPECT_EQ(d.level, S::OK) << d.message;

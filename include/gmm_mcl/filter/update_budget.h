@@ -2,9 +2,10 @@
 // camera's frame period (a TX2, the CPU backend), frames are skipped, the estimate lags and tf
 // goes stale. UpdateBudget watches each update's duration against the budget (max_update_ms, or
 // the frame period measured from the frames' stamps) and chooses what the filter evaluates:
-// over budget, first a coarser pixel stride (up to max_pixel_stride), then fewer particles (down
-// to min_particles); with headroom for a while, the particles first and then the stride step
-// back to the configured values. It is a plain function of the numbers it is given (durations,
+// over budget, first a coarser pixel stride (up to max_pixel_stride), then no pose refinement
+// (it does not change the particles' belief, and costs about a third of a CPU update at a
+// coarse stride: measured on 7-Scenes, docs/ros.md), then fewer particles (down to
+// min_particles); with headroom for a while, the same steps back in reverse order. It is a plain function of the numbers it is given (durations,
 // stamps, clock readings): no clock of its own, so tests drive it with synthetic numbers.
 #pragma once
 
@@ -22,7 +23,7 @@ struct UpdateBudgetParams {
   // stamps (divided by the clock's rate: a bag played at rate 0.5 gives twice the time).
   double max_update_ms = 0.0;
   int max_pixel_stride = 16;  // the coarsest stride the budget may choose
-  int min_particles = 256;    // the fewest particles it may choose (at most the configured count)
+  int min_particles = 100;    // the fewest particles it may choose (at most the configured count)
   // Consecutive updates over the budget before it cuts (one slow update is not a trend).
   int over_updates = 3;
   // Stepping back needs this many consecutive updates whose duration, scaled by the cost of the
@@ -44,8 +45,9 @@ struct BudgetState {
   double clock_rate = 1.0;      // seconds of the stamps' clock per wall second
   int pixel_stride = 1;         // the stride in force
   int particle_cap = 1;         // the largest particle count in force
+  bool refine = true;           // the pose refinement in force (off: skipped to save time)
   int cuts = 0, restores = 0;   // changes so far
-  bool at_limit = false;        // the coarsest stride and the fewest particles it may choose
+  bool at_limit = false;        // the cheapest setting it may choose
   double last_update_ms = 0.0;
 };
 
@@ -53,20 +55,19 @@ class UpdateBudget {
  public:
   UpdateBudget() = default;
   // The configured stride and particle count are the ones it starts from and returns to.
-  UpdateBudget(const UpdateBudgetParams& params, const ParticleFilterParams& filter,
-               const FrameParams& frame);
+  UpdateBudget(const UpdateBudgetParams& params, const LocalizerParams& configured);
   // New parameters or configured values (dynamic_reconfigure): the current choice is kept within
   // the new bounds (all the way back to the configured values when disabled).
-  void configure(const UpdateBudgetParams& params, const ParticleFilterParams& filter,
-                 const FrameParams& frame);
+  void configure(const UpdateBudgetParams& params, const LocalizerParams& configured);
 
   // A frame arrived: its stamp and header seq (gaps from frames dropped before arriving are
   // divided out), and the clock readings now: clock_s on the stamps' clock (ROS time, simulated
   // under a bag's --clock), wall_s on a wall clock.
   void frameArrived(double stamp_s, uint32_t seq, double clock_s, double wall_s);
-  // One update took update_ms of wall time with `particles` particles. Returns true when the
-  // stride or the particle cap changed (apply() then gives the parameters to use).
-  bool updateTook(double update_ms, int particles);
+  // One update took update_ms of wall time with `particles` particles, refine_ms of it in the
+  // pose refinement (0: none). Returns true when the stride, the refinement or the particle cap
+  // changed (apply() then gives the parameters to use).
+  bool updateTook(double update_ms, int particles, double refine_ms = 0.0);
 
   // The configured parameters with the budget's stride and particle cap.
   LocalizerParams apply(const LocalizerParams& configured) const;
@@ -83,6 +84,8 @@ class UpdateBudget {
   UpdateBudgetParams params_;
   int configured_stride_ = 1;
   int configured_particles_ = 1;
+  bool configured_refine_ = false;
+  double last_refine_ms_ = -1.0;  // the last refinement's cost (< 0: none seen)
   BudgetState state_;
   int over_count_ = 0, headroom_count_ = 0;
   // Frame period: seq-normalised stamp intervals of the last frames.
