@@ -59,7 +59,7 @@ DepthInput::DepthInput(ros::NodeHandle nh, ros::NodeHandle pnh, tf2_ros::Buffer*
   info_sub_.reset(
       new message_filters::Subscriber<sensor_msgs::CameraInfo>(nh, info_topic_, kSyncQueue));
   info_sub_->registerCallback(boost::function<void(const sensor_msgs::CameraInfoConstPtr&)>(
-      [this](const sensor_msgs::CameraInfoConstPtr&) { cb_.camera_info(); }));
+      [this](const sensor_msgs::CameraInfoConstPtr& m) { cb_.camera_info(m->header); }));
   if (opts.image_transport == "compressedDepth") {
     depth_topic_ += "/compressedDepth";
     compressed_sub_.reset(

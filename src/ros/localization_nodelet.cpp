@@ -60,7 +60,8 @@ bool LocalizationNodelet::configure(std::vector<std::string>* unknown) {
   health_.set([&](NodeHealth* h) { h->config_error = error; });
   if (localizer_) health_.setBackend(localizer_->backend().name(), localizer_->backendWarning());
   if (!error.empty()) return false;
-  gate_.setThresholds(opts_.update_min_d_m, opts_.update_min_a_rad);
+  budget_ = UpdateBudget(opts_.budget, params_);
+  applyOptions();
   if (opts_.hasInitialPose()) {  // a single-pose start (or the pose saved by save_pose_rate)
     PoseResetRequest start;
     initialPose(opts_, &start.T_map_base, &start.covariance);
@@ -105,8 +106,17 @@ void LocalizationNodelet::advertise() {
         "odom", 1000, [this](const nav_msgs::OdometryConstPtr& m) { inputs_->addOdometry(*m); });
   }
   DepthInput::Callbacks cb;
-  cb.arrived = [this](const std_msgs::Header& h) { health_.arrived(h.seq, nowS()); };
-  cb.camera_info = [this] { health_.cameraInfo(nowS()); };
+  // The frame period from every CameraInfo (their queue holds a second of them while an update
+  // runs; depth images beyond the newest are dropped before they arrive), else every cloud.
+  const bool period_from_info = opts_.depth_input != "cloud";
+  cb.arrived = [this, period_from_info](const std_msgs::Header& h) {
+    health_.arrived(h.seq, nowS());
+    if (!period_from_info) budgetFrame(h);
+  };
+  cb.camera_info = [this](const std_msgs::Header& h) {
+    health_.cameraInfo(nowS());
+    budgetFrame(h);
+  };
   cb.dropped = [this](FrameDrop d, const std::string& why) { onDrop(d, why); };
   cb.frame = [this](const std_msgs::Header& h, const DepthImage& d, const Intrinsics& K) {
     onFrame(h, d, K);
@@ -188,9 +198,13 @@ void LocalizationNodelet::onFrame(const std_msgs::Header& header, const DepthIma
   const double ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   publish(header, last_result_, T_map_base, depth, K, ms, gaps.warnings, gated);
-  if (!gated)  // amcl's pose persistence, written by the poll timer
+  if (!gated) {
+    budgetUpdate(last_result_, std::chrono::duration<double, std::milli>(
+                                   std::chrono::steady_clock::now() - t0).count());
+    // amcl's pose persistence, written by the poll timer
     pose_saver_.offer(opts_.save_pose_rate_hz, stamp, last_result_.estimate.mean,
                       last_result_.estimate.covariance);
+  }
 }
 
 void LocalizationNodelet::publish(const std_msgs::Header& header, const StepResult& r,
@@ -227,6 +241,7 @@ void LocalizationNodelet::publish(const std_msgs::Header& header, const StepResu
                     localizer_->backendWarning(), callback_ms, warnings, inputs_->imuReceived(),
                     inputs_->odometryReceived());
   s.header = header;
+  fillBudgetStatus(budget_.state(), &s);
   status_pub_.publish(s);
   if (debug_image_pub_.getNumSubscribers() > 0) {  // lazy: only while someone listens
     sensor_msgs::Image img;
@@ -235,6 +250,23 @@ void LocalizationNodelet::publish(const std_msgs::Header& header, const StepResu
     img.header = header;
     debug_image_pub_.publish(img);
   }
+}
+
+void LocalizationNodelet::budgetFrame(const std_msgs::Header& header) {
+  budget_.frameArrived(header.stamp.toSec(), header.seq, nowS(), ros::WallTime::now().toSec());
+}
+
+void LocalizationNodelet::budgetUpdate(const StepResult& r, double callback_ms) {
+  if (budget_.stepTook(r, callback_ms)) {
+    applyBudget();
+    NODELET_INFO("gmm_mcl: %s", budget_.describe().c_str());
+  }
+  health_.set([this](NodeHealth* h) { h->budget = budget_.state(); });
+}
+
+void LocalizationNodelet::applyBudget() {
+  const std::string error = budget_.applyTo(params_, localizer_.get());
+  if (!error.empty()) NODELET_ERROR("gmm_mcl: update budget not applied: %s", error.c_str());
 }
 
 // ---- resets, services, parameters -----------------------------------------------------------
@@ -318,18 +350,27 @@ bool LocalizationNodelet::onLoadMap(LoadMap::Request& req, LoadMap::Response& re
 
 void LocalizationNodelet::onReconfigure(LocalizerConfig& config, uint32_t) {
   std::string changes;
+  // The new values within the budget's current choice (the budget's own new bounds follow).
   const std::string error = reconfigure(
-      &config, &params_, &opts_, [this](const LocalizerParams& p) { localizer_->setParams(p); },
-      &changes);
+      &config, &params_, &opts_,
+      [this](const LocalizerParams& p) { localizer_->setParams(budget_.apply(p)); }, &changes);
   if (!error.empty()) {
     NODELET_ERROR("gmm_mcl: reconfigure refused, previous values kept: %s", error.c_str());
     return;
   }
-  inputs_->setOptions(opts_);
+  applyOptions();
+  if (!changes.empty()) NODELET_INFO("gmm_mcl: reconfigured, particles kept: %s", changes.c_str());
+}
+
+// The run-time options (at start and on dynamic_reconfigure), the budget's choice with them.
+void LocalizationNodelet::applyOptions() {
+  if (inputs_) inputs_->setOptions(opts_);
   gate_.setThresholds(opts_.update_min_d_m, opts_.update_min_a_rad);
   markers_.setPeriod(opts_.markers_period_s);
   health_.setWarnLimits(opts_.warn_sigma_xy_m, opts_.warn_sigma_yaw_rad);
-  if (!changes.empty()) NODELET_INFO("gmm_mcl: reconfigured, particles kept: %s", changes.c_str());
+  budget_.configure(opts_.budget, params_);
+  applyBudget();
+  health_.set([this](NodeHealth* h) { h->budget = budget_.state(); });
 }
 
 void LocalizationNodelet::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {

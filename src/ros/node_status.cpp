@@ -119,6 +119,17 @@ void recordFrame(const StepResult& r, bool gated, bool sent_tf, double now_s,
   h->update_ms = r.timings.total_ms;
 }
 
+void fillBudgetStatus(const BudgetState& b, FilterStatus* s) {
+  s->budget_enabled = b.enabled;
+  s->budget_ms = b.budget_ms;
+  s->budget_frame_period_s = b.frame_period_s;
+  s->budget_pixel_stride = b.pixel_stride;
+  s->budget_particle_cap = b.particle_cap;
+  s->budget_refine = b.refine;
+  s->budget_cuts = b.cuts;
+  s->budget_restores = b.restores;
+}
+
 Diagnosis diagnose(const NodeHealth& h) {
   using S = diagnostic_msgs::DiagnosticStatus;
   Diagnosis d;
@@ -171,6 +182,16 @@ Diagnosis diagnose(const NodeHealth& h) {
     find(S::WARN, m.str());
   }
   if (!h.backend_warning.empty()) find(S::WARN, h.backend_warning);
+  if (h.budget.enabled && h.budget.at_limit && h.budget.budget_ms > 0.0 &&
+      h.budget.last_update_ms > h.budget.budget_ms) {
+    m.str("");
+    m.precision(3);
+    m << "updates take " << h.budget.last_update_ms << " ms, over the budget of "
+      << h.budget.budget_ms << " ms at the cheapest setting (pixel stride "
+      << h.budget.pixel_stride << ", no refinement, " << h.budget.particle_cap
+      << " particles): frames are skipped";
+    find(S::WARN, m.str());
+  }
   for (auto it = h.problems.rbegin(); it != h.problems.rend(); ++it) {  // the latest first
     if (h.now_s - it->second >= 0 && h.now_s - it->second < 5.0) find(S::WARN, it->first);
   }
@@ -198,6 +219,14 @@ Diagnosis diagnose(const NodeHealth& h) {
   add("sigma yaw (rad)", num(h.sigma_yaw_rad));
   add("Neff", num(h.neff));
   add("update ms", num(h.update_ms));
+  add("budget", !h.budget.enabled           ? "off"
+                : h.budget.budget_ms > 0.0 ? num(h.budget.budget_ms) + " ms"
+                                           : "no frame period yet");
+  add("pixel stride", std::to_string(h.budget.pixel_stride));
+  add("particle cap", std::to_string(h.budget.particle_cap));
+  add("refinement", h.budget.refine ? "as configured" : "off (budget)");
+  add("budget cuts / restores",
+      std::to_string(h.budget.cuts) + " / " + std::to_string(h.budget.restores));
   add("reinitialised particles (total)", std::to_string(c.reinitialised_total));
   add("lost events (total)", std::to_string(c.lost_events_total));
   add("resets", std::to_string(c.resets));

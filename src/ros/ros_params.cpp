@@ -30,6 +30,7 @@ std::string RosOptions::validate() const {
   if (pose_set != 0 && pose_set != 4) {
     err += "~initial_pose_x, _y, _z and _yaw must be given together (a single-pose start); ";
   }
+  err += budget.validate();
   return err;
 }
 
@@ -141,6 +142,43 @@ const ParamTable<RosOptions>& rosOptionsTable() {
                      {1e-4, 100}, kRuntime, "z spread of a requested pose whose covariance gives none"));
     add(paramSpec<R>("initial_sigma_yaw", GMM_MCL_PARAM_FIELD(R, initial_sigma_yaw_rad), "rad", g,
                      {1e-4, 3.15}, kRuntime, "yaw spread of a requested pose whose covariance gives none"));
+    g = "budget";
+    add(paramSpec<R>("update_budget", GMM_MCL_PARAM_FIELD(R, budget.enabled), "", g, {}, kRuntime,
+                     "Frame-rate budget: when updates take longer than max_update_ms, use a "
+                     "coarser pixel stride (up to budget_max_pixel_stride), then skip the pose "
+                     "refinement, then fewer particles (down to budget_min_particles); step back "
+                     "when there is headroom. ~status and /diagnostics report what is in force"));
+    add(paramSpec<R>("max_update_ms", GMM_MCL_PARAM_FIELD(R, budget.max_update_ms), "ms", g,
+                     {0, 1e5}, kRuntime,
+                     "Budget per update, wall time (the whole depth callback); 0: the camera's "
+                     "frame period, from the CameraInfo stamps (the clouds' with depth_input "
+                     "cloud) divided by the clock's rate (a bag played at rate 0.5 gets twice the "
+                     "time)"));
+    add(paramSpec<R>("budget_max_pixel_stride", GMM_MCL_PARAM_FIELD(R, budget.max_pixel_stride),
+                     "px", g, {1, 64}, kRuntime,
+                     "Frame-rate budget: the coarsest pixel stride it may choose (never finer "
+                     "than pixel_stride)"));
+    add(paramSpec<R>("budget_min_particles", GMM_MCL_PARAM_FIELD(R, budget.min_particles), "", g,
+                     {1, 1e7}, kRuntime,
+                     "Frame-rate budget: the fewest particles it may cap the count at (never more "
+                     "than num_particles)"));
+    add(paramSpec<R>("budget_over_updates", GMM_MCL_PARAM_FIELD(R, budget.over_updates), "", g,
+                     {1, 1000}, kRuntime,
+                     "Frame-rate budget: consecutive updates over the budget before it makes them "
+                     "cheaper"));
+    add(paramSpec<R>("budget_headroom_updates", GMM_MCL_PARAM_FIELD(R, budget.headroom_updates),
+                     "", g, {1, 100000}, kRuntime,
+                     "Frame-rate budget: consecutive updates with headroom before it steps back "
+                     "(more particles first, then a finer stride)"));
+    add(paramSpec<R>("budget_headroom_fraction",
+                     GMM_MCL_PARAM_FIELD(R, budget.headroom_fraction), "", g, {0.05, 0.95},
+                     kRuntime,
+                     "Frame-rate budget: an update has headroom when, at the cost of the step "
+                     "back, it would stay under this fraction of the budget"));
+    add(paramSpec<R>("budget_target_fraction", GMM_MCL_PARAM_FIELD(R, budget.target_fraction), "",
+                     g, {0.1, 1}, kRuntime,
+                     "Frame-rate budget: a cut aims at this fraction of the budget (cost taken "
+                     "as proportional to particles times pixels)"));
     return t;
   }();
   return table;

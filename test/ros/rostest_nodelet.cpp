@@ -11,6 +11,8 @@
 //                                frame gets the attitude of its own stamp
 //   ReconfigureKeepsParticles    dynamic_reconfigure changes keep the particles; the lost
 //                                detector's parameters are reconfigurable
+//   UpdateBudgetCutsAndKeepsBelief  a budget no update can meet: stride, refinement, particles
+//                                cut to their bounds in that order, still tracking; off: back
 //   RequestedPoses               rviz's planar 2D Pose Estimate keeps the height; a pose in the
 //                                odom frame is transformed
 //   DiagnosticsWarn              not converged (after global localization), lost
@@ -300,6 +302,43 @@ TEST(Nodelet, ReconfigureKeepsParticles) {
   const geometry_msgs::PoseArray fewer = *w->obs.particlesAt(t2);
   EXPECT_EQ(fewer.poses.size(), 300u);
   EXPECT_GE(fractionKept(fewer, after, 1e-6), 0.95);
+  restoreDefaults();
+}
+
+// The frame-rate budget made deterministic by a budget that no update can meet (0.001 ms): one
+// update over it (budget_over_updates 1) per cut. ~status shows the choice the frame ran with.
+TEST(Nodelet, UpdateBudgetCutsAndKeepsBelief) {
+  ASSERT_TRUE(ensureTracking());
+  ASSERT_TRUE(reconfigure({{"max_update_ms", 0.001}},
+                          {{"budget_max_pixel_stride", 12}, {"budget_min_particles", 150}, {"budget_over_updates", 1}},
+                          {{"update_budget", true}}));
+  const FilterStatus* s = nullptr;
+  ros::Time t;
+  for (int i = 0; i < 4; ++i) {  // cuts after frames 1 (stride), 2 (refinement), 3 (particles)
+    s = sendFrame(++w->k, SyntheticRobot::Frame(), &t);
+    ASSERT_NE(s, nullptr);
+    EXPECT_EQ(s->step_status, "ok");
+  }
+  EXPECT_TRUE(s->budget_enabled);
+  EXPECT_NEAR(s->budget_ms, 0.001, 1e-12);
+  EXPECT_EQ(s->budget_pixel_stride, 12);
+  EXPECT_FALSE(s->budget_refine);
+  EXPECT_EQ(s->budget_particle_cap, 150);
+  EXPECT_EQ(s->particles, 150);
+  EXPECT_GE(s->budget_cuts, 3);
+  EXPECT_LT(errorOfFrame(t, w->k), kTrackedM) << "the budget's changes lost the belief";
+  // Off: the configured values (nodelet.test: stride 4, 400 particles) at once.
+  ASSERT_TRUE(reconfigure({{"max_update_ms", 0.0}},
+                          {{"budget_max_pixel_stride", 16}, {"budget_min_particles", 100}, {"budget_over_updates", 3}},
+                          {{"update_budget", false}}));
+  s = sendFrame(++w->k, SyntheticRobot::Frame(), &t);
+  ASSERT_NE(s, nullptr);
+  EXPECT_FALSE(s->budget_enabled);
+  EXPECT_EQ(s->budget_pixel_stride, 4);
+  EXPECT_EQ(s->budget_particle_cap, 400);
+  EXPECT_TRUE(s->budget_refine);
+  EXPECT_EQ(s->particles, 400);
+  EXPECT_LT(errorOfFrame(t, w->k), kTrackedM);
   restoreDefaults();
 }
 

@@ -214,3 +214,53 @@ TEST(NodeStatusTest, RecentProblemsAreAllNamed) {
   EXPECT_EQ(h.problems.size(), NodeHealth::kRecentProblems);
   EXPECT_EQ(h.problems.back().first, "p5");
 }
+
+TEST(NodeStatusTest, UpdateBudgetReportedAndWarnsOnlyAtItsLimit) {
+  // Updates of 100 ms against 30 Hz frames: the budget cuts to its coarsest setting.
+  UpdateBudgetParams params;
+  params.max_pixel_stride = 12;
+  params.min_particles = 200;
+  LocalizerParams configured;
+  configured.filter.num_particles = 1000;
+  configured.frame.pixel_stride = 4;
+  UpdateBudget budget(params, configured);
+  for (int i = 0; i < 10; ++i) budget.frameArrived(i / 30.0, i, i / 30.0, i / 30.0);
+  NodeHealth h = tracking(10.0);
+  h.budget = budget.state();
+  Diagnosis d = diagnose(h);
+  EXPECT_EQ(d.level, S::OK) << d.message;
+  EXPECT_EQ(value(d, "pixel stride"), "4");
+  EXPECT_EQ(value(d, "particle cap"), "1000");
+  EXPECT_NE(value(d, "budget").find("33.3"), std::string::npos) << value(d, "budget");
+
+  for (int i = 0; i < 3; ++i) budget.updateTook(100.0, 1000);  // a first cut: the stride
+  h.budget = budget.state();
+  d = diagnose(h);
+  EXPECT_EQ(d.level, S::OK) << d.message;  // adapting, not at its limit: no warning
+  EXPECT_NE(value(d, "pixel stride"), "4");
+  FilterStatus s;
+  fillBudgetStatus(budget.state(), &s);
+  EXPECT_TRUE(s.budget_enabled);
+  EXPECT_NEAR(s.budget_ms, 1000.0 / 30.0, 1e-6);
+  EXPECT_EQ(s.budget_pixel_stride, budget.state().pixel_stride);
+  EXPECT_EQ(s.budget_particle_cap, 1000);
+  EXPECT_EQ(s.budget_cuts, 1);
+
+  for (int i = 0; i < 60; ++i) budget.updateTook(100.0, budget.state().particle_cap);
+  h.budget = budget.state();
+  d = diagnose(h);
+  EXPECT_EQ(d.level, S::WARN);
+  EXPECT_NE(d.message.find("over the budget"), std::string::npos) << d.message;
+  EXPECT_EQ(value(d, "pixel stride"), "12");
+  EXPECT_EQ(value(d, "particle cap"), "200");
+  EXPECT_EQ(value(d, "refinement"), "off (budget)");
+
+  UpdateBudgetParams off = params;
+  off.enabled = false;
+  budget.configure(off, configured);
+  h.budget = budget.state();
+  d = diagnose(h);
+  EXPECT_EQ(d.level, S::OK) << d.message;
+  EXPECT_EQ(value(d, "budget"), "off");
+  EXPECT_EQ(value(d, "pixel stride"), "4");
+}

@@ -33,7 +33,7 @@ class DepthInput {
  public:
   struct Callbacks {
     std::function<void(const std_msgs::Header&)> arrived;  // every depth message
-    std::function<void()> camera_info;                     // every CameraInfo
+    std::function<void(const std_msgs::Header&)> camera_info;  // every CameraInfo
     std::function<void(FrameDrop, const std::string& why)> dropped;
     std::function<void(const std_msgs::Header&, const DepthImage&, const Intrinsics&)> frame;
     // A remark worth logging once (e.g. a distorted CameraInfo used through its P).

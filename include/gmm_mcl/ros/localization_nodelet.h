@@ -71,11 +71,18 @@ class LocalizationNodelet : public nodelet::Nodelet {
                const Eigen::Isometry3d& T_map_base, const DepthImage& depth, const Intrinsics& K,
                double callback_ms, const std::string& warnings, bool gated);
   void problem(const std::string& what, bool warn = true);
+  // The frame-rate budget: a frame's stamp for the period, an update's duration for the choice,
+  // which goes to the localizer (keeping the particles) when it changes.
+  void budgetFrame(const std_msgs::Header& header);
+  void budgetUpdate(const StepResult& r, double callback_ms);
+  void applyBudget();   // the budget's choice to the localizer (the particles kept)
+  void applyOptions();  // the run-time options, at start and on dynamic_reconfigure
 
   RosOptions opts_;
   LocalizerParams params_;
   std::unique_ptr<Localizer> localizer_;
   MotionGate gate_;
+  UpdateBudget budget_;  // params_ are the configured values; the localizer gets budget_.apply()
 
   std::unique_ptr<tf2_ros::Buffer> tf_;
   std::unique_ptr<StepInputs> inputs_;

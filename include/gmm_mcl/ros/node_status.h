@@ -11,6 +11,7 @@
 
 #include "gmm_mcl/FilterStatus.h"
 #include "gmm_mcl/filter/localizer.h"
+#include "gmm_mcl/filter/update_budget.h"
 
 namespace gmm_mcl {
 
@@ -50,6 +51,9 @@ struct FrameCounters {
   bool have_seq_ = false;
   uint32_t last_seq_ = 0;
 };
+
+// The frame-rate budget's fields of ~status.
+void fillBudgetStatus(const BudgetState& b, FilterStatus* out);
 
 // ~status for one frame: the core's step result, the node's counters, the inputs' warnings.
 void fillStatus(const StepResult& r, const FrameCounters& c, const std::string& backend,
@@ -93,6 +97,7 @@ struct NodeHealth {
   long long frames_since_lost = -1;  // -1: never lost
   double warn_sigma_xy_m = 0.25, warn_sigma_yaw_rad = 0.25;
   double neff = 0.0, update_ms = 0.0;
+  BudgetState budget;  // the frame-rate budget's choice
 };
 
 struct Diagnosis {

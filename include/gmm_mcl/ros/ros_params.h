@@ -19,6 +19,7 @@
 #include "gmm_mcl/filter/localizer.h"
 #include "gmm_mcl/filter/parameter_table.h"
 #include "gmm_mcl/filter/pose.h"
+#include "gmm_mcl/filter/update_budget.h"
 
 namespace gmm_mcl {
 
@@ -56,6 +57,9 @@ struct RosOptions {
   double markers_period_s = 5.0;
   double warn_sigma_xy_m = 0.25;
   double warn_sigma_yaw_rad = 0.25;
+  // The frame-rate budget (update_budget.h): what each update evaluates so that it keeps up
+  // with the camera on a slow machine. Wall-time dependent, so only the nodelet has it.
+  UpdateBudgetParams budget;
 
   bool hasInitialPose() const;
   // No odometry frame (none given, or odometry_source none): the published transform is
