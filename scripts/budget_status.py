@@ -6,6 +6,8 @@ usage: budget_status.py RECORDED.bag [FRAMES_SENT]
 Prints one line of key=value pairs: frames received / used, the budget and the stride and
 particle count it settled on (the last status), and how often it changed them.
 """
+from __future__ import division, print_function
+
 import sys
 
 import rosbag

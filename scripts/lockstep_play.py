@@ -6,13 +6,27 @@ takes: a reference run for comparisons with real-time playback. Needs /use_sim_t
 
 usage: lockstep_play.py BAG [--depth-topic T] [--status-topic T] [--timeout S]
 """
+from __future__ import division, print_function
+
 import argparse
 import sys
 import threading
+import time
 
 import rosbag
 import rospy
 from rosgraph_msgs.msg import Clock
+
+
+def wait_until(cond, done, timeout_s):
+    """Condition.wait_for (Python 3 only): True once done(), False after timeout_s; cond held."""
+    end = time.time() + timeout_s
+    while not done():
+        left = end - time.time()
+        if left <= 0:
+            return False
+        cond.wait(left)
+    return True
 
 
 def main():
@@ -53,7 +67,7 @@ def main():
     for topic, msg, t in bag.read_messages():
         if topic == args.depth_topic and pending is not None:
             with cond:
-                ok = cond.wait_for(lambda: pending in answered, timeout=args.timeout)
+                ok = wait_until(cond, lambda: pending in answered, args.timeout)
             answered_count += ok
             timeouts += not ok
             pending = None
@@ -63,10 +77,11 @@ def main():
             pending = msg.header.stamp.to_nsec()
             sent += 1
             if sent % 100 == 0:
-                print("lockstep_play: %d / %d frames" % (sent, frames), flush=True)
+                print("lockstep_play: %d / %d frames" % (sent, frames))
+                sys.stdout.flush()
     if pending is not None:
         with cond:
-            ok = cond.wait_for(lambda: pending in answered, timeout=args.timeout)
+            ok = wait_until(cond, lambda: pending in answered, args.timeout)
         answered_count += ok
         timeouts += not ok
     print("lockstep_play: %d frames sent, %d answered, %d timed out" % (sent, answered_count, timeouts))
