@@ -30,6 +30,7 @@ add_library(gmm_mcl_ros SHARED
   src/ros/map_markers.cpp
   src/ros/depth_input.cpp
   src/ros/debug_image.cpp
+  src/ros/frame_outputs.cpp
   src/ros/localization_nodelet.cpp)
 target_include_directories(gmm_mcl_ros PUBLIC
   $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/include>)

@@ -59,7 +59,10 @@ DepthInput::DepthInput(ros::NodeHandle nh, ros::NodeHandle pnh, tf2_ros::Buffer*
   info_sub_.reset(
       new message_filters::Subscriber<sensor_msgs::CameraInfo>(nh, info_topic_, kSyncQueue));
   info_sub_->registerCallback(boost::function<void(const sensor_msgs::CameraInfoConstPtr&)>(
-      [this](const sensor_msgs::CameraInfoConstPtr& m) { cb_.camera_info(m->header); }));
+      [this](const sensor_msgs::CameraInfoConstPtr& m) {
+        cb_.camera_info(m->header);
+        cb_.frame_clock(m->header);
+      }));
   if (opts.image_transport == "compressedDepth") {
     depth_topic_ += "/compressedDepth";
     compressed_sub_.reset(
@@ -84,6 +87,7 @@ tf2_ros::MessageFilter<M>* DepthInput::connectTf(message_filters::SimpleFilter<M
   source->registerCallback(boost::function<void(const MPtr&)>([this](const MPtr& m) {
     waiting_[m->header.stamp] = m->header.frame_id;
     cb_.arrived(m->header);
+    if (info_topic_.empty()) cb_.frame_clock(m->header);  // a cloud
   }));
   auto filter = std::make_shared<tf2_ros::MessageFilter<M>>(*source, *tf, "", queue, nh);
   filter->setTargetFrames(targets_);

@@ -2,13 +2,11 @@
 
 #include <chrono>
 
-#include <geometry_msgs/PoseArray.h>
 #include <pluginlib/class_list_macros.hpp>
 
 #include "gmm_mcl/FilterStatus.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/ros/conversions.h"
-#include "gmm_mcl/ros/debug_image.h"
 
 namespace gmm_mcl {
 namespace {
@@ -76,16 +74,11 @@ void LocalizationNodelet::advertise() {
   tf_.reset(new tf2_ros::Buffer(ros::Duration(30.0)));
   // On the single-threaded queue, with the depth input's tf2 message filter (header: Threads).
   tf_listener_.reset(new tf2_ros::TransformListener(*tf_, nh, false));
-  tf_broadcaster_.reset(new tf2_ros::TransformBroadcaster());
   inputs_.reset(new StepInputs(tf_.get()));
   inputs_->setOptions(opts_);
   it_.reset(new image_transport::ImageTransport(pnh));
-  pose_pub_ = pnh.advertise<geometry_msgs::PoseWithCovarianceStamped>("pose", 10);
-  refined_pose_pub_ = pnh.advertise<geometry_msgs::PoseWithCovarianceStamped>("refined_pose", 10);
-  particles_pub_ = pnh.advertise<geometry_msgs::PoseArray>("particles", 2);
-  status_pub_ = pnh.advertise<FilterStatus>("status", 10);
+  outputs_.advertise(pnh, *it_);
   markers_.advertise(pnh, "gmm_markers");
-  debug_image_pub_ = it_->advertise("debug_image", 1);
   markers_.set(localizer_->map(), opts_.map_frame);
   reconfigure_server_.reset(
       new dynamic_reconfigure::Server<LocalizerConfig>(reconfigure_mutex_, pnh));
@@ -106,16 +99,10 @@ void LocalizationNodelet::advertise() {
         "odom", 1000, [this](const nav_msgs::OdometryConstPtr& m) { inputs_->addOdometry(*m); });
   }
   DepthInput::Callbacks cb;
-  // The frame period from every CameraInfo (their queue holds a second of them while an update
-  // runs; depth images beyond the newest are dropped before they arrive), else every cloud.
-  const bool period_from_info = opts_.depth_input != "cloud";
-  cb.arrived = [this, period_from_info](const std_msgs::Header& h) {
-    health_.arrived(h.seq, nowS());
-    if (!period_from_info) budgetFrame(h);
-  };
-  cb.camera_info = [this](const std_msgs::Header& h) {
-    health_.cameraInfo(nowS());
-    budgetFrame(h);
+  cb.arrived = [this](const std_msgs::Header& h) { health_.arrived(h.seq, nowS()); };
+  cb.camera_info = [this](const std_msgs::Header&) { health_.cameraInfo(nowS()); };
+  cb.frame_clock = [this](const std_msgs::Header& h) {  // the budget's frame period
+    budget_.frameArrived(h.stamp.toSec(), h.seq, nowS(), ros::WallTime::now().toSec());
   };
   cb.dropped = [this](FrameDrop d, const std::string& why) { onDrop(d, why); };
   cb.frame = [this](const std_msgs::Header& h, const DepthImage& d, const Intrinsics& K) {
@@ -151,7 +138,7 @@ void LocalizationNodelet::jumpedBack(const ros::Time& stamp) {
       last_stamp_.toSec(), stamp.toSec());
   inputs_->timeJumpedBack(stamp);
   have_map_odom_ = have_step_odom_ = false;
-  last_tf_stamp_ = ros::Time();
+  outputs_.restartTransforms();
   pose_saver_.restart();
   gate_.force();
   markers_.publish();  // rviz clears its displays on a jump back
@@ -211,49 +198,21 @@ void LocalizationNodelet::publish(const std_msgs::Header& header, const StepResu
                                   const Eigen::Isometry3d& T_map_base, const DepthImage& depth,
                                   const Intrinsics& K, double callback_ms,
                                   const std::string& warnings, bool gated) {
-  pose_pub_.publish(ros_conv::poseWithCovarianceStamped(T_map_base, r.estimate.covariance,
-                                                        opts_.map_frame, header.stamp));
-  const RefinementResult& rf = r.refinement;  // with the particles' covariance
-  if (!gated && rf.refined)
-    refined_pose_pub_.publish(
-        ros_conv::poseWithCovarianceStamped(particleToPose(rf.pose, rf.roll_rad, rf.pitch_rad),
-                                            r.estimate.covariance, opts_.map_frame, header.stamp));
-  // map -> odom, future-dated by transform_tolerance from the frame stamp (never now()), monotonic.
-  const ros::Time tf_stamp = header.stamp + ros::Duration(opts_.transform_tolerance_s);
-  const bool send_tf = opts_.tf_broadcast && have_map_odom_ &&
-                       (last_tf_stamp_.isZero() || tf_stamp > last_tf_stamp_);
-  if (send_tf) {
-    const std::string& child = opts_.mapToBase() ? opts_.base_frame : opts_.odom_frame;
-    tf_broadcaster_->sendTransform(
-        ros_conv::transformStamped(T_map_odom_, opts_.map_frame, child, tf_stamp));
-    last_tf_stamp_ = tf_stamp;
-  }
-  if (particles_pub_.getNumSubscribers() > 0) {
-    geometry_msgs::PoseArray particles;
-    particles.header.stamp = header.stamp;
-    particles.header.frame_id = opts_.map_frame;
-    ros_conv::poseArrayFromParticles(localizer_->filter().particles(), localizer_->rollRad(),
-                                     localizer_->pitchRad(), &particles);
-    particles_pub_.publish(particles);
-  }
+  outputs_.poses(header, r, T_map_base, gated, opts_.map_frame);
+  const std::string& child = opts_.mapToBase() ? opts_.base_frame : opts_.odom_frame;
+  const bool send_tf =  // future-dated by transform_tolerance from the frame stamp
+      opts_.tf_broadcast && have_map_odom_ &&
+      outputs_.transform(T_map_odom_, opts_.map_frame, child,
+                         header.stamp + ros::Duration(opts_.transform_tolerance_s));
+  outputs_.particles(header, *localizer_, opts_.map_frame);
   FilterStatus s =
       health_.frame(r, gated, send_tf, nowS(), params_.lost, localizer_->backend().name(),
                     localizer_->backendWarning(), callback_ms, warnings, inputs_->imuReceived(),
                     inputs_->odometryReceived());
   s.header = header;
   fillBudgetStatus(budget_.state(), &s);
-  status_pub_.publish(s);
-  if (debug_image_pub_.getNumSubscribers() > 0) {  // lazy: only while someone listens
-    sensor_msgs::Image img;
-    renderDebugImage(depth, K, localizer_->map(), T_map_base * inputs_->extrinsics(), params_.frame,
-                     params_.measurement, &img);
-    img.header = header;
-    debug_image_pub_.publish(img);
-  }
-}
-
-void LocalizationNodelet::budgetFrame(const std_msgs::Header& header) {
-  budget_.frameArrived(header.stamp.toSec(), header.seq, nowS(), ros::WallTime::now().toSec());
+  outputs_.status(s);
+  outputs_.debugImage(header, depth, K, *localizer_, T_map_base * inputs_->extrinsics());
 }
 
 void LocalizationNodelet::budgetUpdate(const StepResult& r, double callback_ms) {

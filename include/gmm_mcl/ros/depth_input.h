@@ -34,6 +34,10 @@ class DepthInput {
   struct Callbacks {
     std::function<void(const std_msgs::Header&)> arrived;  // every depth message
     std::function<void(const std_msgs::Header&)> camera_info;  // every CameraInfo
+    // Every message that times the camera: each CameraInfo (their queue holds a second of them
+    // while an update runs; depth images beyond the newest are dropped before they arrive), or
+    // each cloud.
+    std::function<void(const std_msgs::Header&)> frame_clock;
     std::function<void(FrameDrop, const std::string& why)> dropped;
     std::function<void(const std_msgs::Header&, const DepthImage&, const Intrinsics&)> frame;
     // A remark worth logging once (e.g. a distorted CameraInfo used through its P).

@@ -26,7 +26,6 @@
 #include <ros/ros.h>
 #include <std_srvs/Empty.h>
 #include <tf2_ros/buffer.h>
-#include <tf2_ros/transform_broadcaster.h>
 #include <tf2_ros/transform_listener.h>
 #include <visualization_msgs/MarkerArray.h>
 
@@ -36,6 +35,7 @@
 #include "gmm_mcl/filter/localizer.h"
 #include "gmm_mcl/filter/pose_reset.h"
 #include "gmm_mcl/ros/depth_input.h"
+#include "gmm_mcl/ros/frame_outputs.h"
 #include "gmm_mcl/ros/map_markers.h"
 #include "gmm_mcl/ros/node_status.h"
 #include "gmm_mcl/ros/ros_params.h"
@@ -73,7 +73,6 @@ class LocalizationNodelet : public nodelet::Nodelet {
   void problem(const std::string& what, bool warn = true);
   // The frame-rate budget: a frame's stamp for the period, an update's duration for the choice,
   // which goes to the localizer (keeping the particles) when it changes.
-  void budgetFrame(const std_msgs::Header& header);
   void budgetUpdate(const StepResult& r, double callback_ms);
   void applyBudget();   // the budget's choice to the localizer (the particles kept)
   void applyOptions();  // the run-time options, at start and on dynamic_reconfigure
@@ -87,13 +86,11 @@ class LocalizationNodelet : public nodelet::Nodelet {
   std::unique_ptr<tf2_ros::Buffer> tf_;
   std::unique_ptr<StepInputs> inputs_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
-  std::unique_ptr<tf2_ros::TransformBroadcaster> tf_broadcaster_;
   std::unique_ptr<image_transport::ImageTransport> it_;
   std::unique_ptr<DepthInput> input_;
   ros::Subscriber imu_sub_, odom_sub_, initialpose_sub_;
-  ros::Publisher pose_pub_, refined_pose_pub_, particles_pub_, status_pub_;
+  FrameOutputs outputs_;  // ~pose, ~refined_pose, tf, ~particles, ~status, ~debug_image
   MapMarkers markers_;
-  image_transport::Publisher debug_image_pub_;
   ros::ServiceServer global_srv_, reset_srv_, map_srv_;
   std::unique_ptr<diagnostic_updater::Updater> updater_;
   // Polled on wall time, due on ROS time (PeriodicSchedule): diagnostics and the markers.
@@ -104,7 +101,7 @@ class LocalizationNodelet : public nodelet::Nodelet {
 
   // The last update (single-threaded queue only).
   bool have_step_ = false;
-  ros::Time last_stamp_, last_tf_stamp_;
+  ros::Time last_stamp_;
   StepResult last_result_;
   bool have_map_odom_ = false;
   Eigen::Isometry3d T_map_odom_ = Eigen::Isometry3d::Identity();
