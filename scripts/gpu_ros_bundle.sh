@@ -221,5 +221,8 @@ mkdir -p "$BUNDLE"
 start=$(date +%s)
 tar -C "$STAGE" -cf - gpuros | xz -T2 -6 > "$BUNDLE/gpuros.tar.xz.partial"
 mv "$BUNDLE/gpuros.tar.xz.partial" "$BUNDLE/gpuros.tar.xz"
+# The staged copy goes: inside the package's folder, roslaunch finds its launch files as
+# duplicates of the package's own ("multiple files named [replay.launch] in package [gmm_mcl]").
+rm -rf "$STAGE"
 cp "$GMM_MCL_ROOT/scripts/gpu_ros_check.sh" "$BUNDLE/"
 echo "== $BUNDLE: $(du -sh "$BUNDLE" | cut -f1) (xz took $(( $(date +%s) - start )) s)"
