@@ -29,21 +29,21 @@ endif()
 # Kernels (nvcc) and the backend's host code (the C++ compiler, CUDA runtime API only), as
 # objects inside gmm_mcl_core: backend_factory.cpp calls makeCudaBackend().
 add_library(gmm_mcl_cuda OBJECT
-  cuda/membership_kernel.cu
-  cuda/likelihood_kernel.cu
-  cuda/frame_kernel.cu
-  cuda/normal_equations_kernel.cu
-  cuda/cuda_backend.cpp
-  cuda/cuda_normal_equations.cpp
-  cuda/particle_filter_kernels.cu
-  cuda/cuda_particle_filter.cpp
+  src/backend/cuda/membership_kernel.cu
+  src/backend/cuda/likelihood_kernel.cu
+  src/backend/cuda/frame_kernel.cu
+  src/backend/cuda/normal_equations_kernel.cu
+  src/backend/cuda/cuda_backend.cpp
+  src/backend/cuda/cuda_normal_equations.cpp
+  src/backend/cuda/particle_filter_kernels.cu
+  src/backend/cuda/cuda_particle_filter.cpp
 )
-# The device filter's cub sorts and scans (cuda/filter_sort.cu) in their own objects: CUDA 13's
-# cub refuses C++14, so this one file (C++14 code) is compiled as C++17 there; older toolkits
-# (the TX2's CUDA 10.2) compile it as C++14 like every other file.
-add_library(gmm_mcl_cuda_sort OBJECT cuda/filter_sort.cu)
+# The device filter's cub sorts and scans (src/backend/cuda/filter_sort.cu) in their own
+# objects: CUDA 13's cub refuses C++14, so this one file (C++14 code) is compiled as C++17
+# there; older toolkits (the TX2's CUDA 10.2) compile it as C++14 like every other file.
+add_library(gmm_mcl_cuda_sort OBJECT src/backend/cuda/filter_sort.cu)
 target_include_directories(gmm_mcl_cuda_sort PRIVATE
-  ${CMAKE_CURRENT_SOURCE_DIR} ${CMAKE_CURRENT_SOURCE_DIR}/include ${GMM_MCL_CUDA_INCLUDE})
+  ${CMAKE_CURRENT_SOURCE_DIR}/src/backend ${CMAKE_CURRENT_SOURCE_DIR}/include ${GMM_MCL_CUDA_INCLUDE})
 target_compile_definitions(gmm_mcl_cuda_sort PRIVATE CCCL_IGNORE_DEPRECATED_CPP_DIALECT)
 target_compile_options(gmm_mcl_cuda_sort PRIVATE -Xcompiler=-Wall)
 if(CMAKE_CUDA_COMPILER_VERSION VERSION_GREATER_EQUAL 13)
@@ -51,8 +51,9 @@ if(CMAKE_CUDA_COMPILER_VERSION VERSION_GREATER_EQUAL 13)
 endif()
 set_target_properties(gmm_mcl_cuda_sort PROPERTIES POSITION_INDEPENDENT_CODE ON)
 target_sources(gmm_mcl_core PRIVATE $<TARGET_OBJECTS:gmm_mcl_cuda_sort>)
+# The sources include each other as "cuda/<file>" from src/backend.
 target_include_directories(gmm_mcl_cuda PRIVATE
-  ${CMAKE_CURRENT_SOURCE_DIR} ${CMAKE_CURRENT_SOURCE_DIR}/include ${GMM_MCL_CUDA_INCLUDE})
+  ${CMAKE_CURRENT_SOURCE_DIR}/src/backend ${CMAKE_CURRENT_SOURCE_DIR}/include ${GMM_MCL_CUDA_INCLUDE})
 # Eigen's headers, and the core's definitions: EIGEN_MAX_STATIC_ALIGN_BYTES=0 gives Eigen objects
 # the same layout here as in the core. Not through target_link_libraries: CMake links OBJECT
 # libraries from 3.12 on (JetPack 4 has 3.10).

@@ -54,9 +54,8 @@ eigen_defs = {}
 for e in json.load(open(db)):
     src = os.path.realpath(os.path.join(e["directory"], e["file"]))
     rel = os.path.relpath(src, root)
-    core = rel.startswith(tuple("src/%s/" % d for d in CORE_DIRS)) or \
-        (rel.startswith("cuda/") and rel.endswith(".cpp"))
-    if not (core or (everything and rel.startswith("src/"))):
+    core = rel.startswith(tuple("src/%s/" % d for d in CORE_DIRS))
+    if rel.endswith(".cu") or not (core or (everything and rel.startswith("src/"))):
         continue
     if rel in seen:
         continue

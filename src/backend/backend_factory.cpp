@@ -5,7 +5,7 @@
 namespace gmm_mcl {
 
 #if defined(GMM_MCL_HAVE_CUDA)
-// Defined in cuda/: nullptr with *why set when no usable device is present.
+// Defined in src/backend/cuda/: nullptr with *why set when no usable device is present.
 std::unique_ptr<LikelihoodBackend> makeCudaBackend(std::string* why);
 bool cudaBackendCompiled() { return true; }
 #else

@@ -6,7 +6,7 @@
 #include <numeric>
 #include <stdexcept>
 
-#include "gmm_mcl/filter/particle_math.h"
+#include "gmm_mcl/internal/particle_math.h"
 
 namespace gmm_mcl {
 

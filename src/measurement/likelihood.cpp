@@ -6,9 +6,9 @@
 
 #include <Eigen/LU>
 
-#include "gmm_mcl/common/fast_math.h"
+#include "gmm_mcl/internal/fast_math.h"
 #include "gmm_mcl/measurement/depth_noise.h"
-#include "gmm_mcl/measurement/cpu_simd.h"
+#include "gmm_mcl/internal/cpu_simd.h"
 
 // 32-byte vector locals (cpu_simd.h): without AVX, GCC warns about an ABI change that does not
 // concern these file-local functions.

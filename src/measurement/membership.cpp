@@ -4,7 +4,7 @@
 #include <cmath>
 #include <sstream>
 
-#include "gmm_mcl/common/fast_math.h"
+#include "gmm_mcl/internal/fast_math.h"
 
 #if defined(__AVX2__) && defined(__FMA__)
 #include <immintrin.h>

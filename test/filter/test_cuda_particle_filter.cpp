@@ -21,7 +21,7 @@
 #include "gmm_mcl/backend/cuda_backend.h"
 #include "gmm_mcl/filter/cuda_particle_filter.h"
 #include "gmm_mcl/filter/particle_filter.h"
-#include "gmm_mcl/filter/particle_math.h"
+#include "gmm_mcl/internal/particle_math.h"
 #include "gmm_mcl/sim/box_scene.h"
 #include "test_utils/synthetic_fixtures.h"
 

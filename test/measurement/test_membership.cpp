@@ -4,7 +4,7 @@
 #include <cstdio>
 #include <random>
 
-#include "gmm_mcl/common/fast_math.h"
+#include "gmm_mcl/internal/fast_math.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/measurement/likelihood.h"
 #include "test_utils/synthetic_fixtures.h"

@@ -29,7 +29,7 @@ struct CudaDeviceInfo {
 
 // Floating-point operations the likelihood kernel executes per Gaussian evaluation, counted
 // from its instructions (an FMA counts 2): |U p + c|^2 subtracted from the base in the
-// Cholesky form of gmm_mcl/measurement/eval_component.h is 9 FMA (U p + c: 6, the three
+// Cholesky form of gmm_mcl/internal/eval_component.h is 9 FMA (U p + c: 6, the three
 // squares: 3) and the accumulation 1 addition: 19 FLOP in 10 FP32-pipe instructions. The exp2
 // runs on the special-function unit and counts 0; per-pixel and per-member work (pose
 // transform, log, loads, member lists) counts 0 too. So the "% of FP32 peak" is a lower bound

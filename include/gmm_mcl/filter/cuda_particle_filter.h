@@ -1,8 +1,8 @@
 // The particle set on the GPU: every ParticleFilterBase operation runs on the CUDA backend's
-// device and stream (cuda/particle_filter_kernels.cu), so that a filter step at 10^5 particles
-// fits a 30 Hz camera. Prediction noise and uniform draws come from a counter-based generator
-// (Philox); the likelihood is evaluated from device-resident poses on the frame the backend keeps
-// on the device; weights, the estimate and the scores are deterministic device reductions;
+// device and stream (src/backend/cuda/particle_filter_kernels.cu), so that a filter step at
+// 10^5 particles fits a 30 Hz camera. Prediction noise and uniform draws come from a
+// counter-based generator (Philox); the likelihood is evaluated from device-resident poses on the
+// frame the backend keeps on the device; weights, the estimate and the scores are deterministic device reductions;
 // resampling is ParticleFilter's stratified low-variance scheme with the KLD-sampling count;
 // selections (screening, lost redraws) sort on the device. Per frame only scalars and the small
 // estimate come back to the host; the particle array only when particles() is called. Results

@@ -4,7 +4,7 @@
 
 #include <math.h>
 
-#include "gmm_mcl/common/host_device.h"
+#include "gmm_mcl/internal/host_device.h"
 #include "gmm_mcl/common/types.h"
 
 namespace gmm_mcl {

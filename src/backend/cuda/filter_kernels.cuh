@@ -8,7 +8,7 @@
 #include <stdint.h>
 
 #include "gmm_mcl/common/types.h"
-#include "gmm_mcl/filter/particle_math.h"
+#include "gmm_mcl/internal/particle_math.h"
 
 namespace gmm_mcl {
 namespace cuda {

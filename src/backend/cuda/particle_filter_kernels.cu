@@ -3,7 +3,7 @@
 // the estimate, the stratified low-variance resampling and the KLD bins. Reductions are
 // deterministic: each block reduces its elements in a fixed tree, and the last block to finish
 // (elected by an atomic ticket) adds the blocks' partials in block order, so a result depends on
-// n only, not on timing. Host/device math from gmm_mcl/filter/particle_math.h.
+// n only, not on timing. Host/device math from gmm_mcl/internal/particle_math.h.
 #include <curand_kernel.h>
 #include <math.h>
 

@@ -6,7 +6,7 @@
 #include <stdint.h>
 
 #include "gmm_mcl/common/types.h"
-#include "gmm_mcl/measurement/eval_component.h"
+#include "gmm_mcl/internal/eval_component.h"
 #include "gmm_mcl/measurement/measurement_params.h"
 
 namespace gmm_mcl {

@@ -6,7 +6,7 @@
 #include <math.h>
 #include <stdint.h>
 
-#include "gmm_mcl/common/host_device.h"
+#include "gmm_mcl/internal/host_device.h"
 #include "gmm_mcl/common/types.h"
 
 namespace gmm_mcl {

@@ -7,7 +7,7 @@
 #include <stdint.h>
 #include <string.h>
 
-#include "gmm_mcl/common/fast_math.h"
+#include "gmm_mcl/internal/fast_math.h"
 
 #if defined(__AVX__)
 #include <immintrin.h>
