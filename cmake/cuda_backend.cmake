@@ -35,8 +35,12 @@ add_library(gmm_mcl_cuda OBJECT
   src/backend/cuda/normal_equations_kernel.cu
   src/backend/cuda/cuda_backend.cpp
   src/backend/cuda/cuda_normal_equations.cpp
-  src/backend/cuda/particle_filter_kernels.cu
+  src/backend/cuda/filter_sampling_kernels.cu
+  src/backend/cuda/filter_weight_kernels.cu
+  src/backend/cuda/filter_resample_kernels.cu
+  src/backend/cuda/cuda_particle_filter_impl.cpp
   src/backend/cuda/cuda_particle_filter.cpp
+  src/backend/cuda/cuda_particle_filter_candidates.cpp
 )
 # The device filter's cub sorts and scans (src/backend/cuda/filter_sort.cu) in their own
 # objects: CUDA 13's cub refuses C++14, so this one file (C++14 code) is compiled as C++17

@@ -1,13 +1,14 @@
 // The particle set on the GPU: every ParticleFilterBase operation runs on the CUDA backend's
-// device and stream (src/backend/cuda/particle_filter_kernels.cu), so that a filter step at
+// device and stream (src/backend/cuda/filter_*_kernels.cu), so that a filter step at
 // 10^5 particles fits a 30 Hz camera. Prediction noise and uniform draws come from a
 // counter-based generator (Philox); the likelihood is evaluated from device-resident poses on the
-// frame the backend keeps on the device; weights, the estimate and the scores are deterministic device reductions;
-// resampling is ParticleFilter's stratified low-variance scheme with the KLD-sampling count;
-// selections (screening, lost redraws) sort on the device. Per frame only scalars and the small
-// estimate come back to the host; the particle array only when particles() is called. Results
-// are reproducible run to run (same seed, same device), and statistically, not bitwise, those of
-// ParticleFilter (tested against it in test_cuda_particle_filter).
+// frame the backend keeps on the device; weights, the estimate and the scores are deterministic
+// device reductions; resampling is ParticleFilter's stratified low-variance scheme with the
+// KLD-sampling count; selections (screening, lost redraws) sort on the device. Per frame only
+// scalars and the small estimate come back to the host; the particle array only when
+// particles() is called. Results are reproducible run to run (same seed, same device), and
+// statistically, not bitwise, those of ParticleFilter (tested against it in
+// test_cuda_particle_filter).
 // No CUDA header is needed to include this file.
 #pragma once
 

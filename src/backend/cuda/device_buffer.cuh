@@ -12,20 +12,30 @@
 namespace gmm_mcl {
 namespace cuda {
 
-// Device array of T. reserve() grows only (contents are not preserved on growth).
-template <typename T>
-class DeviceBuffer {
+namespace detail {
+
+struct DeviceAllocator {
+  static cudaError_t allocate(void** p, size_t bytes) { return cudaMalloc(p, bytes); }
+  static void release(void* p) { cudaFree(p); }  // errors on release are not actionable
+};
+struct PinnedAllocator {
+  static cudaError_t allocate(void** p, size_t bytes) { return cudaMallocHost(p, bytes); }
+  static void release(void* p) { cudaFreeHost(p); }
+};
+
+// An array of T from Allocator; reserve() grows only (contents are not preserved on growth).
+template <typename T, typename Allocator>
+class OwnedArray {
  public:
-  DeviceBuffer() = default;
-  explicit DeviceBuffer(size_t n) { reserve(n); }
-  ~DeviceBuffer() { release(); }
-  DeviceBuffer(const DeviceBuffer&) = delete;
-  DeviceBuffer& operator=(const DeviceBuffer&) = delete;
-  DeviceBuffer(DeviceBuffer&& o) noexcept : ptr_(o.ptr_), capacity_(o.capacity_) {
+  OwnedArray() = default;
+  ~OwnedArray() { release(); }
+  OwnedArray(const OwnedArray&) = delete;
+  OwnedArray& operator=(const OwnedArray&) = delete;
+  OwnedArray(OwnedArray&& o) noexcept : ptr_(o.ptr_), capacity_(o.capacity_) {
     o.ptr_ = nullptr;
     o.capacity_ = 0;
   }
-  DeviceBuffer& operator=(DeviceBuffer&& o) noexcept {
+  OwnedArray& operator=(OwnedArray&& o) noexcept {
     if (this != &o) {
       release();
       std::swap(ptr_, o.ptr_);
@@ -37,16 +47,9 @@ class DeviceBuffer {
     if (n <= capacity_) return;
     release();
     void* p = nullptr;
-    GMM_MCL_CUDA_CHECK(cudaMalloc(&p, n * sizeof(T)));
+    GMM_MCL_CUDA_CHECK(Allocator::allocate(&p, n * sizeof(T)));
     ptr_ = static_cast<T*>(p);
     capacity_ = n;
-  }
-  // reserve() after the work queued on `stream` (which may still use the old array) is done:
-  // cudaFree is not guaranteed to wait for it.
-  void reserve(size_t n, cudaStream_t stream) {
-    if (n <= capacity_) return;
-    GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(stream));
-    reserve(n);
   }
   T* data() { return ptr_; }
   const T* data() const { return ptr_; }
@@ -54,49 +57,60 @@ class DeviceBuffer {
 
  private:
   void release() noexcept {
-    if (ptr_) cudaFree(ptr_);  // errors on release are not actionable
+    if (ptr_) Allocator::release(ptr_);
     ptr_ = nullptr;
     capacity_ = 0;
   }
   T* ptr_ = nullptr;
   size_t capacity_ = 0;
+};
+
+}  // namespace detail
+
+// Device array of T. reserve() grows only (contents are not preserved on growth).
+template <typename T>
+class DeviceBuffer : public detail::OwnedArray<T, detail::DeviceAllocator> {
+ public:
+  DeviceBuffer() = default;
+  explicit DeviceBuffer(size_t n) { this->reserve(n); }
+  using detail::OwnedArray<T, detail::DeviceAllocator>::reserve;
+  // reserve() after the work queued on `stream` (which may still use the old array) is done:
+  // cudaFree is not guaranteed to wait for it.
+  void reserve(size_t n, cudaStream_t stream) {
+    if (n <= this->capacity()) return;
+    GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(stream));
+    reserve(n);
+  }
 };
 
 // Page-locked host array of T (for asynchronous copies); grows only.
 template <typename T>
-class PinnedBuffer {
+class PinnedBuffer : public detail::OwnedArray<T, detail::PinnedAllocator> {
  public:
-  PinnedBuffer() = default;
-  ~PinnedBuffer() { release(); }
-  PinnedBuffer(const PinnedBuffer&) = delete;
-  PinnedBuffer& operator=(const PinnedBuffer&) = delete;
-  PinnedBuffer(PinnedBuffer&& o) noexcept : ptr_(o.ptr_), capacity_(o.capacity_) {
-    o.ptr_ = nullptr;
-    o.capacity_ = 0;
-  }
-  void reserve(size_t n) {
-    if (n <= capacity_) return;
-    release();
-    void* p = nullptr;
-    GMM_MCL_CUDA_CHECK(cudaMallocHost(&p, n * sizeof(T)));
-    ptr_ = static_cast<T*>(p);
-    capacity_ = n;
-  }
-  T* data() { return ptr_; }
-  const T* data() const { return ptr_; }
-  T& operator[](size_t i) { return ptr_[i]; }
-  const T& operator[](size_t i) const { return ptr_[i]; }
-  size_t capacity() const { return capacity_; }
-
- private:
-  void release() noexcept {
-    if (ptr_) cudaFreeHost(ptr_);
-    ptr_ = nullptr;
-    capacity_ = 0;
-  }
-  T* ptr_ = nullptr;
-  size_t capacity_ = 0;
+  T& operator[](size_t i) { return this->data()[i]; }
+  const T& operator[](size_t i) const { return this->data()[i]; }
 };
+
+// `count` elements of T from device memory to host memory, once the work queued on `stream`
+// is done (the call returns with the copy complete).
+template <typename T>
+void copyToHost(T* host, const void* device, size_t count, cudaStream_t stream) {
+  if (count > 0) {
+    GMM_MCL_CUDA_CHECK(
+        cudaMemcpyAsync(host, device, count * sizeof(T), cudaMemcpyDeviceToHost, stream));
+  }
+  GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(stream));
+}
+
+// Queues a copy of `count` elements of T from host memory to device memory on `stream` (the
+// host array must live until the stream has run it).
+template <typename T>
+void copyToDeviceAsync(void* device, const T* host, size_t count, cudaStream_t stream) {
+  if (count > 0) {
+    GMM_MCL_CUDA_CHECK(
+        cudaMemcpyAsync(device, host, count * sizeof(T), cudaMemcpyHostToDevice, stream));
+  }
+}
 
 // Makes `device` the calling thread's current device for the scope (each entry point of the
 // backend and the device filter: a nodelet's callbacks arrive on any thread of a pool).

@@ -1,4 +1,4 @@
-// Launchers of the device particle filter's kernels (cuda/particle_filter_kernels.cu) and of the
+// Launchers of the device particle filter's kernels (cuda/filter_*_kernels.cu) and of the
 // sorts and scans it takes from cub (cuda/filter_sort.cu). Plain data only, shared by the host
 // code (g++) and the .cu files (nvcc).
 #pragma once
