@@ -1,17 +1,15 @@
 # Reliability (issue #7): kidnapped-robot trials (library, tool and tests), degenerate views and
 # numerical safety tests. The 7-Scenes source needs the replay library (libpng).
-if(TARGET gmm_mcl_replay)
-  add_library(gmm_mcl_reliability STATIC src/reliability/kidnap.cpp)
-  target_link_libraries(gmm_mcl_reliability PUBLIC gmm_mcl_replay)
-  target_compile_options(gmm_mcl_reliability PRIVATE -Wall -Wextra)
+# The trials are in gmm_mcl_experiments (cmake/figures.cmake).
+if(TARGET gmm_mcl_experiments)
   add_executable(gmm_mcl_kidnap src/tools/kidnap_main.cpp)
-  target_link_libraries(gmm_mcl_kidnap PRIVATE gmm_mcl_reliability gmm_mcl_cli)
+  target_link_libraries(gmm_mcl_kidnap PRIVATE gmm_mcl_experiments gmm_mcl_cli)
 endif()
 
 if(GMM_MCL_BUILD_TESTS)
   gmm_mcl_add_gtest(test_degenerate test/reliability/test_degenerate.cpp gmm_mcl_test_utils)
-  if(TARGET gmm_mcl_reliability AND TARGET gmm_mcl_fit)
-    gmm_mcl_add_gtest(test_kidnap test/reliability/test_kidnap.cpp gmm_mcl_reliability gmm_mcl_fit
+  if(TARGET gmm_mcl_experiments AND TARGET gmm_mcl_fit)
+    gmm_mcl_add_gtest(test_kidnap test/reliability/test_kidnap.cpp gmm_mcl_experiments gmm_mcl_fit
                       gmm_mcl_test_utils)
     set_tests_properties(test_kidnap PROPERTIES TIMEOUT 1500)
   endif()

@@ -1,19 +1,25 @@
-# Offline replay and evaluation (issue 4): the data-set readers behind one Sequence interface
-# (7-Scenes, TUM RGB-D / ICL-NUIM, Stanford, the synthetic scene), the folder writers, the
-# protocol's odometry/attitude noise, the accuracy protocol, the gmm_mcl_replay tool and their
-# tests. Needs no ROS; reading and writing depth PNGs needs libpng.
+# Data sets: the recorded sequences behind one Sequence class (7-Scenes, TUM RGB-D / ICL-NUIM,
+# Stanford, the synthetic scene) and the folder writers. Needs no ROS; reading and writing depth
+# PNGs needs libpng.
+add_library(gmm_mcl_datasets STATIC
+  src/datasets/sequence_base.cpp
+  src/datasets/seven_scenes_sequence.cpp
+  src/datasets/tum_sequence.cpp
+  src/datasets/stanford_sequence.cpp
+  src/datasets/sim_sequence.cpp
+  src/datasets/sequence_writer.cpp
+)
+target_link_libraries(gmm_mcl_datasets PUBLIC gmm_mcl_sim)
+target_compile_options(gmm_mcl_datasets PRIVATE -Wall -Wextra)
+
+# Offline replay: the filter run over a recorded sequence, the protocol's odometry/attitude
+# noise, the accuracy protocol, the gmm_mcl_replay tool and their tests.
 add_library(gmm_mcl_replay STATIC
-  src/replay/sequence_base.cpp
-  src/replay/seven_scenes_sequence.cpp
-  src/replay/tum_sequence.cpp
-  src/replay/stanford_sequence.cpp
-  src/replay/sim_sequence.cpp
-  src/replay/sequence_writer.cpp
   src/replay/odometry_synthesizer.cpp
   src/replay/evaluation.cpp
   src/replay/replay.cpp
 )
-target_link_libraries(gmm_mcl_replay PUBLIC gmm_mcl_sim)
+target_link_libraries(gmm_mcl_replay PUBLIC gmm_mcl_datasets)
 target_compile_options(gmm_mcl_replay PRIVATE -Wall -Wextra)
 add_executable(gmm_mcl_replay_tool src/tools/replay_main.cpp)
 set_target_properties(gmm_mcl_replay_tool PROPERTIES OUTPUT_NAME gmm_mcl_replay)

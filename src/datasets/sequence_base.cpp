@@ -1,4 +1,4 @@
-#include "gmm_mcl/replay/sequence_base.h"
+#include "gmm_mcl/datasets/sequence_base.h"
 
 #include <dirent.h>
 #include <sys/stat.h>
@@ -9,9 +9,9 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "gmm_mcl/replay/seven_scenes_sequence.h"
-#include "gmm_mcl/replay/stanford_sequence.h"
-#include "gmm_mcl/replay/tum_sequence.h"
+#include "gmm_mcl/datasets/seven_scenes_sequence.h"
+#include "gmm_mcl/datasets/stanford_sequence.h"
+#include "gmm_mcl/datasets/tum_sequence.h"
 #include "sequence_io.h"
 
 #include "gmm_mcl/common/number_list.h"
@@ -110,6 +110,18 @@ DepthImage loadDepthPngScaled(const std::string& path, double units_per_m) {
 }
 
 }  // namespace seqio
+
+DepthImage Sequence::loadDepth(int i) const {
+  const std::string& path = depth_paths_[i];
+  DepthImage img = seqio::loadDepthPngScaled(path, depth_units_per_m_);
+  if (img.width_px != intrinsics_.width_px || img.height_px != intrinsics_.height_px) {
+    seqio::fail(path, "image is " + std::to_string(img.width_px) + "x" +
+                          std::to_string(img.height_px) + ", expected " +
+                          std::to_string(intrinsics_.width_px) + "x" +
+                          std::to_string(intrinsics_.height_px));
+  }
+  return img;
+}
 
 namespace {
 

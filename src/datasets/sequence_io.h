@@ -1,4 +1,4 @@
-// Text and file helpers shared by the sequence readers (private to src/replay).
+// Text and file helpers shared by the sequence readers (private to src/datasets).
 #pragma once
 
 #include <string>

@@ -1,4 +1,4 @@
-#include "gmm_mcl/replay/sequence_writer.h"
+#include "gmm_mcl/datasets/sequence_writer.h"
 
 #include <algorithm>
 

@@ -1,4 +1,4 @@
-#include "gmm_mcl/replay/seven_scenes_sequence.h"
+#include "gmm_mcl/datasets/seven_scenes_sequence.h"
 
 #include <cstdio>
 #include <stdexcept>
@@ -18,11 +18,11 @@ std::string framePath(const std::string& dir, int i, const char* suffix) {
 
 SevenScenesSequence::SevenScenesSequence(const std::string& data_dir, int max_frames,
                                          const SequenceOptions& options)
-    : dir_(data_dir), frame_rate_hz_(options.frame_rate_hz) {
+    : Sequence("7scenes", data_dir), frame_rate_hz_(options.frame_rate_hz) {
   if (!(frame_rate_hz_ > 0.0)) seqio::fail(data_dir, "frame rate must be positive");
   std::vector<double> v;
   std::string why;
-  const std::string kpath = dir_ + "/camera-intrinsics.txt";
+  const std::string kpath = data_dir + "/camera-intrinsics.txt";
   if (options.intrinsics.empty()) {
     if (!seqio::readNumberFile(kpath, &v, &why)) seqio::fail(kpath, why);
     if (v.size() != 9) {
@@ -34,10 +34,10 @@ SevenScenesSequence::SevenScenesSequence(const std::string& data_dir, int max_fr
       seqio::fail(kpath, e.what());
     }
   } else {
-    intrinsics_ = parseIntrinsicsOption(options.intrinsics, 640, 480, dir_);
+    intrinsics_ = parseIntrinsicsOption(options.intrinsics, 640, 480, data_dir);
   }
   for (int i = 0; max_frames < 0 || i < max_frames; ++i) {
-    const std::string ppath = framePath(dir_, i, "pose.txt");
+    const std::string ppath = framePath(data_dir, i, "pose.txt");
     if (!seqio::fileExists(ppath)) break;
     if (!seqio::readNumberFile(ppath, &v, &why)) seqio::fail(ppath, why);
     if (v.size() != 16) {
@@ -49,23 +49,14 @@ SevenScenesSequence::SevenScenesSequence(const std::string& data_dir, int max_fr
     T.linear() = seqio::orthonormalise(M.topLeftCorner<3, 3>(), ppath);
     T.translation() = M.topRightCorner<3, 1>();
     T_world_cam_.push_back(T);
+    stamps_s_.push_back(i / frame_rate_hz_);
+    depth_paths_.push_back(framePath(data_dir, i, "depth.png"));
   }
   if (T_world_cam_.empty()) {
     seqio::fail(data_dir, "no frame-000000.pose.txt: not a 7-Scenes sequence folder");
   }
   R_aligned_world_ =
-      resolveGravity(options.gravity, dir_, "none", T_world_cam_.front(), &gravity_source_);
-}
-
-std::string SevenScenesSequence::depthPath(int i) const { return framePath(dir_, i, "depth.png"); }
-
-DepthImage SevenScenesSequence::loadDepth(int i) const {
-  DepthImage img = seqio::loadDepthPngScaled(depthPath(i), 1000.0);
-  if (img.width_px != intrinsics_.width_px || img.height_px != intrinsics_.height_px) {
-    seqio::fail(depthPath(i), "image is " + std::to_string(img.width_px) + "x" +
-                                  std::to_string(img.height_px) + ", expected 640x480");
-  }
-  return img;
+      resolveGravity(options.gravity, data_dir, "none", T_world_cam_.front(), &gravity_source_);
 }
 
 }  // namespace gmm_mcl

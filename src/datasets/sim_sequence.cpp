@@ -1,4 +1,4 @@
-#include "gmm_mcl/replay/sim_sequence.h"
+#include "gmm_mcl/datasets/sim_sequence.h"
 
 #include <random>
 #include <stdexcept>
@@ -7,18 +7,28 @@
 
 namespace gmm_mcl {
 
-SimSequence::SimSequence(const SimSequenceParams& params)
-    : params_(params), scene_(sim::makeDefaultScene()) {
+namespace {
+
+std::string describe(const SimSequenceParams& params) {
   if (params.frames < 1 || params.width_px < 16) {
     throw std::invalid_argument("SimSequence: need at least 1 frame and 16 px width");
   }
-  source_ = "synthetic box scene (" + std::to_string(params.frames) + " frames, " +
-            std::to_string(params.width_px) + " px, seed " + std::to_string(params.seed) + ")";
+  return "synthetic box scene (" + std::to_string(params.frames) + " frames, " +
+         std::to_string(params.width_px) + " px, seed " + std::to_string(params.seed) + ")";
+}
+
+}  // namespace
+
+SimSequence::SimSequence(const SimSequenceParams& params)
+    : Sequence("sim", describe(params)), params_(params), scene_(sim::makeDefaultScene()) {
   intrinsics_ = sim::defaultCamera(params.width_px);
   const Eigen::Isometry3d T_base_cam = sim::defaultBaseToCamera();
   for (const Eigen::Isometry3d& T : sim::makeTrajectory(params.frames)) {
+    stamps_s_.push_back(params_.start_s + size() / 30.0);
+    depth_paths_.push_back(source_ + " frame " + std::to_string(size()));
     T_world_cam_.push_back(T * T_base_cam);
   }
+  gravity_source_ = "z-up";
 }
 
 DepthImage SimSequence::loadDepth(int i) const {
@@ -26,10 +36,6 @@ DepthImage SimSequence::loadDepth(int i) const {
   const sim::DepthNoise noise{params_.sigma_at_1m_m, params_.dropout};
   return sim::renderDepth(scene_, intrinsics_, T_world_cam_[i], DepthEncoding::kMono16Millimetres,
                           params_.max_range_m, noise, &rng);
-}
-
-std::string SimSequence::depthPath(int i) const {
-  return source_ + " frame " + std::to_string(i);
 }
 
 GmmMap SimSequence::map() const { return sim::tileScene(scene_, 0.4, 0.015); }

@@ -1,4 +1,4 @@
-#include "gmm_mcl/replay/stanford_sequence.h"
+#include "gmm_mcl/datasets/stanford_sequence.h"
 
 #include <cmath>
 #include <cstdlib>
@@ -81,22 +81,22 @@ std::vector<LogEntry> readLogTrajectory(const std::string& path) {
 }
 
 StanfordSequence::StanfordSequence(const std::string& dir, const SequenceOptions& options)
-    : dir_(dir) {
-  if (options.depth_units_per_m > 0.0) units_per_m_ = options.depth_units_per_m;
+    : Sequence("stanford", dir) {
+  if (options.depth_units_per_m > 0.0) depth_units_per_m_ = options.depth_units_per_m;
   if (!(options.frame_rate_hz > 0.0)) seqio::fail(dir, "frame rate must be positive");
   log_path_ = options.trajectory;
   if (log_path_.empty()) {
-    for (const std::string& n : seqio::listDirectory(dir_)) {
+    for (const std::string& n : seqio::listDirectory(dir)) {
       if (n.size() > 4 && n.compare(n.size() - 4, 4, ".log") == 0) {
         if (!log_path_.empty()) {
-          seqio::fail(dir_, "more than one *.log trajectory; choose one with --trajectory");
+          seqio::fail(dir, "more than one *.log trajectory; choose one with --trajectory");
         }
-        log_path_ = dir_ + "/" + n;
+        log_path_ = dir + "/" + n;
       }
     }
-    if (log_path_.empty()) seqio::fail(dir_, "no *.log trajectory: not a Stanford folder");
+    if (log_path_.empty()) seqio::fail(dir, "no *.log trajectory: not a Stanford folder");
   }
-  const std::string depth_dir = dir_ + "/depth";
+  const std::string depth_dir = dir + "/depth";
   if (!seqio::isDirectory(depth_dir)) seqio::fail(depth_dir, "missing: not a Stanford folder");
   // Depth images by number (000001.png -> 1).
   std::map<long, std::string> by_number;
@@ -121,24 +121,13 @@ StanfordSequence::StanfordSequence(const std::string& dir, const SequenceOptions
     stamps_s_.push_back((e.frame_index - log.front().frame_index) / options.frame_rate_hz);
     if (options.max_frames > 0 && size() >= options.max_frames) break;
   }
-  const DepthImage first = seqio::loadDepthPngScaled(depth_paths_.front(), units_per_m_);
+  const DepthImage first = seqio::loadDepthPngScaled(depth_paths_.front(), depth_units_per_m_);
   std::string spec = options.intrinsics;
-  if (spec.empty() && seqio::fileExists(dir_ + "/intrinsics.txt")) spec = dir_ + "/intrinsics.txt";
+  if (spec.empty() && seqio::fileExists(dir + "/intrinsics.txt")) spec = dir + "/intrinsics.txt";
   if (spec.empty()) spec = "kinect";
-  intrinsics_ = parseIntrinsicsOption(spec, first.width_px, first.height_px, dir_);
-  R_aligned_world_ = resolveGravity(options.gravity, dir_, "first-camera", T_world_cam_.front(),
+  intrinsics_ = parseIntrinsicsOption(spec, first.width_px, first.height_px, dir);
+  R_aligned_world_ = resolveGravity(options.gravity, dir, "first-camera", T_world_cam_.front(),
                                     &gravity_source_);
-}
-
-DepthImage StanfordSequence::loadDepth(int i) const {
-  DepthImage img = seqio::loadDepthPngScaled(depth_paths_[i], units_per_m_);
-  if (img.width_px != intrinsics_.width_px || img.height_px != intrinsics_.height_px) {
-    seqio::fail(depth_paths_[i], "image is " + std::to_string(img.width_px) + "x" +
-                                     std::to_string(img.height_px) + ", the first frame " +
-                                     std::to_string(intrinsics_.width_px) + "x" +
-                                     std::to_string(intrinsics_.height_px));
-  }
-  return img;
 }
 
 }  // namespace gmm_mcl

@@ -1,4 +1,4 @@
-#include "gmm_mcl/replay/tum_sequence.h"
+#include "gmm_mcl/datasets/tum_sequence.h"
 
 #include <algorithm>
 #include <cmath>
@@ -87,13 +87,14 @@ int nearestPose(const std::vector<StampedPose>& poses, double t_s, double tolera
   return best;
 }
 
-TumSequence::TumSequence(const std::string& dir, const SequenceOptions& options) : dir_(dir) {
-  if (options.depth_units_per_m > 0.0) units_per_m_ = options.depth_units_per_m;
+TumSequence::TumSequence(const std::string& dir, const SequenceOptions& options)
+    : Sequence("tum", dir) {
+  depth_units_per_m_ = options.depth_units_per_m > 0.0 ? options.depth_units_per_m : 5000.0;
   if (!(options.association_tolerance_s >= 0.0)) {
     seqio::fail(dir, "association tolerance must be >= 0");
   }
-  const std::string list = dir_ + "/depth.txt";
-  const std::string gt_path = dir_ + "/groundtruth.txt";
+  const std::string list = dir + "/depth.txt";
+  const std::string gt_path = dir + "/groundtruth.txt";
   if (!seqio::fileExists(list)) seqio::fail(list, "missing: not a TUM RGB-D folder");
   if (!seqio::fileExists(gt_path)) seqio::fail(gt_path, "missing: no ground truth to replay against");
   const std::vector<StampedPose> gt = readTumTrajectory(gt_path);
@@ -118,7 +119,7 @@ TumSequence::TumSequence(const std::string& dir, const SequenceOptions& options)
       continue;
     }
     stamps_s_.push_back(t);
-    depth_paths_.push_back(dir_ + "/" + tok[1]);
+    depth_paths_.push_back(dir + "/" + tok[1]);
     T_world_cam_.push_back(gt[k].T);
     if (options.max_frames > 0 && size() >= options.max_frames) break;
   }
@@ -132,34 +133,23 @@ TumSequence::TumSequence(const std::string& dir, const SequenceOptions& options)
     seqio::fail(list, msg.str());
   }
   // Image size from the first frame.
-  const DepthImage first = seqio::loadDepthPngScaled(depth_paths_.front(), units_per_m_);
+  const DepthImage first = seqio::loadDepthPngScaled(depth_paths_.front(), depth_units_per_m_);
   const int w = first.width_px, h = first.height_px;
   std::string spec = options.intrinsics;
-  if (spec.empty() && seqio::fileExists(dir_ + "/intrinsics.txt")) spec = dir_ + "/intrinsics.txt";
+  if (spec.empty() && seqio::fileExists(dir + "/intrinsics.txt")) spec = dir + "/intrinsics.txt";
   if (spec.empty()) {
     for (const char* fr : {"fr1", "fr2", "fr3"}) {
-      if (dir_.find(std::string("freiburg") + fr[2]) != std::string::npos) spec = fr;
+      if (dir.find(std::string("freiburg") + fr[2]) != std::string::npos) spec = fr;
     }
   }
   if (spec.empty()) {
-    seqio::fail(dir_, "no intrinsics: no intrinsics.txt and not a freiburgN folder; give "
+    seqio::fail(dir, "no intrinsics: no intrinsics.txt and not a freiburgN folder; give "
                       "fr1|fr2|fr3|icl|kinect, fx,fy,cx,cy or a file");
   }
-  intrinsics_ = parseIntrinsicsOption(spec, w, h, dir_);
+  intrinsics_ = parseIntrinsicsOption(spec, w, h, dir);
   intrinsics_source_ = spec;
   R_aligned_world_ =
-      resolveGravity(options.gravity, dir_, "z-up", T_world_cam_.front(), &gravity_source_);
-}
-
-DepthImage TumSequence::loadDepth(int i) const {
-  DepthImage img = seqio::loadDepthPngScaled(depth_paths_[i], units_per_m_);
-  if (img.width_px != intrinsics_.width_px || img.height_px != intrinsics_.height_px) {
-    seqio::fail(depth_paths_[i], "image is " + std::to_string(img.width_px) + "x" +
-                                     std::to_string(img.height_px) + ", the first frame " +
-                                     std::to_string(intrinsics_.width_px) + "x" +
-                                     std::to_string(intrinsics_.height_px));
-  }
-  return img;
+      resolveGravity(options.gravity, dir, "z-up", T_world_cam_.front(), &gravity_source_);
 }
 
 }  // namespace gmm_mcl

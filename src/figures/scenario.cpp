@@ -8,7 +8,7 @@
 
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/replay/replay.h"
-#include "gmm_mcl/replay/seven_scenes_sequence.h"
+#include "gmm_mcl/datasets/seven_scenes_sequence.h"
 #include "gmm_mcl/sim/box_scene.h"
 #include "gmm_mcl/sim/mesh_scene.h"
 

@@ -1,47 +1,17 @@
 #include "gmm_mcl/fit/seven_scenes_cloud.h"
 
 #include <Eigen/Core>
-#include <cmath>
-#include <cstdio>
-#include <fstream>
+#include <memory>
 #include <sstream>
+#include <stdexcept>
 
 #include "gmm_mcl/camera/depth_frame.h"
 #include "gmm_mcl/camera/depth_image.h"
+#include "gmm_mcl/datasets/seven_scenes_sequence.h"
 #include "gmm_mcl/fit/cloud_filter.h"
-#include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/fit/fit_error.h"
-#ifdef GMM_MCL_HAVE_PNG
-#include "gmm_mcl/camera/png_io.h"
-#endif
 
 namespace gmm_mcl {
-namespace {
-
-// Reads `count` whitespace-separated numbers.
-std::vector<double> readNumbers(const std::string& path, size_t count) {
-  std::ifstream in(path);
-  if (!in) throw FitError(path + ": cannot open");
-  std::vector<double> v;
-  double x;
-  while (v.size() < count && in >> x) v.push_back(x);
-  if (v.size() != count) {
-    throw FitError(path + ": expected " + std::to_string(count) + " numbers, read " +
-                   std::to_string(v.size()));
-  }
-  for (double d : v) {
-    if (!std::isfinite(d)) throw FitError(path + ": non-finite number");
-  }
-  return v;
-}
-
-std::string framePath(const std::string& dir, int frame, const char* suffix) {
-  char name[64];
-  std::snprintf(name, sizeof(name), "/frame-%06d.%s", frame, suffix);
-  return dir + name;
-}
-
-}  // namespace
 
 std::string SevenScenesCloudParams::validate() const {
   std::ostringstream err;
@@ -67,42 +37,31 @@ PointCloud buildSevenScenesCloud(const std::string& data_dir, const SevenScenesC
   (void)stats;
   throw FitError("7-Scenes cloud: this build has no libpng (GMM_MCL_HAVE_PNG) to read depth");
 #else
-  const std::vector<double> k = readNumbers(data_dir + "/camera-intrinsics.txt", 9);
+  // The data-set reader: intrinsics, the poses with their rotations orthonormalised as the
+  // replay reads them, depth in millimetres.
+  std::unique_ptr<SevenScenesSequence> seq;
+  try {
+    seq.reset(new SevenScenesSequence(data_dir, params.last_frame + 1));
+  } catch (const std::runtime_error& e) {
+    throw FitError(std::string("7-Scenes cloud: ") + e.what());
+  }
+  if (params.last_frame >= seq->size()) {
+    throw FitError(data_dir + ": 7-Scenes cloud: frame " + std::to_string(params.last_frame) +
+                   " asked for, the sequence has " + std::to_string(seq->size()));
+  }
+  const Intrinsics& K = seq->intrinsics();
   VoxelAccumulator voxels(params.voxel_m);
   SevenScenesCloudStats s;
-  Intrinsics K;
-  bool have_k = false;
   for (int f = params.first_frame; f <= params.last_frame; f += params.frame_step) {
-    const std::string depth_path = framePath(data_dir, f, "depth.png");
     DepthImage depth;
     try {
-      depth = loadDepthPng16(depth_path);
+      depth = seq->loadDepth(f);
     } catch (const std::exception& e) {
       throw FitError(std::string("7-Scenes cloud: ") + e.what());
     }
-    if (!have_k) {
-      try {
-        K = makeIntrinsics(k.data(), depth.width_px, depth.height_px);
-      } catch (const std::exception& e) {
-        throw FitError(data_dir + "/camera-intrinsics.txt: " + e.what());
-      }
-      have_k = true;
-    } else if (depth.width_px != K.width_px || depth.height_px != K.height_px) {
-      throw FitError(depth_path + ": image size differs from the first frame");
-    }
-    const std::vector<double> pose = readNumbers(framePath(data_dir, f, "pose.txt"), 16);
-    Eigen::Matrix4d T_world_cam;
-    for (int r = 0; r < 4; ++r) {
-      for (int c = 0; c < 4; ++c) T_world_cam(r, c) = pose[4 * r + c];
-    }
-    // The rotation as gmm_mcl_replay reads it (nearest rotation of the text matrix).
-    Eigen::Matrix3d R_world_cam;
-    std::string why;
-    if (!nearestRotation(T_world_cam.topLeftCorner<3, 3>(), &R_world_cam, &why)) {
-      throw FitError(framePath(data_dir, f, "pose.txt") + ": " + why);
-    }
-    const Eigen::Matrix3f R = R_world_cam.cast<float>();
-    const Eigen::Vector3f t = T_world_cam.topRightCorner<3, 1>().cast<float>();
+    const Eigen::Isometry3d& T_world_cam = seq->T_world_cam(f);
+    const Eigen::Matrix3f R = T_world_cam.linear().cast<float>();
+    const Eigen::Vector3f t = T_world_cam.translation().cast<float>();
     for (int v = 0; v < depth.height_px; v += params.pixel_stride) {
       for (int u = 0; u < depth.width_px; u += params.pixel_stride) {
         const float z = depth.depthMetres(u, v);

@@ -28,7 +28,7 @@
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/replay/odometry_synthesizer.h"
 #include "gmm_mcl/replay/replay.h"
-#include "gmm_mcl/replay/tum_sequence.h"
+#include "gmm_mcl/datasets/tum_sequence.h"
 #include "gmm_mcl/ros/conversions.h"
 
 using namespace gmm_mcl;

@@ -9,7 +9,7 @@
 #include <string>
 
 #include "gmm_mcl/map/gmm_map_io.h"
-#include "gmm_mcl/replay/seven_scenes_sequence.h"
+#include "gmm_mcl/datasets/seven_scenes_sequence.h"
 #include "gmm_mcl/ros/sequence_bag.h"
 #include "gmm_mcl/tools/command_line.h"
 

@@ -7,7 +7,7 @@
 #include <string>
 
 #include "gmm_mcl/map/gmm_map_io.h"
-#include "gmm_mcl/replay/sim_sequence.h"
+#include "gmm_mcl/datasets/sim_sequence.h"
 #include "gmm_mcl/ros/bag_writer.h"
 #include "gmm_mcl/ros/sequence_bag.h"
 #include "gmm_mcl/tools/sequence_flags.h"

@@ -16,9 +16,9 @@
 
 #include "gmm_mcl/common/number_list.h"
 #include "gmm_mcl/map/gmm_map_io.h"
-#include "gmm_mcl/replay/sequence_base.h"
-#include "gmm_mcl/replay/sequence_writer.h"
-#include "gmm_mcl/replay/tum_sequence.h"
+#include "gmm_mcl/datasets/sequence_base.h"
+#include "gmm_mcl/datasets/sequence_writer.h"
+#include "gmm_mcl/datasets/tum_sequence.h"
 #include "gmm_mcl/sim/mesh_renderer.h"
 #include "gmm_mcl/sim/mesh_scene.h"
 #include "gmm_mcl/sim/trajectory_io.h"
@@ -73,24 +73,21 @@ class RenderedSequence : public Sequence {
                    const Eigen::Matrix3d& R_aligned_world, double max_range_m, bool noise,
                    const sim::SensorNoiseParams& sensor, uint64_t seed, std::string source,
                    bool quiet)
-      : bvh_(std::move(bvh)), K_(K), stamps_(std::move(stamps)), poses_(std::move(poses)),
-        R_aligned_world_(R_aligned_world), max_range_m_(max_range_m), noise_(noise), seed_(seed),
-        source_(std::move(source)), quiet_(quiet), sensor_(sensor) {}
+      : Sequence("render", std::move(source)), bvh_(std::move(bvh)), max_range_m_(max_range_m),
+        noise_(noise), seed_(seed), quiet_(quiet), sensor_(sensor) {
+    intrinsics_ = K;
+    stamps_s_ = std::move(stamps);
+    T_world_cam_ = std::move(poses);
+    for (int i = 0; i < size(); ++i) depth_paths_.push_back("rendered frame " + std::to_string(i));
+    R_aligned_world_ = R_aligned_world;
+    gravity_source_ = "--down";
+  }
 
-  const char* format() const override { return "render"; }
-  const std::string& source() const override { return source_; }
-  int size() const override { return static_cast<int>(poses_.size()); }
-  const Intrinsics& intrinsics() const override { return K_; }
-  double stampS(int i) const override { return stamps_[i]; }
-  const Eigen::Isometry3d& T_world_cam(int i) const override { return poses_[i]; }
-  const Eigen::Matrix3d& R_aligned_world() const override { return R_aligned_world_; }
-  std::string gravitySource() const override { return "--down"; }
-  std::string depthPath(int i) const override { return "rendered frame " + std::to_string(i); }
   DepthImage loadDepth(int i) const override {
     const auto t0 = std::chrono::steady_clock::now();
-    const DepthImage img =
-        sim::renderDepth(*bvh_, K_, poses_[i], DepthEncoding::kMono16Millimetres, max_range_m_,
-                         noise_ ? &sensor_ : nullptr, sim::frameSeed(seed_, i));
+    const DepthImage img = sim::renderDepth(
+        *bvh_, intrinsics_, T_world_cam_[i], DepthEncoding::kMono16Millimetres, max_range_m_,
+        noise_ ? &sensor_ : nullptr, sim::frameSeed(seed_, i));
     const double ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     total_ms_ += ms;
@@ -104,14 +101,9 @@ class RenderedSequence : public Sequence {
 
  private:
   std::shared_ptr<const sim::MeshBvh> bvh_;
-  Intrinsics K_;
-  std::vector<double> stamps_;
-  std::vector<Eigen::Isometry3d> poses_;
-  Eigen::Matrix3d R_aligned_world_;
   double max_range_m_;
   bool noise_;
   uint64_t seed_;
-  std::string source_;
   bool quiet_;
   sim::SensorNoiseParams sensor_;
   mutable double total_ms_ = 0.0;

@@ -3,7 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "gmm_mcl/replay/evaluation.h"
-#include "gmm_mcl/replay/seven_scenes_sequence.h"
+#include "gmm_mcl/datasets/seven_scenes_sequence.h"
 
 namespace gmm_mcl {
 namespace {

@@ -8,8 +8,8 @@
 #include <gtest/gtest.h>
 
 #include "gmm_mcl/replay/replay.h"
-#include "gmm_mcl/replay/sequence_writer.h"
-#include "gmm_mcl/replay/sim_sequence.h"
+#include "gmm_mcl/datasets/sequence_writer.h"
+#include "gmm_mcl/datasets/sim_sequence.h"
 #include "temp_dir.h"
 
 namespace gmm_mcl {

@@ -6,11 +6,11 @@
 
 #include <gtest/gtest.h>
 
-#include "gmm_mcl/replay/seven_scenes_sequence.h"
-#include "gmm_mcl/replay/sequence_writer.h"
-#include "gmm_mcl/replay/sim_sequence.h"
-#include "gmm_mcl/replay/stanford_sequence.h"
-#include "gmm_mcl/replay/tum_sequence.h"
+#include "gmm_mcl/datasets/seven_scenes_sequence.h"
+#include "gmm_mcl/datasets/sequence_writer.h"
+#include "gmm_mcl/datasets/sim_sequence.h"
+#include "gmm_mcl/datasets/stanford_sequence.h"
+#include "gmm_mcl/datasets/tum_sequence.h"
 #include "temp_dir.h"
 #include "test_utils/synthetic_fixtures.h"
 

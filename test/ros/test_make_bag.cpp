@@ -23,8 +23,8 @@
 
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/replay/replay.h"
-#include "gmm_mcl/replay/sequence_writer.h"
-#include "gmm_mcl/replay/sim_sequence.h"
+#include "gmm_mcl/datasets/sequence_writer.h"
+#include "gmm_mcl/datasets/sim_sequence.h"
 #include "gmm_mcl/ros/bag_writer.h"
 #include "gmm_mcl/ros/conversions.h"
 #include "gmm_mcl/ros/sequence_bag.h"

@@ -1,11 +1,14 @@
 // A recorded depth sequence with ground truth, as input for offline replay and the bag
-// converters: one interface, one reader per data-set format (7-Scenes, TUM RGB-D / ICL-NUIM,
-// Stanford lounge/copyroom, the synthetic box scene). Readers load every pose up front and
-// depth images on demand; bad input throws std::runtime_error naming the file and the fault.
+// converters: one Sequence holding the data (intrinsics, stamps, poses, depth paths and units,
+// gravity), one reader per data-set format filling it (7-Scenes, TUM RGB-D / ICL-NUIM, Stanford
+// lounge/copyroom, the synthetic box scene). Readers load every pose up front and depth images
+// on demand; bad input throws std::runtime_error naming the file and the fault.
 #pragma once
 
 #include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <Eigen/Geometry>
 
@@ -13,27 +16,46 @@
 
 namespace gmm_mcl {
 
+// The data of a sequence; a reader (the constructor of a subclass) fills it. Depth is read on
+// demand: loadDepth() reads the PNG at depthPath(i) in depth_units_per_m_ raw units per metre;
+// a sequence without files (a simulation) overrides it.
 class Sequence {
  public:
   virtual ~Sequence() = default;
 
-  // "7scenes", "tum", "stanford", "sim".
-  virtual const char* format() const = 0;
+  // "7scenes", "tum", "stanford", "sim", ...
+  const char* format() const { return format_; }
   // The folder (or a description) the frames come from.
-  virtual const std::string& source() const = 0;
-  virtual int size() const = 0;
-  virtual const Intrinsics& intrinsics() const = 0;
+  const std::string& source() const { return source_; }
+  int size() const { return static_cast<int>(T_world_cam_.size()); }
+  const Intrinsics& intrinsics() const { return intrinsics_; }
   // Capture time of frame i in seconds (any origin; increasing).
-  virtual double stampS(int i) const = 0;
+  double stampS(int i) const { return stamps_s_[i]; }
   // Camera-to-world pose of frame i (optical frame: x right, y down, z forward).
-  virtual const Eigen::Isometry3d& T_world_cam(int i) const = 0;
+  const Eigen::Isometry3d& T_world_cam(int i) const { return T_world_cam_[i]; }
   // Rotation taking world coordinates into a gravity-aligned frame (z up).
-  virtual const Eigen::Matrix3d& R_aligned_world() const = 0;
+  const Eigen::Matrix3d& R_aligned_world() const { return R_aligned_world_; }
   // Where that rotation came from (a file, an option, the format's convention).
-  virtual std::string gravitySource() const = 0;
-  // Depth of frame i as 16UC1 millimetres (rescaled from the format's unit where needed).
-  virtual DepthImage loadDepth(int i) const = 0;
-  virtual std::string depthPath(int i) const = 0;
+  const std::string& gravitySource() const { return gravity_source_; }
+  const std::string& depthPath(int i) const { return depth_paths_[i]; }
+  // Depth of frame i as 16UC1 millimetres (rescaled from the format's unit where needed);
+  // throws std::runtime_error naming the file when it cannot be read or its size differs from
+  // the intrinsics'.
+  virtual DepthImage loadDepth(int i) const;
+
+ protected:
+  Sequence(const char* format, std::string source) : format_(format), source_(std::move(source)) {}
+
+  const char* format_;
+  std::string source_;
+  Intrinsics intrinsics_;
+  double depth_units_per_m_ = 1000.0;
+  // One entry per frame in each.
+  std::vector<double> stamps_s_;
+  std::vector<std::string> depth_paths_;
+  std::vector<Eigen::Isometry3d> T_world_cam_;
+  Eigen::Matrix3d R_aligned_world_ = Eigen::Matrix3d::Identity();
+  std::string gravity_source_ = "none";
 };
 
 // Options of the folder readers; every field has a format-specific default when left empty.

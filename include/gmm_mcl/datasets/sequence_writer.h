@@ -6,7 +6,7 @@
 
 #include <string>
 
-#include "gmm_mcl/replay/sequence_base.h"
+#include "gmm_mcl/datasets/sequence_base.h"
 
 namespace gmm_mcl {
 

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "gmm_mcl/map/gmm_map.h"
-#include "gmm_mcl/replay/sequence_base.h"
+#include "gmm_mcl/datasets/sequence_base.h"
 #include "gmm_mcl/sim/box_scene.h"
 
 namespace gmm_mcl {
@@ -28,16 +28,8 @@ class SimSequence : public Sequence {
  public:
   explicit SimSequence(const SimSequenceParams& params = SimSequenceParams());
 
-  const char* format() const override { return "sim"; }
-  const std::string& source() const override { return source_; }
-  int size() const override { return static_cast<int>(T_world_cam_.size()); }
-  const Intrinsics& intrinsics() const override { return intrinsics_; }
-  double stampS(int i) const override { return params_.start_s + i / 30.0; }
-  const Eigen::Isometry3d& T_world_cam(int i) const override { return T_world_cam_[i]; }
-  const Eigen::Matrix3d& R_aligned_world() const override { return R_identity_; }
-  std::string gravitySource() const override { return "z-up"; }
+  // Rendered with noise, seeded per frame.
   DepthImage loadDepth(int i) const override;
-  std::string depthPath(int i) const override;
 
   const sim::BoxScene& scene() const { return scene_; }
   // The scene's GMM (surfaces tiled at 0.4 m, 1.5 cm normal sigma), in the world frame.
@@ -45,11 +37,7 @@ class SimSequence : public Sequence {
 
  private:
   SimSequenceParams params_;
-  std::string source_;
   sim::BoxScene scene_;
-  Intrinsics intrinsics_;
-  std::vector<Eigen::Isometry3d> T_world_cam_;
-  Eigen::Matrix3d R_identity_ = Eigen::Matrix3d::Identity();
 };
 
 }  // namespace gmm_mcl

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "gmm_mcl/replay/sequence_base.h"
+#include "gmm_mcl/datasets/sequence_base.h"
 
 namespace gmm_mcl {
 
@@ -19,28 +19,10 @@ class StanfordSequence : public Sequence {
   explicit StanfordSequence(const std::string& dir,
                             const SequenceOptions& options = SequenceOptions());
 
-  const char* format() const override { return "stanford"; }
-  const std::string& source() const override { return dir_; }
-  int size() const override { return static_cast<int>(T_world_cam_.size()); }
-  const Intrinsics& intrinsics() const override { return intrinsics_; }
-  double stampS(int i) const override { return stamps_s_[i]; }
-  const Eigen::Isometry3d& T_world_cam(int i) const override { return T_world_cam_[i]; }
-  const Eigen::Matrix3d& R_aligned_world() const override { return R_aligned_world_; }
-  std::string gravitySource() const override { return gravity_source_; }
-  DepthImage loadDepth(int i) const override;
-  std::string depthPath(int i) const override { return depth_paths_[i]; }
   const std::string& trajectoryPath() const { return log_path_; }
 
  private:
-  std::string dir_;
   std::string log_path_;
-  Intrinsics intrinsics_;
-  double units_per_m_ = 1000.0;
-  std::vector<double> stamps_s_;
-  std::vector<std::string> depth_paths_;
-  std::vector<Eigen::Isometry3d> T_world_cam_;
-  Eigen::Matrix3d R_aligned_world_ = Eigen::Matrix3d::Identity();
-  std::string gravity_source_;
 };
 
 // One entry of a .log trajectory.

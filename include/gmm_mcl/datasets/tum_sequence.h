@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "gmm_mcl/replay/sequence_base.h"
+#include "gmm_mcl/datasets/sequence_base.h"
 
 namespace gmm_mcl {
 
@@ -19,32 +19,13 @@ class TumSequence : public Sequence {
   // gravity-direction.txt, else z up (the motion-capture world). Throws std::runtime_error.
   explicit TumSequence(const std::string& dir, const SequenceOptions& options = SequenceOptions());
 
-  const char* format() const override { return "tum"; }
-  const std::string& source() const override { return dir_; }
-  int size() const override { return static_cast<int>(stamps_s_.size()); }
-  const Intrinsics& intrinsics() const override { return intrinsics_; }
-  double stampS(int i) const override { return stamps_s_[i]; }
-  const Eigen::Isometry3d& T_world_cam(int i) const override { return T_world_cam_[i]; }
-  const Eigen::Matrix3d& R_aligned_world() const override { return R_aligned_world_; }
-  std::string gravitySource() const override { return gravity_source_; }
-  DepthImage loadDepth(int i) const override;
-  std::string depthPath(int i) const override { return depth_paths_[i]; }
-
   // Depth frames listed in depth.txt but dropped for want of a ground-truth pose in tolerance.
   int unassociatedFrames() const { return unassociated_; }
   // Where the intrinsics came from.
   const std::string& intrinsicsSource() const { return intrinsics_source_; }
 
  private:
-  std::string dir_;
-  Intrinsics intrinsics_;
   std::string intrinsics_source_;
-  double units_per_m_ = 5000.0;
-  std::vector<double> stamps_s_;
-  std::vector<std::string> depth_paths_;
-  std::vector<Eigen::Isometry3d> T_world_cam_;
-  Eigen::Matrix3d R_aligned_world_ = Eigen::Matrix3d::Identity();
-  std::string gravity_source_;
   int unassociated_ = 0;
 };
 

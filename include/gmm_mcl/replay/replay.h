@@ -10,7 +10,7 @@
 #include "gmm_mcl/filter/localizer.h"
 #include "gmm_mcl/replay/evaluation.h"
 #include "gmm_mcl/replay/odometry_synthesizer.h"
-#include "gmm_mcl/replay/seven_scenes_sequence.h"
+#include "gmm_mcl/datasets/seven_scenes_sequence.h"
 
 namespace gmm_mcl {
 

@@ -17,7 +17,7 @@
 
 #include "gmm_mcl/map/gmm_map.h"
 #include "gmm_mcl/replay/odometry_synthesizer.h"
-#include "gmm_mcl/replay/sequence_base.h"
+#include "gmm_mcl/datasets/sequence_base.h"
 
 namespace gmm_mcl {
 namespace ros_bag {

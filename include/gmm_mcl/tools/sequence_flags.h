@@ -2,7 +2,7 @@
 // gmm_mcl_make_bag): --intrinsics, --depth-scale, --tolerance, --gravity, --trajectory, --rate.
 #pragma once
 
-#include "gmm_mcl/replay/sequence_base.h"
+#include "gmm_mcl/datasets/sequence_base.h"
 #include "gmm_mcl/tools/command_line.h"
 
 namespace gmm_mcl {
