@@ -68,9 +68,7 @@ int CudaParticleFilter::size() const { return impl_->n; }
 const std::vector<Particle>& CudaParticleFilter::particles() const {
   Impl& d = *impl_;
   if (!d.particles_cached) {
-    const cuda::DeviceScope scope(d.device);
-    d.h_particles.resize(d.n);
-    cuda::copyToHost(d.h_particles.data(), d.particles.data(), d.n, d.stream);
+    d.download(d.particles, d.n, &d.h_particles);
     d.particles_cached = true;
   }
   return d.h_particles;
@@ -79,9 +77,7 @@ const std::vector<Particle>& CudaParticleFilter::particles() const {
 const std::vector<double>& CudaParticleFilter::weights() const {
   Impl& d = *impl_;
   if (!d.weights_cached) {
-    const cuda::DeviceScope scope(d.device);
-    d.h_weights.resize(d.n);
-    cuda::copyToHost(d.h_weights.data(), d.weights.data(), d.n, d.stream);
+    d.download(d.weights, d.n, &d.h_weights);
     d.weights_cached = true;
   }
   return d.h_weights;
@@ -271,11 +267,7 @@ std::vector<int> CudaParticleFilter::resampleWith(const std::vector<int>& order,
 }
 
 std::vector<int> CudaParticleFilter::lastResampleIndices() const {
-  const Impl& d = *impl_;
-  const cuda::DeviceScope scope(d.device);
-  std::vector<int> out(d.last_indices);
-  cuda::copyToHost(out.data(), d.indices.data(), out.size(), d.stream);
-  return out;
+  return impl_->download<int>(impl_->indices, impl_->last_indices);
 }
 
 int CudaParticleFilter::occupiedBins() const {
@@ -332,11 +324,7 @@ void CudaParticleFilter::setFrameLogLikelihoods(const std::vector<double>& log_l
 }
 
 std::vector<double> CudaParticleFilter::frameLogLikelihoods() const {
-  const Impl& d = *impl_;
-  const cuda::DeviceScope scope(d.device);
-  std::vector<double> out(d.ll_count);
-  cuda::copyToHost(out.data(), d.ll.data(), out.size(), d.stream);
-  return out;
+  return impl_->download<double>(impl_->ll, impl_->ll_count);
 }
 
 // The factory's entry (particle_filter_factory.cpp): the device filter on the CUDA backend.

@@ -27,11 +27,8 @@ void CudaParticleFilter::scoreCandidates(const MeasurementContext& ctx) {
   if (m <= 0) return;
   const cuda::DeviceScope scope(d.device);
   d.growCandidates(d.cand_count);
-  d.cand_T_map_cam.reserve(m, d.stream);
-  d.cand_T_cam_map.reserve(m, d.stream);
-  d.cand_hits.reserve(m, d.stream);
-  d.cand_evals.reserve(m, d.stream);
-  d.cand_pairs.reserve(m, d.stream);
+  cuda::reserveAll(m, d.stream, d.cand_T_map_cam, d.cand_T_cam_map, d.cand_hits, d.cand_evals,
+                   d.cand_pairs);
   d.scorePoses(ctx, d.cand.data() + d.cand_scored, m, d.cand_T_map_cam.data(),
                d.cand_T_cam_map.data(), d.cand_ll.data() + d.cand_scored, d.cand_hits.data(),
                d.cand_evals.data(), d.cand_pairs.data());
@@ -115,19 +112,13 @@ void CudaParticleFilter::replaceWorstByBestCandidates(int keep, int count) {
 }
 
 std::vector<Particle> CudaParticleFilter::candidateParticles() const {
-  const Impl& d = *impl_;
-  const cuda::DeviceScope scope(d.device);
-  std::vector<Particle> out(d.cand_count);
-  cuda::copyToHost(out.data(), d.cand.data(), out.size(), d.stream);
-  return out;
+  return impl_->download<Particle>(impl_->cand, impl_->cand_count);
 }
 
 std::vector<std::pair<double, Particle>> CudaParticleFilter::candidatePool() const {
   const Impl& d = *impl_;
   const std::vector<Particle> p = candidateParticles();
-  const cuda::DeviceScope scope(d.device);
-  std::vector<double> ll(d.cand_scored);
-  cuda::copyToHost(ll.data(), d.cand_ll.data(), ll.size(), d.stream);
+  const std::vector<double> ll = d.download<double>(d.cand_ll, d.cand_scored);
   std::vector<std::pair<double, Particle>> out(d.cand_scored);
   for (int i = 0; i < d.cand_scored; ++i) out[i] = std::make_pair(ll[i], p[i]);
   return out;
@@ -152,11 +143,7 @@ void CudaParticleFilter::setCandidatePool(const std::vector<std::pair<double, Pa
 }
 
 std::vector<Particle> CudaParticleFilter::candidateCentres() const {
-  const Impl& d = *impl_;
-  const cuda::DeviceScope scope(d.device);
-  std::vector<Particle> out(d.num_centres);
-  cuda::copyToHost(out.data(), d.centres.data(), out.size(), d.stream);
-  return out;
+  return impl_->download<Particle>(impl_->centres, impl_->num_centres);
 }
 
 }  // namespace gmm_mcl

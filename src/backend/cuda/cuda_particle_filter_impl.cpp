@@ -63,11 +63,7 @@ CudaParticleFilter::Impl::Impl(const ParticleFilterParams& p, CudaBackend* b)
   stream = static_cast<cudaStream_t>(b->streamHandle());
   const cuda::DeviceScope scope(device);
   partials.reserve(size_t(cuda::kReduceBlocks) * cuda::kReduceMaxValues, stream);
-  counter.reserve(1, stream);
-  wstate.reserve(1, stream);
-  estate.reserve(1, stream);
-  total.reserve(1, stream);
-  count.reserve(1, stream);
+  cuda::reserveAll(1, stream, counter, wstate, estate, total, count);
   count_sums.reserve(2, stream);
   h_wstate.reserve(1);
   h_estate.reserve(1);
@@ -85,24 +81,13 @@ void CudaParticleFilter::Impl::reserveParticles(size_t m) {
   cuda::growKeeping(&ll, c, ll_count, stream);
   cuda::growKeeping(&ll_follow, c, n, stream);
   cuda::growKeeping(&hits, c, ll_count, stream);
-  particles_swap.reserve(c, stream);
-  weights_swap.reserve(c, stream);
-  ll_follow_swap.reserve(c, stream);
-  w_new.reserve(c, stream);
-  evals.reserve(c, stream);
-  pairs.reserve(c, stream);
-  T_map_cam.reserve(c, stream);
-  T_cam_map.reserve(c, stream);
+  cuda::reserveAll(c, stream, particles_swap, weights_swap, ll_follow_swap, w_new, evals, pairs,
+                   T_map_cam, T_cam_map);
   capacity = c;
 }
 
 void CudaParticleFilter::Impl::reserveSort(size_t m) {
-  keys32.reserve(m, stream);
-  keys32_sorted.reserve(m, stream);
-  keysf.reserve(m, stream);
-  keysf_sorted.reserve(m, stream);
-  values.reserve(m, stream);
-  values_sorted.reserve(m, stream);
+  cuda::reserveAll(m, stream, keys32, keys32_sorted, keysf, keysf_sorted, values, values_sorted);
 }
 
 void CudaParticleFilter::Impl::randomOrder(int m) {

@@ -137,6 +137,22 @@ struct CudaParticleFilter::Impl {
   void scorePoses(const MeasurementContext& ctx, const ParticleState* p, int m, RigidTransformF* Tm,
                   RigidTransformF* Tc, double* out_ll, int* out_hits, long long* out_evals,
                   long long* out_pairs);
+  // *out = the first `count` elements of a device array (H: the host type of the same layout),
+  // on this filter's device and stream.
+  template <typename H, typename T>
+  void download(const cuda::DeviceBuffer<T>& device_array, size_t count,
+                std::vector<H>* out) const {
+    static_assert(sizeof(H) == sizeof(T), "host and device element types differ");
+    const cuda::DeviceScope scope(device);
+    out->resize(count);
+    cuda::copyToHost(out->data(), device_array.data(), count, stream);
+  }
+  template <typename H, typename T>
+  std::vector<H> download(const cuda::DeviceBuffer<T>& device_array, size_t count) const {
+    std::vector<H> out;
+    download(device_array, count, &out);
+    return out;
+  }
   // Candidate indices in values_sorted[0..) by descending score.
   void orderCandidates() { orderByScore(cand_ll.data(), cand_scored); }
 };

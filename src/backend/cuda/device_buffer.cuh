@@ -91,6 +91,13 @@ class PinnedBuffer : public detail::OwnedArray<T, detail::PinnedAllocator> {
   const T& operator[](size_t i) const { return this->data()[i]; }
 };
 
+// buffers.reserve(n, stream) for each, in order.
+template <typename... Buffers>
+void reserveAll(size_t n, cudaStream_t stream, Buffers&... buffers) {
+  const int in_order[] = {0, (buffers.reserve(n, stream), 0)...};
+  (void)in_order;
+}
+
 // `count` elements of T from device memory to host memory, once the work queued on `stream`
 // is done (the call returns with the copy complete).
 template <typename T>
