@@ -51,6 +51,21 @@ std::vector<std::string> listDirectory(const std::string& dir) {
   return names;
 }
 
+bool parseNumberLine(const std::string& line, std::vector<double>* out, std::string* bad) {
+  std::istringstream ls(line);
+  std::string tok;
+  while (ls >> tok) {
+    char* end = nullptr;
+    const double v = std::strtod(tok.c_str(), &end);
+    if (end == tok.c_str() || *end != '\0' || !std::isfinite(v)) {
+      *bad = tok;
+      return false;
+    }
+    out->push_back(v);
+  }
+  return true;
+}
+
 bool readNumberFile(const std::string& path, std::vector<double>* out, std::string* why) {
   std::ifstream in(path);
   if (!in) {
@@ -64,16 +79,10 @@ bool readNumberFile(const std::string& path, std::vector<double>* out, std::stri
     ++line_no;
     const size_t hash = line.find('#');
     if (hash != std::string::npos) line.resize(hash);
-    std::istringstream ls(line);
     std::string tok;
-    while (ls >> tok) {
-      char* end = nullptr;
-      const double v = std::strtod(tok.c_str(), &end);
-      if (end == tok.c_str() || *end != '\0' || !std::isfinite(v)) {
-        *why = "line " + std::to_string(line_no) + ": '" + tok + "' is not a finite number";
-        return false;
-      }
-      out->push_back(v);
+    if (!parseNumberLine(line, out, &tok)) {
+      *why = "line " + std::to_string(line_no) + ": '" + tok + "' is not a finite number";
+      return false;
     }
   }
   return true;

@@ -4,7 +4,6 @@
 #include <cstdlib>
 #include <fstream>
 #include <map>
-#include <sstream>
 #include <stdexcept>
 
 #include "sequence_io.h"
@@ -24,15 +23,9 @@ bool nextNumbers(std::ifstream& in, const std::string& path, int* line_no,
     ++*line_no;
     if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
     out->clear();
-    std::istringstream ls(line);
     std::string tok;
-    while (ls >> tok) {
-      char* end = nullptr;
-      const double v = std::strtod(tok.c_str(), &end);
-      if (end == tok.c_str() || *end != '\0' || !std::isfinite(v)) {
-        seqio::fail(where(path, *line_no), "'" + tok + "' is not a finite number");
-      }
-      out->push_back(v);
+    if (!seqio::parseNumberLine(line, out, &tok)) {
+      seqio::fail(where(path, *line_no), "'" + tok + "' is not a finite number");
     }
     return true;
   }

@@ -66,21 +66,13 @@ void CudaParticleFilter::setParams(const ParticleFilterParams& params) {
 int CudaParticleFilter::size() const { return impl_->n; }
 
 const std::vector<Particle>& CudaParticleFilter::particles() const {
-  Impl& d = *impl_;
-  if (!d.particles_cached) {
-    d.download(d.particles, d.n, &d.h_particles);
-    d.particles_cached = true;
-  }
-  return d.h_particles;
+  const Impl& d = *impl_;
+  return d.cachedDownload(d.particles, d.n, &d.h_particles, &d.particles_cached);
 }
 
 const std::vector<double>& CudaParticleFilter::weights() const {
-  Impl& d = *impl_;
-  if (!d.weights_cached) {
-    d.download(d.weights, d.n, &d.h_weights);
-    d.weights_cached = true;
-  }
-  return d.h_weights;
+  const Impl& d = *impl_;
+  return d.cachedDownload(d.weights, d.n, &d.h_weights, &d.weights_cached);
 }
 
 void CudaParticleFilter::setParticles(const std::vector<Particle>& particles,

@@ -147,6 +147,14 @@ struct CudaParticleFilter::Impl {
     out->resize(count);
     cuda::copyToHost(out->data(), device_array.data(), count, stream);
   }
+  // The host copy *out of a device array, downloaded unless *cached.
+  template <typename H, typename T>
+  const std::vector<H>& cachedDownload(const cuda::DeviceBuffer<T>& device_array, size_t count,
+                                       std::vector<H>* out, bool* cached) const {
+    if (!*cached) download(device_array, count, out);
+    *cached = true;
+    return *out;
+  }
   template <typename H, typename T>
   std::vector<H> download(const cuda::DeviceBuffer<T>& device_array, size_t count) const {
     std::vector<H> out;
