@@ -1,5 +1,5 @@
 # Reliability (issue #7): kidnapped-robot trials (library, tool and tests), degenerate views and
-# numerical safety tests. The 7-Scenes source needs the replay library (libpng).
+# numerical safety tests. The 7-Scenes source needs the data-set library (libpng).
 # The trials are in gmm_mcl_experiments (cmake/figures.cmake).
 if(TARGET gmm_mcl_experiments)
   add_executable(gmm_mcl_kidnap src/tools/kidnap_main.cpp)

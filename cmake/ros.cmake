@@ -49,7 +49,7 @@ target_link_libraries(gmm_mcl_params PRIVATE gmm_mcl_ros)
 # Writes the built-in synthetic scene as a bag (depth, CameraInfo, IMU, odometry, tf, truth).
 add_executable(make_sim_bag src/ros_tools/make_sim_bag.cpp)
 target_link_libraries(make_sim_bag PRIVATE gmm_mcl_datasets_ros gmm_mcl_cli)
-# Converts a 7-Scenes sequence (and its world-frame map) into such a bag: the replay library's
+# Converts a 7-Scenes sequence (and its world-frame map) into such a bag: the data-set library's
 # sequence reader (cmake/replay.cmake) and the accuracy protocol's odometry and attitude noise.
 add_executable(make_7scenes_bag src/ros_tools/make_7scenes_bag.cpp)
 target_link_libraries(make_7scenes_bag PRIVATE gmm_mcl_ros gmm_mcl_replay gmm_mcl_cli)

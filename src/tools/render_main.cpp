@@ -2,7 +2,7 @@
 // along a trajectory (the built-in drone trajectory, a traj.txt of camera-to-world 4x4 rows, or
 // a TUM trajectory of the camera) into a TUM RGB-D folder: depth/<t>.png (5000 units per
 // metre), depth.txt, groundtruth.txt (t tx ty tz qx qy qz qw, camera optical frame to world),
-// intrinsics.txt and gravity-direction.txt (the replay library's writer, which its TUM reader
+// intrinsics.txt and gravity-direction.txt (the data-set library's writer, which its TUM reader
 // reads back). The structured-light sensor model is on by default, seeded per frame.
 #include <chrono>
 #include <cmath>
