@@ -29,12 +29,14 @@ endif()
 # Kernels (nvcc) and the backend's host code (the C++ compiler, CUDA runtime API only), as
 # objects inside gmm_mcl_core: backend_factory.cpp calls makeCudaBackend().
 add_library(gmm_mcl_cuda OBJECT
+  # The likelihood backend: kernels, host code.
   src/backend/cuda/membership_kernel.cu
   src/backend/cuda/likelihood_kernel.cu
   src/backend/cuda/frame_kernel.cu
   src/backend/cuda/normal_equations_kernel.cu
   src/backend/cuda/cuda_backend.cpp
   src/backend/cuda/cuda_normal_equations.cpp
+  # The device particle filter: kernels, host code.
   src/backend/cuda/filter_sampling_kernels.cu
   src/backend/cuda/filter_weight_kernels.cu
   src/backend/cuda/filter_resample_kernels.cu

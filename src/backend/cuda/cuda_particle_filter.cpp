@@ -203,21 +203,13 @@ bool CudaParticleFilter::weighFrame(int pixels, FrameScores* scores) {
 }
 
 PoseEstimate CudaParticleFilter::estimate() const {
-  const Impl& d = *impl_;
-  if (!d.estimate_cached) {
-    const cuda::DeviceScope scope(d.device);
-    d.computeEstimate();
-  }
-  return d.estimate_value;
+  impl_->computeEstimateUnless(impl_->estimate_cached);
+  return impl_->estimate_value;
 }
 
 double CudaParticleFilter::effectiveSampleSize() const {
-  const Impl& d = *impl_;
-  if (!d.neff_cached) {
-    const cuda::DeviceScope scope(d.device);
-    d.computeEstimate();
-  }
-  return d.neff_value;
+  impl_->computeEstimateUnless(impl_->neff_cached);
+  return impl_->neff_value;
 }
 
 bool CudaParticleFilter::resampleIfNeeded() {

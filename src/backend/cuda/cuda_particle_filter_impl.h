@@ -131,7 +131,13 @@ struct CudaParticleFilter::Impl {
   // Distinct KLD bins of particles[indices[0..m)].
   int countBins(int m);
   void normaliseWeights();
+  // The estimate and Neff on the device, read back (both cached).
   void computeEstimate() const;
+  void computeEstimateUnless(bool cached) const {
+    if (cached) return;
+    const cuda::DeviceScope scope(device);
+    computeEstimate();
+  }
   void growCandidates(int m);
   // Frame log-likelihoods of m poses p (camera poses in Tm, Tc) on the backend's device frame.
   void scorePoses(const MeasurementContext& ctx, const ParticleState* p, int m, RigidTransformF* Tm,
