@@ -80,12 +80,13 @@ if(CATKIN_ENABLE_TESTING AND GMM_MCL_BUILD_TESTS)
   add_executable(test_node_status test/ros/test_node_status.cpp)
   target_link_libraries(test_node_status PRIVATE gmm_mcl_ros GTest::gtest_main)
   add_test(NAME test_node_status COMMAND test_node_status)
-  # The nodelet library holds the core and the nodelet only: no simulator (scenes, meshes, BVH,
-  # renderer), no data-set reader, map builder or replay code defined in it (< 1 s).
+  # The nodelet library and the core it links hold the localizer only: no simulator (scenes,
+  # meshes, BVH, renderer), no data-set reader, map builder or replay code defined in them (< 1 s).
   add_test(NAME test_nodelet_links_no_simulator
-    COMMAND bash -c "s=$(nm -C --defined-only \"$1\") || exit 2; ! grep -E \"$2\" <<< \"$s\"" nm
-            $<TARGET_FILE:gmm_mcl_ros>
-            "gmm_mcl::(sim::|[A-Za-z]*Sequence::|fitGmm|runSevenScenesTrial|buildSevenScenesCloud)")
+    COMMAND bash -c "p=$1; shift; for f; do s=$(nm -C --defined-only \"$f\") || exit 2; \
+                     if grep -E \"$p\" <<< \"$s\"; then exit 1; fi; done" nm
+            "gmm_mcl::(sim::|[A-Za-z]*Sequence::|fitGmm|runSevenScenesTrial|buildSevenScenesCloud)"
+            $<TARGET_FILE:gmm_mcl_ros> $<TARGET_FILE:gmm_mcl_core>)
 
   # The synthetic bag and map the rostests play (small: 320x240, 240 frames).
   set(GMM_MCL_TEST_BAG ${CMAKE_CURRENT_BINARY_DIR}/ros_test/sim.bag)
