@@ -34,6 +34,7 @@ add_library(gmm_mcl_cuda OBJECT
   cuda/frame_kernel.cu
   cuda/normal_equations_kernel.cu
   cuda/cuda_backend.cpp
+  cuda/cuda_backend_launch.cpp
   cuda/cuda_normal_equations.cpp
   cuda/particle_filter_kernels.cu
   cuda/cuda_particle_filter.cpp
