@@ -35,6 +35,7 @@ add_library(gmm_mcl_cuda OBJECT
   src/backend/cuda/frame_kernel.cu
   src/backend/cuda/normal_equations_kernel.cu
   src/backend/cuda/cuda_backend.cpp
+  src/backend/cuda/cuda_backend_launch.cpp
   src/backend/cuda/cuda_normal_equations.cpp
   # The device particle filter: kernels, host code.
   src/backend/cuda/filter_sampling_kernels.cu

@@ -167,6 +167,7 @@ struct Row {
   // |L - L_exact| / |L_exact| of the backend's log-likelihood against the exact sum, at the true
   // pose (worst checked frame) and worst over every checked particle; -1: not checked.
   double rel_err_truth = -1, rel_err_max = -1;
+  double visible_components = -1;  // mean after the per-update view cull; -1: not culled
 };
 
 // A pose the backend evaluated, with its log-likelihood, for the exact-sum check.
@@ -220,7 +221,8 @@ Row runWorkload(LikelihoodBackend* backend, double fp32_peak_gflops, const Workl
   if (!opt.depth_noise) mp.depth_noise.a_m = mp.depth_noise.b_per_m = 0.f;
   const int check_per_frame = std::min(opt.exact_particles, row.particles);
   std::vector<CheckedPose> checked;
-  std::vector<double> total_ms, prep_ms, memb_ms, lik_ms, xfer_ms, pixels, cpp, evals, hits, cpu_ms;
+  std::vector<double> total_ms, prep_ms, memb_ms, lik_ms, xfer_ms, pixels, cpp, evals, hits, cpu_ms,
+      visible;
   BackendOutput out;
   const int nf = static_cast<int>(frames.images.size());
   double timed_s = 0.0;
@@ -281,6 +283,7 @@ Row runWorkload(LikelihoodBackend* backend, double fp32_peak_gflops, const Workl
                             (double(row.particles) * out.patches_with_pixels)
                       : 0.0);
     evals.push_back(static_cast<double>(out.evaluations));
+    if (out.visible_components >= 0) visible.push_back(out.visible_components);
     long long h = 0;
     for (int x : out.floor_hits) h += x;
     hits.push_back(used_pixels > 0 ? double(h) / (used_pixels * row.particles) : 0.0);
@@ -298,6 +301,7 @@ Row runWorkload(LikelihoodBackend* backend, double fp32_peak_gflops, const Workl
   row.membership_ms = median(memb_ms);
   row.likelihood_ms = median(lik_ms);
   row.transfer_ms = xfer_ms.empty() ? -1 : median(xfer_ms);
+  row.visible_components = visible.empty() ? -1 : mean(visible);
   row.pixels = mean(pixels);
   row.comps_per_patch = mean(cpp);
   row.evals_per_update = mean(evals);
@@ -779,11 +783,14 @@ int run(int argc, char** argv) {
       "\n| backend | workload | N | stride | pixels | comps/patch | evals/update | updates/s "
       "| prep ms | proj+memb ms | likelihood ms | transfer ms | update ms | Geval/s "
       "| lik. kernel Geval/s | FP32 peak | floor hits | CPU ms/update | rel. err. truth "
-      "| rel. err. max | timed |\n");
+      "| rel. err. max | timed | visible comps |\n");
   std::printf(
-      "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+      "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+      "---|\n");
   for (const Row& r : rows) {
-    char xfer[32], peak[32], err_truth[32], err_max[32];
+    char xfer[32], peak[32], err_truth[32], err_max[32], visible[32];
+    std::snprintf(visible, sizeof(visible), r.visible_components >= 0 ? "%.0f" : "-",
+                  r.visible_components);
     std::snprintf(err_truth, sizeof(err_truth), r.rel_err_truth >= 0 ? "%.2e" : "-",
                   r.rel_err_truth);
     std::snprintf(err_max, sizeof(err_max), r.rel_err_max >= 0 ? "%.2e" : "-", r.rel_err_max);
@@ -797,11 +804,11 @@ int run(int argc, char** argv) {
       std::snprintf(peak, sizeof(peak), "-");
     std::printf(
         "| %s | %s | %d | %d | %.0f | %.1f | %.3g | %.2f | %.3f | %.3f | %.3f | %s | %.3f "
-        "| %.2f | %.2f | %s | %.3f | %.1f | %s | %s | %d |\n",
+        "| %.2f | %.2f | %s | %.3f | %.1f | %s | %s | %d | %s |\n",
         r.backend.c_str(), r.workload.c_str(), r.particles, r.stride, r.pixels, r.comps_per_patch,
         r.evals_per_update, r.updates_per_s, r.prep_ms, r.membership_ms, r.likelihood_ms, xfer,
         r.total_ms, r.gevals_per_s, r.kernel_gevals_per_s, peak, r.floor_hit_fraction, r.cpu_ms,
-        err_truth, err_max, r.timed);
+        err_truth, err_max, r.timed, visible);
   }
   return 0;
 }

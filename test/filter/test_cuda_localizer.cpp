@@ -309,26 +309,17 @@ TEST(CudaLocalizerTest, SetParamsKeepsTheDeviceFiltersBelief) {
 }
 
 TEST(CudaLocalizerTest, ABackendFailureFallsBackToTheCpuKeepingTheParticles) {
-  // A map whose membership bitmask exceeds the GPU's shared memory per block: the CUDA backend
-  // refuses it on the first evaluation (a BackendError at run time); the localizer copies the
-  // particles down and goes on with the CPU backend.
-  const GmmMap& base = test::world().map;
-  std::vector<GaussianComponent> comps;
-  // Enough copies that the bitmask of the 80 patches (4 bytes per 32 components) exceeds the
-  // device's shared memory per block (227 KB on an H100).
-  const size_t limit = CudaBackend(0).deviceInfo().shared_per_block_bytes;
-  const size_t words = limit / (4 * 80) + 8;
-  const int copies = static_cast<int>(words * 32 / base.size()) + 1;
-  for (int c = 0; c < copies; ++c) {
-    for (GaussianComponent g : base.components()) {
-      g.mean_m.z() += 50.0 * c;  // far copies: never seen, but in the bitmask
-      g.weight /= copies;
-      comps.push_back(g);
-    }
-  }
-  const GmmMap big(std::move(comps), "tiled copies");
+  // A patch grid whose membership bitmask exceeds the GPU's shared memory per block: the CUDA
+  // backend refuses it on the first evaluation (a BackendError at run time); the localizer copies
+  // the particles down and goes on with the CPU backend. (Maps of any size fit: the backend
+  // splits the bitmask into passes of 1,024 components; a grid of 4x4-pixel patches, 80 x 60 of
+  // them, still needs 4800 x 32 words = 614 KB per pass, beyond the 227 KB of an H100.)
+  const GmmMap& big = test::world().map;
+  ASSERT_GT(big.size(), 1024u);  // a full pass of 32 words
+  ASSERT_GT(size_t(80 * 60) * 32 * 4, CudaBackend(0).deviceInfo().shared_per_block_bytes);
   LocalizerParams p = cudaParams(300, true);
   p.frame.pixel_stride = 8;
+  p.frame.patch_size_px = 4;
   p.filter.min_particles = 0;
   Localizer loc(p, big);
   ASSERT_EQ(loc.filterName(), "cuda");

@@ -1,9 +1,11 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <random>
 
+#include "gmm_mcl/backend/cpu_backend.h"
 #include "gmm_mcl/internal/fast_math.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/measurement/likelihood.h"
@@ -14,6 +16,20 @@ namespace {
 
 // The paper's approximation vs the exact sum over all components (DESIGN.md, Fig. 2).
 constexpr double kApproxRelTol = 0.01;
+
+// The reference pose's frame at pixel stride 4, depths up to 8 m.
+DepthFrame strideFourFrame(const Intrinsics& K) {
+  FrameParams fp;
+  fp.pixel_stride = 4;
+  fp.max_range_m = 8.f;
+  return test::renderFrame(test::referenceBasePose(), K, fp);
+}
+
+MeasurementParams noiseOff() {
+  MeasurementParams mp;
+  mp.depth_noise.a_m = mp.depth_noise.b_per_m = 0.f;
+  return mp;
+}
 
 TEST(MembershipTest, FastTableEqualsBruteForce) {
   const auto& w = test::world();
@@ -65,6 +81,88 @@ TEST(MembershipTest, FastTableEqualsBruteForceAtRandomPoses) {
               pairs);
 }
 
+// Poses spread like the benchmark's particles around the reference pose (+-0.5 m, +-0.3 rad of
+// yaw), or in every direction (`all_around`).
+std::vector<RigidTransformF> spreadCameraPoses(int n, bool all_around, unsigned seed) {
+  const auto& w = test::world();
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<RigidTransformF> T_cam_map;
+  for (int k = 0; k < n; ++k) {
+    Eigen::Isometry3d T = test::referenceBasePose();
+    const double yaw = all_around ? 3.14159 * u(rng) : 0.3 * u(rng);
+    T.linear() = T.linear() * rotationFromRpy(0.05 * u(rng), 0.05 * u(rng), yaw);
+    T.translation() += Eigen::Vector3d(0.5 * u(rng), 0.5 * u(rng), 0.2 * u(rng));
+    T_cam_map.push_back(toRigidF((T * w.T_base_cam).inverse()));
+  }
+  return T_cam_map;
+}
+
+// The per-update view cull may only drop a component that no pose's patch lists: every member
+// of every pose's brute-force table must be in the culled list, for the cluster of poses at
+// once and for each pose alone (the tightest cull).
+TEST(MembershipTest, ViewCullKeepsEveryContributingComponent) {
+  const auto& w = test::world();
+  FrameParams fp;
+  const MeasurementParams params;
+  for (const Intrinsics& K : {test::smallCamera(), test::vgaCamera()}) {
+    const PatchGrid grid = PatchGrid::forImage(K.width_px, K.height_px, fp.patch_size_px);
+    for (bool all_around : {false, true}) {
+      const std::vector<RigidTransformF> poses = spreadCameraPoses(16, all_around, 5);
+      std::vector<int> visible;
+      cullToView(w.map.packed(), poses.data(), static_cast<int>(poses.size()), K, grid, params,
+                 &visible);
+      ASSERT_TRUE(std::is_sorted(visible.begin(), visible.end()));
+      size_t members = 0, own_visible = 0;
+      for (const RigidTransformF& T_cam_map : poses) {
+        PatchMembership brute;
+        computeMembershipBruteForce(w.map.packed(), T_cam_map, K, grid, params, &brute);
+        std::vector<int> own;
+        cullToView(w.map.packed(), &T_cam_map, 1, K, grid, params, &own);
+        own_visible += own.size();
+        for (int c : brute.comps) {
+          ASSERT_TRUE(std::binary_search(visible.begin(), visible.end(), c)) << c;
+          ASSERT_TRUE(std::binary_search(own.begin(), own.end(), c)) << c;
+        }
+        members += brute.comps.size();
+      }
+      std::printf("[ measured ] %dx%d, %s: %zu of %zu components visible to the 16 poses "
+                  "(%.0f per pose alone), %zu (patch, component) pairs all kept\n",
+                  K.width_px, K.height_px, all_around ? "all around" : "cluster",
+                  visible.size(), w.map.size(), double(own_visible) / poses.size(), members);
+      EXPECT_GT(members, 0u);
+      // A cluster looking one way sees part of the room: the cull has something to drop.
+      if (!all_around) EXPECT_LT(visible.size(), w.map.size());
+    }
+  }
+}
+
+// The CPU backend evaluates on the culled list: the same log-likelihoods, bit for bit, as the
+// whole map through poseLogLikelihood, with the depth-noise model on and off.
+TEST(MembershipTest, BackendOnCulledListEqualsWholeMap) {
+  const auto& w = test::world();
+  const DepthFrame frame = strideFourFrame(test::vgaCamera());
+  std::vector<RigidTransformF> T_map_cam;
+  for (const RigidTransformF& T : spreadCameraPoses(24, false, 9)) {
+    T_map_cam.push_back(invertRigid(T));
+  }
+  CpuBackend backend(2);
+  backend.setMap(w.map);
+  for (const MeasurementParams& mp : {noiseOff(), MeasurementParams()}) {
+    BackendOutput out;
+    backend.evaluate(frame, T_map_cam, mp, &out);
+    EXPECT_GT(out.visible_components, 0);
+    EXPECT_LT(out.visible_components, static_cast<int>(w.map.size()));
+    LikelihoodScratch scratch;
+    for (size_t i = 0; i < T_map_cam.size(); ++i) {
+      const FrameLikelihood ref = poseLogLikelihood(w.map.packed(), frame, T_map_cam[i], mp,
+                                                    &scratch);
+      EXPECT_EQ(out.log_likelihood[i], ref.log_likelihood) << i;
+      EXPECT_EQ(out.floor_hits[i], ref.floor_hits) << i;
+    }
+  }
+}
+
 // The vectorisable helpers of the membership projection (fast_math.h).
 TEST(MembershipTest, VectorisableHelpersMatchLibm) {
   int worst_ulp = 0;
@@ -91,15 +189,10 @@ TEST(MembershipTest, ApproximateLikelihoodWithinOnePercentOfExact) {
   // With and without the depth-noise model: the approximation (membership + float kernel) against
   // the double-precision sum over every component of the same model.
   const auto& w = test::world();
-  FrameParams fp;
-  fp.pixel_stride = 4;
-  fp.max_range_m = 8.f;
-  MeasurementParams noise_off;
-  noise_off.depth_noise.a_m = noise_off.depth_noise.b_per_m = 0.f;
-  for (const MeasurementParams& mp : {noise_off, MeasurementParams()}) {
+  for (const MeasurementParams& mp : {noiseOff(), MeasurementParams()}) {
     for (const Intrinsics& K : {test::smallCamera(), test::vgaCamera()}) {
       const Eigen::Isometry3d T_map_base = test::referenceBasePose();
-      const DepthFrame frame = test::renderFrame(T_map_base, K, fp);
+      const DepthFrame frame = strideFourFrame(K);
       const Eigen::Isometry3d T_map_cam = T_map_base * w.T_base_cam;
       LikelihoodScratch scratch;
       const FrameLikelihood approx =

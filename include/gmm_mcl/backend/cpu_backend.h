@@ -25,6 +25,11 @@ class CpuBackend : public LikelihoodBackend {
   std::vector<ComponentF> components_;
   std::vector<EvalComponentF> eval_;  // the likelihood kernel's form of components_ (nats)
   std::vector<LikelihoodScratch> scratch_;  // one per thread
+  // Per update: the poses' inverses, the view cull's list and the compact tables it selects.
+  std::vector<RigidTransformF> T_cam_map_;
+  std::vector<int> visible_;
+  std::vector<ComponentF> view_components_;
+  std::vector<EvalComponentF> view_eval_;
 };
 
 }  // namespace gmm_mcl

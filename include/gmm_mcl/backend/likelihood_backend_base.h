@@ -30,6 +30,7 @@ struct BackendOutput {
   long long patches_with_pixels = 0;   // per particle
   double projection_membership_ms = 0.0;
   double likelihood_ms = 0.0;
+  int visible_components = -1;  // after the per-update view cull (-1: not culled)
 };
 
 class LikelihoodBackend {

@@ -28,6 +28,14 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
                        std::vector<ProjectedComponent>* projected, std::vector<char>* valid,
                        PatchMembership* out);
 
+// The per-update view cull: the components (ascending map indices) that componentMayTouchGrid
+// keeps for at least one of the num_poses camera poses T_cam_map. Every other component lies
+// outside the patch grid's reach for every pose (no patch of any pose would list it), so the
+// membership and likelihood over this list equal those over the whole map.
+void cullToView(const std::vector<ComponentF>& components, const RigidTransformF* T_cam_map,
+                int num_poses, const Intrinsics& K, const PatchGrid& grid,
+                const MeasurementParams& params, std::vector<int>* visible);
+
 // Brute-force reference: tests every (patch, component) pair with ellipseContains.
 void computeMembershipBruteForce(const std::vector<ComponentF>& components,
                                  const RigidTransformF& T_cam_map, const Intrinsics& K,

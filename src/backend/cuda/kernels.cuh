@@ -33,19 +33,40 @@ cudaError_t setMembershipSharedLimit(size_t bytes);
 // Asks for the largest shared-memory carveout for the membership kernel (a hint).
 cudaError_t preferSharedMemoryForMembership();
 
-// Projection + patch membership for `num_particles` camera poses.
+// Projection + patch membership for `num_particles` camera poses, in membershipPasses(words,
+// pass_words) passes of pass_words bitmask words each (one block per particle and pass, a
+// bitmask of patches x pass_words words in shared memory; pass_words <= 0 or >= words: one pass
+// over all words).
 // mask_out: [num_particles][patches][words] bit i%32 of word i/32 set when component i is
-// relevant; shift_out: [num_particles][patches] max(floor, max log_norm of the members) (nats);
+// relevant; shift_out: [num_particles][patches] max(floor, max log_norm of the members) (nats),
+// followed by the passes' own shifts where there are several (membershipShiftFloats in all).
 // Components that componentMayTouchGrid rules out are not projected (same sets).
 // With cfg.depth_noise on, eval_out: [num_particles][num_components] each projected component's
 // log2 evaluation form convolved with the depth noise for that pose (depth_noise.h; where that
 // fails, the noise-free form from `eval`), and the shift uses those forms' log_norm; with it off,
 // eval and eval_out are not used (may be null).
-cudaError_t launchMembership(int num_particles, int num_components, int words,
+int membershipPasses(int words, int pass_words);
+size_t membershipShiftFloats(int num_particles, int patches, int passes);
+cudaError_t launchMembership(int num_particles, int num_components, int words, int pass_words,
                              const MembershipConfig& cfg, const ComponentF* components,
                              const EvalComponentF* eval, const RigidTransformF* T_cam_map,
                              uint32_t* mask_out, float* shift_out, EvalComponentF* eval_out,
                              cudaStream_t stream);
+
+// The per-update view cull: the components that componentMayTouchGrid keeps for at least one of
+// the poses, in ascending order (all others are culled by the membership kernel for every pose,
+// so membership and likelihood on this compact list give the same sets and sums).
+struct ViewCullBuffers {
+  int* visible;                // [M + 1] scratch flags
+  int* index;                  // [M] compact -> map index
+  ComponentF* components;      // [M] compact copy
+  EvalComponentF* eval;        // [M] compact copy (log2 form)
+  int* count;                  // [1] visible count
+};
+cudaError_t launchViewCull(int num_particles, int num_components, const MembershipConfig& cfg,
+                           const ComponentF* components, const EvalComponentF* eval,
+                           const RigidTransformF* T_cam_map, const ViewCullBuffers& b,
+                           cudaStream_t stream);
 
 // How the likelihood kernel maps work onto a warp: one warp per item (a band of
 // `band_patches` consecutive patches of one particle); `lanes` pixel groups of
@@ -72,18 +93,26 @@ struct ItemPartials {
   int* relevant;           // [items] members summed over the item's patches with pixels
 };
 
+// One batch's inputs of the likelihood kernel (device pointers).
+struct LikelihoodInputs {
+  int num_patches;
+  int words;                      // bitmask words per patch
+  const float *x_m, *y_m, *z_m;   // [pixels] camera frame
+  const int* patch_begin;         // [patches + 1]
+  // The log2 evaluation form (makeEvalComponentF with kEvalScaleLog2): one table for all
+  // particles (components_per_particle 0) or one of that many entries per particle
+  // (launchMembership's eval_out).
+  const EvalComponentF* components;
+  int components_per_particle;
+  const RigidTransformF* T_map_cam;  // [N]
+  const uint32_t* mask;              // [N][patches][words]
+  const float* shift;                // [N][patches], nats
+};
+
 // Per-pixel log-sum over the relevant components for every (particle, band) item.
-// components: the log2 evaluation form (makeEvalComponentF with kEvalScaleLog2), one table for
-// all particles (components_per_particle 0) or one of that many entries per particle
-// (launchMembership's eval_out).
-cudaError_t launchLikelihood(int num_particles, int num_patches, int words,
+cudaError_t launchLikelihood(int num_particles, const LikelihoodInputs& in,
                              const LikelihoodShape& shape, float floor_log_density,
-                             const float* x_m, const float* y_m, const float* z_m,
-                             const int* patch_begin, const EvalComponentF* components,
-                             int components_per_particle, const RigidTransformF* T_map_cam,
-                             const uint32_t* mask,
-                             const float* shift, const ItemPartials& partials,
-                             cudaStream_t stream);
+                             const ItemPartials& partials, cudaStream_t stream);
 
 // Per-particle sums of the item partials, in a fixed order (deterministic).
 // items_per_particle: likelihoodItemsPerParticle.

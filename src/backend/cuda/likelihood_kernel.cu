@@ -9,7 +9,7 @@
 // the slices' partial sums are then added with shuffles. All lanes of a warp work on one patch:
 // no divergence between items inside a warp.
 //
-// One evaluation (gmm_mcl/measurement/eval_component.h, log2 units):
+// One evaluation (gmm_mcl/internal/eval_component.h, log2 units):
 //   t = (base - S2) - |U p + c|^2 = 9 FMA, then sum += exp2(t) (1 add, exp2 on the SFU).
 // The sum is shifted by the patch's largest member log-normaliser S (>= the floor): every
 // exponent is <= 0 and no second pass for the maximum is needed; per pixel
@@ -51,6 +51,14 @@ __device__ __forceinline__ float log2Approx(float x) {
   return y;
 }
 
+// The sum of x over the warp's lanes, at lane 0, in a fixed order (deterministic).
+template <typename T>
+__device__ __forceinline__ T warpSumToLane0(T x) {
+#pragma unroll
+  for (int off = 16; off > 0; off >>= 1) x += __shfl_down_sync(0xffffffffu, x, off);
+  return x;
+}
+
 // Expands mask words [w0, w0 + 32) of one patch into the warp's member list (ascending
 // component index); returns the member count. All 32 lanes call it.
 __device__ __forceinline__ int buildMemberList(const uint32_t* __restrict__ row, int w0, int words,
@@ -73,8 +81,27 @@ __device__ __forceinline__ int buildMemberList(const uint32_t* __restrict__ row,
   return k;
 }
 
-// sum[q] += exp2(log2(lambda_j N_j(p_q)) - S2) over the members slice, slice + C, ... of list
-// (component records read from global memory through the L1 cache).
+// sum[q] += exp2(log2(lambda N(p_q)) - S2) for one member's record (ra, rb, rc).
+template <int PX>
+__device__ __forceinline__ void accumulateRecord(const float4& ra, const float4& rb,
+                                                 const float2& rc, float S2,
+                                                 const float (&px)[PX], const float (&py)[PX],
+                                                 const float (&pz)[PX], float (&sum)[PX]) {
+  const float base = ra.w - S2;
+#pragma unroll
+  for (int q = 0; q < PX; ++q) {
+    const float y0 = fmaf(rb.x, px[q], fmaf(rb.y, py[q], fmaf(rb.z, pz[q], ra.x)));
+    const float y1 = fmaf(rb.w, py[q], fmaf(rc.x, pz[q], ra.y));
+    const float y2 = fmaf(rc.y, pz[q], ra.z);
+    float tt = fmaf(-y0, y0, base);
+    tt = fmaf(-y1, y1, tt);
+    tt = fmaf(-y2, y2, tt);  // log2(lambda N) - S2 <= 0
+    sum[q] += exp2Approx(tt);
+  }
+}
+
+// accumulateRecord over the members slice, slice + C, ... of list (component records read from
+// global memory through the L1 cache).
 template <int PX, int C>
 __device__ __forceinline__ void accumulateListed(const uint16_t* list, int k, int slice,
                                                   const EvalComponentF* __restrict__ comps,
@@ -86,17 +113,7 @@ __device__ __forceinline__ void accumulateListed(const uint16_t* list, int k, in
     const float4 ra = __ldg(reinterpret_cast<const float4*>(comps + j));
     const float4 rb = __ldg(reinterpret_cast<const float4*>(comps + j) + 1);
     const float2 rc = __ldg(reinterpret_cast<const float2*>(comps + j) + 4);
-    const float base = ra.w - S2;
-#pragma unroll
-    for (int q = 0; q < PX; ++q) {
-      const float y0 = fmaf(rb.x, px[q], fmaf(rb.y, py[q], fmaf(rb.z, pz[q], ra.x)));
-      const float y1 = fmaf(rb.w, py[q], fmaf(rc.x, pz[q], ra.y));
-      const float y2 = fmaf(rc.y, pz[q], ra.z);
-      float tt = fmaf(-y0, y0, base);
-      tt = fmaf(-y1, y1, tt);
-      tt = fmaf(-y2, y2, tt);  // log2(lambda N) - S2 <= 0
-      sum[q] += exp2Approx(tt);
-    }
+    accumulateRecord<PX>(ra, rb, rc, S2, px, py, pz, sum);
   }
 }
 
@@ -114,7 +131,7 @@ __device__ __forceinline__ void stageMembers(const uint16_t* list, int n,
   __syncwarp();
 }
 
-// sum[q] += exp2(log2(lambda_j N_j(p_q)) - S2) over the staged members slice, slice + C, ...
+// accumulateRecord over the staged members slice, slice + C, ...
 template <int PX, int C>
 __device__ __forceinline__ void accumulateStaged(const float4* rec, int n, int slice, float S2,
                                                   const float (&px)[PX], const float (&py)[PX],
@@ -123,17 +140,7 @@ __device__ __forceinline__ void accumulateStaged(const float4* rec, int n, int s
     const float4 ra = rec[3 * t];
     const float4 rb = rec[3 * t + 1];
     const float2 rc = *reinterpret_cast<const float2*>(rec + 3 * t + 2);
-    const float base = ra.w - S2;
-#pragma unroll
-    for (int q = 0; q < PX; ++q) {
-      const float y0 = fmaf(rb.x, px[q], fmaf(rb.y, py[q], fmaf(rb.z, pz[q], ra.x)));
-      const float y1 = fmaf(rb.w, py[q], fmaf(rc.x, pz[q], ra.y));
-      const float y2 = fmaf(rc.y, pz[q], ra.z);
-      float tt = fmaf(-y0, y0, base);
-      tt = fmaf(-y1, y1, tt);
-      tt = fmaf(-y2, y2, tt);  // log2(lambda N) - S2 <= 0
-      sum[q] += exp2Approx(tt);
-    }
+    accumulateRecord<PX>(ra, rb, rc, S2, px, py, pz, sum);
   }
 }
 
@@ -250,12 +257,8 @@ __global__ void __launch_bounds__(kThreads, LikelihoodMinBlocks<PX>::value)
     relevant += k_total;
   }
   // Warp reduction in a fixed order (deterministic); lane 0 writes the item.
-  double dll = static_cast<double>(ll);
-#pragma unroll
-  for (int off = 16; off > 0; off >>= 1) {
-    dll += __shfl_down_sync(0xffffffffu, dll, off);
-    hits += __shfl_down_sync(0xffffffffu, hits, off);
-  }
+  const double dll = warpSumToLane0(static_cast<double>(ll));
+  hits = warpSumToLane0(hits);
   if (lane == 0) {
     item_ll[item] = dll;
     item_hits[item] = hits;
@@ -288,13 +291,10 @@ __global__ void __launch_bounds__(kThreads)
     evals += item_evals[base + p];
     pairs += item_relevant[base + p];
   }
-#pragma unroll
-  for (int off = 16; off > 0; off >>= 1) {
-    ll += __shfl_down_sync(0xffffffffu, ll, off);
-    hits += __shfl_down_sync(0xffffffffu, hits, off);
-    evals += __shfl_down_sync(0xffffffffu, evals, off);
-    pairs += __shfl_down_sync(0xffffffffu, pairs, off);
-  }
+  ll = warpSumToLane0(ll);
+  hits = warpSumToLane0(hits);
+  evals = warpSumToLane0(evals);
+  pairs = warpSumToLane0(pairs);
   if (lane == 0) {
     log_likelihood[particle] = ll;
     floor_hits[particle] = hits;
@@ -336,47 +336,38 @@ int likelihoodItemsPerParticle(const LikelihoodShape& shape, int num_patches) {
   return (num_patches + band - 1) / band;
 }
 
-cudaError_t launchLikelihood(int num_particles, int num_patches, int words,
+cudaError_t launchLikelihood(int num_particles, const LikelihoodInputs& in,
                              const LikelihoodShape& shape, float floor_log_density,
-                             const float* x_m, const float* y_m, const float* z_m,
-                             const int* patch_begin, const EvalComponentF* components,
-                             int components_per_particle, const RigidTransformF* T_map_cam,
-                             const uint32_t* mask,
-                             const float* shift, const ItemPartials& partials,
-                             cudaStream_t stream) {
-  const int bands = likelihoodItemsPerParticle(shape, num_patches);
+                             const ItemPartials& partials, cudaStream_t stream) {
+  const int bands = likelihoodItemsPerParticle(shape, in.num_patches);
   const long long items = static_cast<long long>(num_particles) * bands;
-  if (items <= 0 || words <= 0) return cudaSuccess;
+  if (items <= 0 || in.words <= 0) return cudaSuccess;
   const int band = shape.band_patches > 0 ? shape.band_patches : 1;
   const dim3 grid(static_cast<unsigned>((items + kWarps - 1) / kWarps)), block(kThreads);
-  const size_t smem = likelihoodSharedBytes(shape, words);
-#define GMM_MCL_LAUNCH(PXG, PX)                                                                 \
-  likelihoodKernel<PXG, PX, false><<<grid, block, smem, stream>>>(                              \
-      static_cast<int>(items), bands, band, num_patches, words, floor_log_density, x_m, y_m, z_m, \
-      patch_begin, components, components_per_particle, T_map_cam, mask, shift,                \
-      partials.log_likelihood,                                                                  \
-      partials.floor_hits, partials.evaluations, partials.relevant)
+  const size_t smem = likelihoodSharedBytes(shape, in.words);
+#define GMM_MCL_LAUNCH(PXG, PX, STAGE)                                                       \
+  likelihoodKernel<PXG, PX, STAGE><<<grid, block, smem, stream>>>(                           \
+      static_cast<int>(items), bands, band, in.num_patches, in.words, floor_log_density,      \
+      in.x_m, in.y_m, in.z_m, in.patch_begin, in.components, in.components_per_particle,     \
+      in.T_map_cam, in.mask, in.shift, partials.log_likelihood, partials.floor_hits,         \
+      partials.evaluations, partials.relevant)
   if (shape.stage_members) {
     if (shape.lanes != 32 || shape.pixels_per_lane != 4) return cudaErrorInvalidValue;
-    likelihoodKernel<32, 4, true><<<grid, block, smem, stream>>>(
-        static_cast<int>(items), bands, band, num_patches, words, floor_log_density, x_m, y_m, z_m,
-        patch_begin, components, components_per_particle, T_map_cam, mask, shift,
-        partials.log_likelihood,
-        partials.floor_hits, partials.evaluations, partials.relevant);
+    GMM_MCL_LAUNCH(32, 4, true);
     return cudaGetLastError();
   }
   switch (shape.lanes * 10 + shape.pixels_per_lane) {
-    case 324: GMM_MCL_LAUNCH(32, 4); break;
-    case 322: GMM_MCL_LAUNCH(32, 2); break;
-    case 321: GMM_MCL_LAUNCH(32, 1); break;
-    case 164: GMM_MCL_LAUNCH(16, 4); break;
-    case 162: GMM_MCL_LAUNCH(16, 2); break;
-    case 161: GMM_MCL_LAUNCH(16, 1); break;
-    case 84: GMM_MCL_LAUNCH(8, 4); break;
-    case 82: GMM_MCL_LAUNCH(8, 2); break;
-    case 81: GMM_MCL_LAUNCH(8, 1); break;
-    case 44: GMM_MCL_LAUNCH(4, 4); break;
-    case 42: GMM_MCL_LAUNCH(4, 2); break;
+    case 324: GMM_MCL_LAUNCH(32, 4, false); break;
+    case 322: GMM_MCL_LAUNCH(32, 2, false); break;
+    case 321: GMM_MCL_LAUNCH(32, 1, false); break;
+    case 164: GMM_MCL_LAUNCH(16, 4, false); break;
+    case 162: GMM_MCL_LAUNCH(16, 2, false); break;
+    case 161: GMM_MCL_LAUNCH(16, 1, false); break;
+    case 84: GMM_MCL_LAUNCH(8, 4, false); break;
+    case 82: GMM_MCL_LAUNCH(8, 2, false); break;
+    case 81: GMM_MCL_LAUNCH(8, 1, false); break;
+    case 44: GMM_MCL_LAUNCH(4, 4, false); break;
+    case 42: GMM_MCL_LAUNCH(4, 2, false); break;
     default:
       return cudaErrorInvalidValue;
   }

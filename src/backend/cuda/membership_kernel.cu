@@ -36,20 +36,27 @@ __device__ __forceinline__ float orderedIntToFloat(int k) {
 }
 
 __global__ void __launch_bounds__(kMembershipThreads, kMembershipMinBlocks)
-    membershipKernel(int num_particles, int num_components, int words, MembershipConfig cfg,
+    membershipKernel(int num_particles, int num_components, int words, int pass_words,
+                     MembershipConfig cfg,
                      const ComponentF* __restrict__ components,      // [M], map frame, metres
                      const EvalComponentF* __restrict__ eval,        // [M], log2 form
                      const RigidTransformF* __restrict__ T_cam_map,  // [N]
                      uint32_t* __restrict__ mask_out,                // [N][patches][words]
-                     float* __restrict__ shift_out,                  // [N][patches], nats
+                     float* __restrict__ shift_out,                  // [N][passes][patches]
                      EvalComponentF* __restrict__ eval_out) {        // [N][M] (depth noise on)
   extern __shared__ uint32_t smem[];
   const int particle = blockIdx.x;
   if (particle >= num_particles) return;
+  // Pass blockIdx.y: bitmask words [w0, w0 + nw) of every patch, components [c_begin, c_end).
+  const int pass = blockIdx.y;
+  const int w0 = pass * pass_words;
+  const int nw = min(pass_words, words - w0);
+  const int c_begin = w0 * 32;
+  const int c_end = min(num_components, (w0 + nw) * 32);
   const int patches = cfg.patch_cols * cfg.patch_rows;
-  uint32_t* mask = smem;                                            // [patches][words]
-  int* shift_key = reinterpret_cast<int*>(smem + patches * words);  // [patches]
-  for (int i = threadIdx.x; i < patches * words; i += blockDim.x) mask[i] = 0u;
+  uint32_t* mask = smem;                                         // [patches][nw]
+  int* shift_key = reinterpret_cast<int*>(smem + patches * nw);  // [patches]
+  for (int i = threadIdx.x; i < patches * nw; i += blockDim.x) mask[i] = 0u;
   const int floor_key = floatToOrderedInt(cfg.floor_log_density);
   for (int i = threadIdx.x; i < patches; i += blockDim.x) shift_key[i] = floor_key;
   __syncthreads();
@@ -63,11 +70,11 @@ __global__ void __launch_bounds__(kMembershipThreads, kMembershipMinBlocks)
   const int lane = threadIdx.x & 31;
   int* queue = shift_key + patches + (threadIdx.x >> 5) * kQueuePerWarp;  // [kQueuePerWarp]
   int queued = 0;  // warp-uniform
-  const int rounds = (num_components + blockDim.x - 1) / blockDim.x;
+  const int rounds = (c_end - c_begin + blockDim.x - 1) / blockDim.x;
   for (int round = 0; round < rounds; ++round) {
-    const int i = round * blockDim.x + threadIdx.x;
-    // Conservative cull (as computeMembership): no patch centre within reach, no projection.
-    const bool keep = i < num_components &&
+    const int i = c_begin + round * blockDim.x + threadIdx.x;
+    // Conservative cull (as the view cull): no patch centre within reach, no projection.
+    const bool keep = i < c_end &&
                       componentMayTouchGrid(components[i], T, cfg.K, cfg.patch_size_px,
                                             cfg.patch_cols, cfg.patch_rows, cfg.min_depth_m,
                                             cfg.sigma_bound, cfg.inflate_px);
@@ -96,7 +103,7 @@ __global__ void __launch_bounds__(kMembershipThreads, kMembershipMinBlocks)
       const int row1 =
           min(cfg.patch_rows - 1, static_cast<int>(floorf((p.v_px + p.half_h_px - c0) / ps)));
       const uint32_t bit = 1u << (j & 31);
-      const int word = j >> 5;
+      const int word = (j >> 5) - w0;
       float log_norm = c.log_norm;
       if (eval_out) {
         // The depth noise convolved into this pose's evaluation form (as the CPU backend).
@@ -112,7 +119,7 @@ __global__ void __launch_bounds__(kMembershipThreads, kMembershipMinBlocks)
           const float u = static_cast<float>(col * cfg.patch_size_px) + c0;
           if (ellipseContains(p, u, v)) {
             const int patch = r * cfg.patch_cols + col;
-            atomicOr(&mask[patch * words + word], bit);
+            atomicOr(&mask[patch * nw + word], bit);
             atomicMax(&shift_key[patch], key);
           }
         }
@@ -121,10 +128,107 @@ __global__ void __launch_bounds__(kMembershipThreads, kMembershipMinBlocks)
   }
   __syncthreads();
   uint32_t* out = mask_out + static_cast<size_t>(particle) * patches * words;
-  for (int i = threadIdx.x; i < patches * words; i += blockDim.x) out[i] = mask[i];
-  float* shift = shift_out + static_cast<size_t>(particle) * patches;
+  if (nw == words) {
+    for (int i = threadIdx.x; i < patches * words; i += blockDim.x) out[i] = mask[i];
+  } else {
+    for (int i = threadIdx.x; i < patches * nw; i += blockDim.x) {
+      const int patch = i / nw;
+      out[patch * words + w0 + (i - patch * nw)] = mask[i];
+    }
+  }
+  float* shift = shift_out + (static_cast<size_t>(particle) * gridDim.y + pass) * patches;
   for (int i = threadIdx.x; i < patches; i += blockDim.x)
     shift[i] = orderedIntToFloat(shift_key[i]);
+}
+
+// shift[n][p] = max over the passes of pass_shift[n][q][p].
+__global__ void combineShiftKernel(int count, int patches, int passes,
+                                   const float* __restrict__ pass_shift,
+                                   float* __restrict__ shift) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i >= count) return;
+  const int n = i / patches, p = i - n * patches;
+  const float* src = pass_shift + static_cast<size_t>(n) * passes * patches + p;
+  float s = src[0];
+  for (int q = 1; q < passes; ++q) s = fmaxf(s, src[q * patches]);
+  shift[i] = s;
+}
+
+// Per-update view cull: visible[i] = 1 when componentMayTouchGrid holds for component i and
+// some particle. One thread per component, blockIdx.y a slice of kCullParticles particles;
+// a component already found visible stops testing.
+constexpr int kCullThreads = 128;
+constexpr int kCullParticles = 16;
+// At most this many blocks per component range: more particles are taken in turns, so that a
+// component found visible stops early (measured on an H100, 100,000 particles: 326 us with one
+// block per 16 particles).
+constexpr int kCullSlices = 256;
+
+__global__ void __launch_bounds__(kCullThreads)
+    viewCullKernel(int num_particles, int num_components, MembershipConfig cfg,
+                   const ComponentF* __restrict__ components,
+                   const RigidTransformF* __restrict__ T_cam_map, int* visible) {
+  __shared__ RigidTransformF s_T[kCullParticles];
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  // Slices blockIdx.y, blockIdx.y + gridDim.y, ... (the grid's y extent is limited).
+  for (int first = blockIdx.y * kCullParticles; first < num_particles;
+       first += gridDim.y * kCullParticles) {
+    const int count = min(kCullParticles, num_particles - first);
+    __syncthreads();  // the previous slice's poses are no longer read
+    for (int k = threadIdx.x; k < count; k += blockDim.x) s_T[k] = T_cam_map[first + k];
+    __syncthreads();
+    if (i >= num_components || *reinterpret_cast<volatile int*>(visible + i)) continue;
+    const ComponentF c = components[i];
+    for (int k = 0; k < count; ++k) {
+      if (componentMayTouchGrid(c, s_T[k], cfg.K, cfg.patch_size_px, cfg.patch_cols,
+                                cfg.patch_rows, cfg.min_depth_m, cfg.sigma_bound,
+                                cfg.inflate_px)) {
+        visible[i] = 1;
+        break;
+      }
+    }
+  }
+}
+
+// The visible components in ascending order: index list and count. One block; rounds of
+// blockDim.x components with a block-wide exclusive scan.
+constexpr int kCompactThreads = 1024;
+
+__global__ void __launch_bounds__(kCompactThreads)
+    compactKernel(int num_components, const int* __restrict__ visible,
+                  int* __restrict__ index_out, int* __restrict__ count_out) {
+  __shared__ int warp_sums[kCompactThreads / 32];
+  __shared__ int base;
+  const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
+  if (threadIdx.x == 0) base = 0;
+  __syncthreads();
+  for (int r = 0; r < num_components; r += blockDim.x) {
+    const int i = r + threadIdx.x;
+    const bool keep = i < num_components && visible[i] != 0;
+    const uint32_t ballot = __ballot_sync(0xffffffffu, keep);
+    if (lane == 0) warp_sums[warp] = __popc(ballot);
+    __syncthreads();
+    int before = base;
+    for (int w = 0; w < warp; ++w) before += warp_sums[w];
+    if (keep) index_out[before + __popc(ballot & ((1u << lane) - 1u))] = i;
+    __syncthreads();  // every thread has read base and warp_sums
+    if (threadIdx.x == blockDim.x - 1) base = before + __popc(ballot);
+    __syncthreads();
+  }
+  if (threadIdx.x == 0) *count_out = base;
+}
+
+// Compact copies of both tables in the order of the index list (one thread per entry).
+__global__ void gatherKernel(const int* __restrict__ index, const int* __restrict__ count,
+                             const ComponentF* __restrict__ components,
+                             const EvalComponentF* __restrict__ eval,
+                             ComponentF* __restrict__ components_out,
+                             EvalComponentF* __restrict__ eval_out) {
+  const int k = blockIdx.x * blockDim.x + threadIdx.x;
+  if (k >= *count) return;
+  const int i = index[k];
+  components_out[k] = components[i];
+  eval_out[k] = eval[i];
 }
 
 }  // namespace
@@ -158,7 +262,15 @@ cudaError_t preferSharedMemoryForMembership() {
                               static_cast<int>(cudaSharedmemCarveoutMaxShared));
 }
 
-cudaError_t launchMembership(int num_particles, int num_components, int words,
+int membershipPasses(int words, int pass_words) {
+  return pass_words > 0 && words > pass_words ? (words + pass_words - 1) / pass_words : 1;
+}
+
+size_t membershipShiftFloats(int num_particles, int patches, int passes) {
+  return static_cast<size_t>(num_particles) * patches * (passes > 1 ? passes + 1 : 1);
+}
+
+cudaError_t launchMembership(int num_particles, int num_components, int words, int pass_words,
                              const MembershipConfig& cfg, const ComponentF* components,
                              const EvalComponentF* eval, const RigidTransformF* T_cam_map,
                              uint32_t* mask_out, float* shift_out, EvalComponentF* eval_out,
@@ -167,10 +279,40 @@ cudaError_t launchMembership(int num_particles, int num_components, int words,
   if (num_particles <= 0 || patches <= 0) return cudaSuccess;
   const bool noise = cfg.depth_noise.a_m > 0.f || cfg.depth_noise.b_per_m > 0.f;
   if (noise && (eval == nullptr || eval_out == nullptr)) return cudaErrorInvalidValue;
-  const size_t smem = membershipSharedBytes(patches, words);
-  membershipKernel<<<num_particles, kMembershipThreads, smem, stream>>>(
-      num_particles, num_components, words, cfg, components, eval, T_cam_map, mask_out,
-      shift_out, noise ? eval_out : nullptr);
+  const int passes = membershipPasses(words, pass_words);
+  const int nw = passes == 1 ? words : pass_words;
+  const size_t smem = membershipSharedBytes(patches, nw);
+  // Several passes write their shifts after the combined ones and are reduced into them.
+  const size_t combined = static_cast<size_t>(num_particles) * patches;
+  float* pass_shift = passes == 1 ? shift_out : shift_out + combined;
+  membershipKernel<<<dim3(num_particles, passes), kMembershipThreads, smem, stream>>>(
+      num_particles, num_components, words, nw, cfg, components, eval, T_cam_map, mask_out,
+      pass_shift, noise ? eval_out : nullptr);
+  if (passes > 1) {
+    const int count = static_cast<int>(combined);
+    combineShiftKernel<<<(count + 255) / 256, 256, 0, stream>>>(count, patches, passes,
+                                                                pass_shift, shift_out);
+  }
+  return cudaGetLastError();
+}
+
+cudaError_t launchViewCull(int num_particles, int num_components, const MembershipConfig& cfg,
+                           const ComponentF* components, const EvalComponentF* eval,
+                           const RigidTransformF* T_cam_map, const ViewCullBuffers& b,
+                           cudaStream_t stream) {
+  cudaError_t err = cudaMemsetAsync(b.visible, 0, sizeof(int) * (num_components + 1), stream);
+  if (err != cudaSuccess) return err;
+  if (num_particles > 0 && num_components > 0) {
+    const dim3 grid((num_components + kCullThreads - 1) / kCullThreads,
+                    min((num_particles + kCullParticles - 1) / kCullParticles, kCullSlices));
+    viewCullKernel<<<grid, kCullThreads, 0, stream>>>(num_particles, num_components, cfg,
+                                                      components, T_cam_map, b.visible);
+  }
+  compactKernel<<<1, kCompactThreads, 0, stream>>>(num_components, b.visible, b.index, b.count);
+  if (num_components > 0) {
+    gatherKernel<<<(num_components + 255) / 256, 256, 0, stream>>>(b.index, b.count, components,
+                                                                   eval, b.components, b.eval);
+  }
   return cudaGetLastError();
 }
 

@@ -1,0 +1,288 @@
+// The CUDA backend's per-update launches: the view cull, membership, likelihood and reduction
+// per batch of particles, the download of the results, and the membership table of one pose.
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+
+#include "cuda/cuda_backend_impl.h"
+
+namespace gmm_mcl {
+
+namespace {
+
+// Device memory for the membership masks and per-particle evaluation forms of one batch of
+// particles is bounded by this, and by a sixteenth of the device's memory (512 MB on an 8 GB
+// TX2). Measured on an H100: 1 GB instead of 256 MB takes `scale` from 33 batches to 9 (28.8 ms
+// per update instead of 29.7-30.5) and `large` (M = 4000) from 2 batches to 1 (1.69 ms instead
+// of 1.86-1.96); 4 GB gains nothing more.
+constexpr size_t kMaskBudgetBytes = size_t(1) << 30;
+
+// The view cull runs from this many (particle, component) pairs per update. Measured on an
+// H100: its kernels and the wait for the visible count cost ~0.04 ms per update, and with the
+// benchmark's particle spread (+-0.5 m, +-0.3 rad) 76-81% of the 7-Scenes map stays visible, so
+// it pays only for large products: `large` (1068 x 4000) and `scale` (100,000 x 1000) gain,
+// `paper` (1068 x 1000) would lose 8%.
+constexpr long long kViewCullMinPairs = 2000000;
+
+// Bitmask words per membership pass where the visible components need more (one pass below).
+constexpr int kMembershipPassWords = 32;
+
+}  // namespace
+
+// Everything after the inputs are on the device: membership and likelihood per batch, the
+// per-particle reduction, the download; fills `out` (and syncs the stream).
+void CudaBackend::Impl::run(const DeviceFrameView& f, int n, const MeasurementParams& params,
+                            int max_patch_pixels, bool gpu_frame, BackendOutput* out) {
+  const int patches = f.grid.count();
+  cudaStream_t s = stream.get();
+  const cuda::OutputLayout O(n, patches);  // reserved by the caller
+  double* ll = reinterpret_cast<double*>(results.data() + O.ll);
+  long long* evals = reinterpret_cast<long long*>(results.data() + O.evals);
+  long long* pairs = reinterpret_cast<long long*>(results.data() + O.pairs);
+  int* hits = reinterpret_cast<int*>(results.data() + O.hits);
+  const int batches = launchBatches(f, n, params, max_patch_pixels, ll, hits, evals, pairs);
+  download_start.record(s);
+  const size_t bytes = gpu_frame ? O.total : O.patch_begin;
+  GMM_MCL_CUDA_CHECK(
+      cudaMemcpyAsync(h_results.data(), results.data(), bytes, cudaMemcpyDeviceToHost, s));
+  download_end.record(s);
+  GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(s));
+
+  for (int bi = 0; bi < batches; ++bi) {
+    out->projection_membership_ms += events[3 * bi + 1].msSince(events[3 * bi]);
+    out->likelihood_ms += events[3 * bi + 2].msSince(events[3 * bi + 1]);
+  }
+  last_transfer_ms += download_end.msSince(download_start);
+  out->visible_components = last_visible_components;
+  const unsigned char* h = h_results.data();
+  const double* h_ll = reinterpret_cast<const double*>(h + O.ll);
+  const long long* h_evals = reinterpret_cast<const long long*>(h + O.evals);
+  const long long* h_pairs = reinterpret_cast<const long long*>(h + O.pairs);
+  const int* h_hits = reinterpret_cast<const int*>(h + O.hits);
+  for (int i = 0; i < n; ++i) {
+    out->log_likelihood[i] = h_ll[i];
+    out->floor_hits[i] = h_hits[i];
+    out->evaluations += h_evals[i];
+    out->relevant_pairs += h_pairs[i];
+  }
+  if (gpu_frame) {
+    const int* pb = reinterpret_cast<const int*>(h + O.patch_begin);
+    long long with_pixels = 0;
+    for (int p = 0; p < patches; ++p) with_pixels += pb[p + 1] > pb[p] ? 1 : 0;
+    out->patches_with_pixels = with_pixels;
+    last_frame_pixels = pb[patches];
+  }
+}
+
+namespace cuda {
+MembershipConfig membershipConfig(const Intrinsics& K, const PatchGrid& grid,
+                                  const MeasurementParams& params) {
+  MembershipConfig cfg;
+  cfg.K = K;
+  cfg.patch_size_px = grid.patch_size_px;
+  cfg.patch_cols = grid.cols;
+  cfg.patch_rows = grid.rows;
+  cfg.min_depth_m = params.min_component_depth_m;
+  cfg.sigma_bound = params.sigma_bound;
+  cfg.inflate_px = patchInflation(grid.patch_size_px);
+  cfg.floor_log_density = params.floor_log_density;
+  cfg.depth_noise = params.depth_noise;
+  return cfg;
+}
+}  // namespace cuda
+
+namespace {
+
+// The likelihood kernel's shape for the largest patch, with the tuning overrides of the
+// environment (GMM_MCL_CUDA_SHAPE=GROUPSxPX, GMM_MCL_CUDA_STAGE=0/1, GMM_MCL_CUDA_BAND=patches).
+cuda::LikelihoodShape likelihoodShape(int max_patch_pixels) {
+  cuda::LikelihoodShape shape = cuda::chooseLikelihoodShape(max_patch_pixels);
+  if (const char* env = std::getenv("GMM_MCL_CUDA_SHAPE")) {
+    int lanes = 0, px = 0;
+    if (std::sscanf(env, "%dx%d", &lanes, &px) == 2) {
+      shape.lanes = lanes;
+      shape.pixels_per_lane = px;
+      shape.stage_members = lanes == 32 && px == 4 && max_patch_pixels > 128;
+    }
+  }
+  if (const char* env = std::getenv("GMM_MCL_CUDA_STAGE")) {  // 32x4 only
+    shape.stage_members = env[0] == '1' && shape.lanes == 32 && shape.pixels_per_lane == 4;
+  }
+  if (const char* env = std::getenv("GMM_MCL_CUDA_BAND")) {
+    const int band = std::atoi(env);
+    if (band > 0) shape.band_patches = band;
+  }
+  return shape;
+}
+
+// The (particle, component) pairs from which the view cull runs (GMM_MCL_CUDA_VIEW_CULL=pairs
+// overrides: 0 always, a large number never).
+long long viewCullMinPairs() {
+  static const long long value = [] {
+    const char* env = std::getenv("GMM_MCL_CUDA_VIEW_CULL");
+    return env ? std::atoll(env) : kViewCullMinPairs;
+  }();
+  return value;
+}
+
+// Words per membership pass (GMM_MCL_CUDA_PASS_WORDS overrides; 0: always one pass).
+int membershipPassWords() {
+  static const int value = [] {
+    const char* env = std::getenv("GMM_MCL_CUDA_PASS_WORDS");
+    return env ? std::atoi(env) : kMembershipPassWords;
+  }();
+  return value;
+}
+
+}  // namespace
+
+CudaBackend::Impl::ComponentSet CudaBackend::Impl::cullView(const cuda::MembershipConfig& cfg,
+                                                            const RigidTransformF* T_cam_map,
+                                                            int n) {
+  if (static_cast<long long>(n) * num_components < viewCullMinPairs()) {
+    last_visible_components = -1;
+    return {num_components, components.data(), eval_components.data(), nullptr};
+  }
+  cudaStream_t s = stream.get();
+  cull_flags.reserve(size_t(num_components) + 1, s);
+  cull_index.reserve(size_t(num_components) + 1, s);
+  cull_components.reserve(num_components, s);
+  cull_eval.reserve(num_components, s);
+  cull_count.reserve(1);
+  // The visible count is stored after the index list.
+  int* count = cull_index.data() + num_components;
+  const cuda::ViewCullBuffers b{cull_flags.data(), cull_index.data(), cull_components.data(),
+                                cull_eval.data(), count};
+  GMM_MCL_CUDA_CHECK(cuda::launchViewCull(n, num_components, cfg, components.data(),
+                                          eval_components.data(), T_cam_map, b, s));
+  GMM_MCL_CUDA_CHECK(
+      cudaMemcpyAsync(cull_count.data(), count, sizeof(int), cudaMemcpyDeviceToHost, s));
+  GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(s));  // the count sizes the launches below
+  last_visible_components = cull_count.data()[0];
+  return {last_visible_components, cull_components.data(), cull_eval.data(), cull_index.data()};
+}
+
+void CudaBackend::Impl::ensureMembershipShared(int patches, int words, int visible) {
+  const size_t smem = cuda::membershipSharedBytes(patches, words);
+  if (smem > info.shared_per_block_bytes) {
+    throw BackendError("cuda backend: the membership bitmask needs " + std::to_string(smem) +
+                       " bytes of shared memory (" + std::to_string(patches) + " patches x " +
+                       std::to_string(visible) + " visible components); the device allows " +
+                       std::to_string(info.shared_per_block_bytes));
+  }
+  if (smem > shared_limit_set) {
+    GMM_MCL_CUDA_CHECK(cuda::setMembershipSharedLimit(smem));
+    shared_limit_set = smem;
+  }
+}
+
+int CudaBackend::Impl::launchBatches(const DeviceFrameView& f, int n,
+                                     const MeasurementParams& params, int max_patch_pixels,
+                                     double* ll, int* hits, long long* evals, long long* pairs) {
+  const int patches = f.grid.count();
+  cudaStream_t s = stream.get();
+  const cuda::MembershipConfig cfg = cuda::membershipConfig(f.K, f.grid, params);
+  ensureEvents(3);
+  events[0].record(s);
+  // Membership and likelihood run on the components some pose can see (bitmasks sized by them).
+  const ComponentSet set = cullView(cfg, f.T_cam_map, n);
+  const int m = set.count;
+  const int words = std::max((m + 31) / 32, 1);
+  const int pass_words = membershipPassWords();
+  const int passes = cuda::membershipPasses(words, pass_words);
+  ensureMembershipShared(patches, passes == 1 ? words : pass_words, m);
+  // Particles in batches whose masks (and per-particle evaluation forms) fit the budget.
+  const bool noise = params.depth_noise.enabled();
+  const size_t bytes_per_particle = sizeof(uint32_t) * size_t(patches) * words +
+                                    (noise ? sizeof(EvalComponentF) * size_t(m) : 0);
+  const size_t max_by_threads = size_t(0x7fffffff) / (size_t(patches) * 32);  // int indices
+  const size_t budget = std::min(kMaskBudgetBytes, info.total_memory_bytes / 16);
+  const int batch = static_cast<int>(
+      std::max<size_t>(1, std::min<size_t>(std::min<size_t>(n, max_by_threads),
+                                           budget / bytes_per_particle)));
+  // Earlier evaluations may still be queued on the stream (the device filter does not wait):
+  // scratch grows only after them.
+  mask.reserve(size_t(batch) * patches * words, s);
+  shift.reserve(cuda::membershipShiftFloats(batch, patches, passes), s);
+  if (noise) noisy_eval.reserve(size_t(batch) * std::max(m, 1), s);
+  const cuda::LikelihoodShape shape = likelihoodShape(max_patch_pixels);
+  const int items = cuda::likelihoodItemsPerParticle(shape, patches);
+  item_ll.reserve(size_t(batch) * items, s);
+  item_hits.reserve(size_t(batch) * items, s);
+  item_evals.reserve(size_t(batch) * items, s);
+  item_relevant.reserve(size_t(batch) * items, s);
+  const cuda::ItemPartials partials{item_ll.data(), item_hits.data(), item_evals.data(),
+                                    item_relevant.data()};
+  const int batches = (n + batch - 1) / batch;
+  ensureEvents(3 * size_t(batches));
+  for (int bi = 0; bi < batches; ++bi) {
+    const int first = bi * batch;
+    const int count = std::min(batch, n - first);
+    if (bi > 0) events[3 * bi].record(s);  // batch 0's start is before the cull
+    GMM_MCL_CUDA_CHECK(cuda::launchMembership(
+        count, m, words, pass_words, cfg, set.components, set.eval, f.T_cam_map + first,
+        mask.data(), shift.data(), noise ? noisy_eval.data() : nullptr, s));
+    events[3 * bi + 1].record(s);
+    const cuda::LikelihoodInputs in{patches,   words, f.x, f.y, f.z, f.patch_begin,
+                                    noise ? noisy_eval.data() : set.eval, noise ? m : 0,
+                                    f.T_map_cam + first, mask.data(), shift.data()};
+    GMM_MCL_CUDA_CHECK(
+        cuda::launchLikelihood(count, in, shape, params.floor_log_density, partials, s));
+    GMM_MCL_CUDA_CHECK(cuda::launchReduce(count, items, partials, ll + first, hits + first,
+                                          evals + first, pairs + first, s));
+    events[3 * bi + 2].record(s);
+  }
+  return batches;
+}
+
+void CudaBackend::membership(const DepthFrame& frame, const RigidTransformF& T_map_cam,
+                             const MeasurementParams& params, PatchMembership* out) {
+  Impl& d = *impl_;
+  const cuda::DeviceScope scope(d.device);
+  if (d.num_components == 0) throw BackendError("cuda backend: no map set");
+  const int patches = frame.grid.count();
+  out->begin.assign(patches + 1, 0);
+  out->comps.clear();
+  if (patches == 0) return;
+  cudaStream_t s = d.stream.get();
+  GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(s));
+  cuda::DeviceBuffer<RigidTransformF> pose(1);
+  const RigidTransformF T_cam_map = invertRigid(T_map_cam);
+  GMM_MCL_CUDA_CHECK(
+      cudaMemcpyAsync(pose.data(), &T_cam_map, sizeof(T_cam_map), cudaMemcpyHostToDevice, s));
+  const cuda::MembershipConfig cfg = cuda::membershipConfig(frame.intrinsics, frame.grid, params);
+  const Impl::ComponentSet set = d.cullView(cfg, pose.data(), 1);
+  const int words = std::max((set.count + 31) / 32, 1);
+  const int pass_words = membershipPassWords();
+  const int passes = cuda::membershipPasses(words, pass_words);
+  d.ensureMembershipShared(patches, passes == 1 ? words : pass_words, set.count);
+  cuda::DeviceBuffer<uint32_t> mask(size_t(patches) * words);
+  cuda::DeviceBuffer<float> shift(cuda::membershipShiftFloats(1, patches, passes));
+  cuda::DeviceBuffer<EvalComponentF> noisy(std::max(set.count, 1));
+  GMM_MCL_CUDA_CHECK(cuda::launchMembership(1, set.count, words, pass_words, cfg,
+                                            set.components, set.eval, pose.data(), mask.data(),
+                                            shift.data(), noisy.data(), s));
+  std::vector<uint32_t> h(size_t(patches) * words);
+  std::vector<int> index(set.count);
+  GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(h.data(), mask.data(), h.size() * sizeof(uint32_t),
+                                     cudaMemcpyDeviceToHost, s));
+  for (int k = 0; k < set.count; ++k) index[k] = k;
+  if (set.index && set.count > 0) {
+    GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(index.data(), set.index, set.count * sizeof(int),
+                                       cudaMemcpyDeviceToHost, s));
+  }
+  GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(s));
+  // Map indices, ascending per patch (the compact list is in map order).
+  for (int p = 0; p < patches; ++p) {
+    for (int w = 0; w < words; ++w) {
+      const uint32_t bits = h[size_t(p) * words + w];
+      for (int b = 0; b < 32; ++b) {
+        if (bits & (1u << b)) out->comps.push_back(index[w * 32 + b]);
+      }
+    }
+    out->begin[p + 1] = static_cast<int>(out->comps.size());
+  }
+}
+
+}  // namespace gmm_mcl
