@@ -5,6 +5,8 @@ add_library(gmm_mcl_fit STATIC
   src/fit/point_cloud_io.cpp
   src/fit/cloud_filter.cpp
   src/fit/em_fitter.cpp
+  src/fit/em_init.cpp
+  src/fit/em_prune_grid.cpp
   src/fit/seven_scenes_cloud.cpp
   src/fit/map_inspect.cpp
 )
