@@ -10,7 +10,7 @@ add_library(gmm_mcl_fit STATIC
   src/fit/seven_scenes_cloud.cpp
   src/fit/map_inspect.cpp
 )
-target_link_libraries(gmm_mcl_fit PUBLIC gmm_mcl_core)
+target_link_libraries(gmm_mcl_fit PUBLIC gmm_mcl_core gmm_mcl_sim)
 target_compile_options(gmm_mcl_fit PRIVATE -Wall -Wextra)
 
 add_executable(gmm_fit src/tools/gmm_fit_main.cpp)
