@@ -10,6 +10,7 @@
 #include <iterator>
 #include <sstream>
 
+#include "gmm_mcl/common/binary_scalar.h"
 #include "gmm_mcl/fit/fit_error.h"
 #include "gmm_mcl/sim/mesh.h"
 
@@ -54,14 +55,6 @@ bool nextLine(const std::vector<uint8_t>& b, size_t* pos, std::string* line) {
   return true;
 }
 
-std::vector<std::string> split(const std::string& s) {
-  std::istringstream in(s);
-  std::vector<std::string> out;
-  std::string tok;
-  while (in >> tok) out.push_back(tok);
-  return out;
-}
-
 bool parseDouble(const std::string& tok, double* v) {
   const char* s = tok.c_str();
   char* end = nullptr;
@@ -79,43 +72,9 @@ bool parseSize(const std::string& tok, size_t* v) {
   return true;
 }
 
-// ---- scalar decoding (PCD TYPE/SIZE) ----------------------------------------
+// ---- scalar types (PCD TYPE/SIZE; decoding in common/binary_scalar.h) ------------------------
 
-enum class Scalar { kI8, kU8, kI16, kU16, kI32, kU32, kF32, kF64, kI64, kU64 };
-
-template <typename T>
-double decodeAs(const uint8_t* p) {
-  T v;
-  std::memcpy(&v, p, sizeof(T));
-  return static_cast<double>(v);
-}
-
-// A little-endian scalar of type s at p.
-double decodeScalar(const uint8_t* p, Scalar s) {
-  switch (s) {
-    case Scalar::kI8:
-      return decodeAs<int8_t>(p);
-    case Scalar::kU8:
-      return p[0];
-    case Scalar::kI16:
-      return decodeAs<int16_t>(p);
-    case Scalar::kU16:
-      return decodeAs<uint16_t>(p);
-    case Scalar::kI32:
-      return decodeAs<int32_t>(p);
-    case Scalar::kU32:
-      return decodeAs<uint32_t>(p);
-    case Scalar::kF32:
-      return decodeAs<float>(p);
-    case Scalar::kF64:
-      return decodeAs<double>(p);
-    case Scalar::kI64:
-      return decodeAs<int64_t>(p);
-    case Scalar::kU64:
-      return decodeAs<uint64_t>(p);
-  }
-  return 0.0;
-}
+using Scalar = ScalarType;
 
 // ---- PCD ------------------------------------------------------------------------------------
 
@@ -184,7 +143,7 @@ PcdHeader readPcdHeaderLines(const std::vector<uint8_t>& b, const std::string& p
   PcdHeader h;
   std::string line;
   while (nextLine(b, &h.body_pos, &line)) {
-    const std::vector<std::string> t = split(line);
+    const std::vector<std::string> t = splitWords(line);
     if (t.empty() || t[0][0] == '#') continue;
     const std::string key = lower(t[0]);
     if (key == "fields") {
@@ -263,7 +222,7 @@ void readPcdAscii(const std::vector<uint8_t>& b, const PcdHeader& h, const std::
   std::string line;
   size_t n = 0;
   while (n < h.points && nextLine(b, &pos, &line)) {
-    const std::vector<std::string> t = split(line);
+    const std::vector<std::string> t = splitWords(line);
     if (t.empty()) continue;
     if (t.size() < tokens_per_point) {
       fail(path, "ascii point " + std::to_string(n) + " has " + std::to_string(t.size()) +
@@ -304,7 +263,7 @@ void readPcdBinary(const std::vector<uint8_t>& b, const PcdHeader& h, const std:
       const uint8_t* r = b.data() + pos + n * record;
       for (int a = 0; a < 3; ++a) {
         (*out)[n][a] = static_cast<float>(
-            decodeScalar(r + field_offset[h.xyz[a]], pcdScalar(fields[h.xyz[a]], path)));
+            decodeScalar(r + field_offset[h.xyz[a]], pcdScalar(fields[h.xyz[a]], path), false));
       }
     }
     return;
@@ -326,8 +285,8 @@ void readPcdBinary(const std::vector<uint8_t>& b, const PcdHeader& h, const std:
     const PcdField& f = fields[h.xyz[a]];
     const size_t base = field_offset[h.xyz[a]] * points;
     for (size_t n = 0; n < points; ++n) {
-      (*out)[n][a] =
-          static_cast<float>(decodeScalar(raw.data() + base + n * f.size, pcdScalar(f, path)));
+      (*out)[n][a] = static_cast<float>(
+          decodeScalar(raw.data() + base + n * f.size, pcdScalar(f, path), false));
     }
   }
 }
@@ -371,7 +330,7 @@ PointCloud readXyz(const std::string& path) {
   size_t line_no = 0;
   while (nextLine(b, &pos, &line)) {
     ++line_no;
-    const std::vector<std::string> t = split(line);
+    const std::vector<std::string> t = splitWords(line);
     if (t.empty() || t[0][0] == '#') continue;
     if (t.size() < 3) fail(path, "line " + std::to_string(line_no) + ": fewer than 3 numbers");
     Eigen::Vector3f p;

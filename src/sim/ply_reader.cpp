@@ -10,25 +10,25 @@
 #include <iterator>
 #include <sstream>
 
+#include "gmm_mcl/common/binary_scalar.h"
 #include "gmm_mcl/sim/mesh.h"
 
 namespace gmm_mcl {
 namespace sim {
 namespace {
 
-enum class PlyType { kInt8, kUint8, kInt16, kUint16, kInt32, kUint32, kFloat32, kFloat64 };
+using PlyType = ScalarType;
 
 bool parseType(const std::string& s, PlyType* t) {
   static const struct {
     const char* name;
     PlyType type;
-  } kNames[] = {
-      {"char", PlyType::kInt8},      {"int8", PlyType::kInt8},       {"uchar", PlyType::kUint8},
-      {"uint8", PlyType::kUint8},    {"short", PlyType::kInt16},     {"int16", PlyType::kInt16},
-      {"ushort", PlyType::kUint16},  {"uint16", PlyType::kUint16},   {"int", PlyType::kInt32},
-      {"int32", PlyType::kInt32},    {"uint", PlyType::kUint32},     {"uint32", PlyType::kUint32},
-      {"float", PlyType::kFloat32},  {"float32", PlyType::kFloat32}, {"double", PlyType::kFloat64},
-      {"float64", PlyType::kFloat64}};
+  } kNames[] = {{"char", PlyType::kI8},    {"int8", PlyType::kI8},     {"uchar", PlyType::kU8},
+                {"uint8", PlyType::kU8},   {"short", PlyType::kI16},   {"int16", PlyType::kI16},
+                {"ushort", PlyType::kU16}, {"uint16", PlyType::kU16},  {"int", PlyType::kI32},
+                {"int32", PlyType::kI32},  {"uint", PlyType::kU32},    {"uint32", PlyType::kU32},
+                {"float", PlyType::kF32},  {"float32", PlyType::kF32}, {"double", PlyType::kF64},
+                {"float64", PlyType::kF64}};
   for (const auto& n : kNames) {
     if (s == n.name) {
       *t = n.type;
@@ -38,31 +38,11 @@ bool parseType(const std::string& s, PlyType* t) {
   return false;
 }
 
-size_t typeSize(PlyType t) {
-  switch (t) {
-    case PlyType::kInt8:
-    case PlyType::kUint8:
-      return 1;
-    case PlyType::kInt16:
-    case PlyType::kUint16:
-      return 2;
-    case PlyType::kInt32:
-    case PlyType::kUint32:
-    case PlyType::kFloat32:
-      return 4;
-    case PlyType::kFloat64:
-      return 8;
-  }
-  return 0;
-}
-
-bool isInteger(PlyType t) { return t != PlyType::kFloat32 && t != PlyType::kFloat64; }
-
 struct Property {
   std::string name;
   bool is_list = false;
-  PlyType count_type = PlyType::kUint8;
-  PlyType type = PlyType::kFloat32;
+  PlyType count_type = PlyType::kU8;
+  PlyType type = PlyType::kF32;
 };
 
 struct Element {
@@ -83,60 +63,17 @@ class BodyReader {
 
   double read(PlyType t, const char* what) {
     if (format_ == Format::kAscii) return readAscii(t, what);
-    const size_t n = typeSize(t);
+    const size_t n = scalarSize(t);
     if (data_.size() - pos_ < n) fail(std::string("truncated binary data while reading ") + what);
-    unsigned char b[8];
-    std::memcpy(b, data_.data() + pos_, n);
+    const double v = decodeScalar(data_.data() + pos_, t, format_ == Format::kBinaryBig);
     pos_ += n;
-    if (format_ == Format::kBinaryBig) {
-      for (size_t i = 0; i < n / 2; ++i) std::swap(b[i], b[n - 1 - i]);
-    }
-    switch (t) {
-      case PlyType::kInt8: {
-        int8_t v;
-        std::memcpy(&v, b, 1);
-        return v;
-      }
-      case PlyType::kUint8:
-        return b[0];
-      case PlyType::kInt16: {
-        int16_t v;
-        std::memcpy(&v, b, 2);
-        return v;
-      }
-      case PlyType::kUint16: {
-        uint16_t v;
-        std::memcpy(&v, b, 2);
-        return v;
-      }
-      case PlyType::kInt32: {
-        int32_t v;
-        std::memcpy(&v, b, 4);
-        return v;
-      }
-      case PlyType::kUint32: {
-        uint32_t v;
-        std::memcpy(&v, b, 4);
-        return v;
-      }
-      case PlyType::kFloat32: {
-        float v;
-        std::memcpy(&v, b, 4);
-        return v;
-      }
-      case PlyType::kFloat64: {
-        double v;
-        std::memcpy(&v, b, 8);
-        return v;
-      }
-    }
-    return 0.0;
+    return v;
   }
 
   // Skips n values of type t (binary: one bounds check).
   void skip(PlyType t, uint64_t n, const char* what) {
     if (format_ != Format::kAscii) {
-      const uint64_t bytes = n * typeSize(t);
+      const uint64_t bytes = n * scalarSize(t);
       if (data_.size() - pos_ < bytes)
         fail(std::string("truncated binary data while reading ") + what);
       pos_ += bytes;
@@ -160,7 +97,7 @@ class BodyReader {
     if (stop == tok.c_str() || *stop != '\0') {
       fail(std::string("bad number '") + tok + "' while reading " + what);
     }
-    if (isInteger(t) && v != std::floor(v)) {
+    if (isIntegerScalar(t) && v != std::floor(v)) {
       fail(std::string("non-integer '") + tok + "' for an integer property while reading " + what);
     }
     return v;
@@ -171,14 +108,6 @@ class BodyReader {
   size_t pos_;
   Format format_;
 };
-
-std::vector<std::string> split(const std::string& line) {
-  std::istringstream s(line);
-  std::vector<std::string> out;
-  std::string w;
-  while (s >> w) out.push_back(w);
-  return out;
-}
 
 constexpr uint64_t kMaxElements = 1ull << 28;  // 268 M: far beyond any mesh this tool renders
 
@@ -207,7 +136,7 @@ Property parseProperty(const std::vector<std::string>& t, const std::string& lin
     if (!parseType(t[2], &p.count_type) || !parseType(t[3], &p.type)) {
       fail("unknown type in '" + line + "'");
     }
-    if (!isInteger(p.count_type)) fail("list count type must be an integer: '" + line + "'");
+    if (!isIntegerScalar(p.count_type)) fail("list count type must be an integer: '" + line + "'");
     p.name = t[4];
   } else if (t.size() == 3) {
     if (!parseType(t[1], &p.type)) fail("unknown type in '" + line + "'");
@@ -229,7 +158,7 @@ Header readHeader(const std::string& path, const std::string& data) {
   }
   bool have_format = false, ended = false;
   while (nextLine(data, &h.body_pos, &line)) {
-    const std::vector<std::string> t = split(line);
+    const std::vector<std::string> t = splitWords(line);
     if (t.empty() || t[0] == "comment" || t[0] == "obj_info") continue;
     if (t[0] == "end_header") {
       ended = true;
@@ -282,7 +211,7 @@ void readVertices(const Element& e, Format format, BodyReader* body, PlyContents
     bool fixed = true;
     for (const Property& p : e.properties) {
       fixed = fixed && !p.is_list;
-      row += typeSize(p.type);
+      row += scalarSize(p.type);
     }
     if (fixed && body->remaining() / row < e.count) {
       body->fail("truncated: " + std::to_string(e.count) + " vertices declared, data for " +
@@ -327,7 +256,7 @@ void readFaces(const Element& e, bool have_vertices, BodyReader* body, PlyConten
   }
   if (il < 0) body->fail("face element has no vertex_indices list");
   if (!have_vertices) body->fail("face element comes before the vertex element");
-  if (!isInteger(e.properties[il].type)) body->fail("vertex_indices must be integers");
+  if (!isIntegerScalar(e.properties[il].type)) body->fail("vertex_indices must be integers");
   Mesh& mesh = out->mesh;
   mesh.triangles.reserve(e.count);
   std::vector<uint32_t> poly;
