@@ -5,10 +5,13 @@ add_library(gmm_mcl_fit STATIC
   src/fit/point_cloud_io.cpp
   src/fit/cloud_filter.cpp
   src/fit/em_fitter.cpp
+  src/fit/em_init.cpp
+  src/fit/em_prune_grid.cpp
   src/fit/seven_scenes_cloud.cpp
   src/fit/map_inspect.cpp
 )
-# The 7-Scenes cloud reads the sequence through the data-set reader (cmake/replay.cmake).
+# The 7-Scenes cloud reads the sequence through the data-set reader (cmake/replay.cmake); the PLY
+# reader and the mesh type are the simulator's (gmm_mcl_datasets links gmm_mcl_sim).
 target_link_libraries(gmm_mcl_fit PUBLIC gmm_mcl_datasets)
 target_compile_options(gmm_mcl_fit PRIVATE -Wall -Wextra)
 

@@ -25,6 +25,7 @@ add_library(gmm_mcl_ros SHARED
   src/ros/conversions.cpp
   src/ros/compressed_depth.cpp
   src/ros/ros_params.cpp
+  src/ros/ros_options_table.cpp
   src/ros/node_status.cpp
   src/ros/step_inputs.cpp
   src/ros/map_markers.cpp

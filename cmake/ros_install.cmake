@@ -17,7 +17,7 @@ endforeach()
 install(PROGRAMS scripts/plot_replay.py scripts/plot_figures.py scripts/sklearn_to_gmm_csv.py
                  scripts/restore_wall_time.py
         DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})
-install(FILES scripts/sklearn_common.py DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})
+install(FILES scripts/sklearn_common.py scripts/plot_common.py DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})
 
 if(CATKIN_ENABLE_TESTING AND GMM_MCL_BUILD_TESTS)
   # Installs the package into a temporary prefix and runs it from there alone (a fresh shell

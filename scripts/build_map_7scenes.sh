@@ -11,20 +11,12 @@
 # The benchmark's `large` workload map (M=4000 of the same frames; a later -m wins):
 #   scripts/build_map_7scenes.sh "" build/maps/7scenes_redkitchen_m4000.gmm -m 4000
 set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-DATASETS="${1:-${GMM_MCL_DATASETS:-$ROOT/../shared/datasets}}"
-OUT="${2:-${GMM_MCL_MAP_DIR:-$ROOT/build/maps}/7scenes_redkitchen_m1000.gmm}"
-shift $(( $# < 2 ? $# : 2 ))
-
-source "$ROOT/scripts/common.sh"
-GMM_FIT="$(find_tool gmm_fit GMM_FIT)"
-GMM_INSPECT="$(find_tool gmm_inspect GMM_INSPECT)"
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+map_builder_args 7scenes_redkitchen_m1000.gmm "$@"
+shift "$MAP_ARGS_USED"
 
 DATA="$DATASETS/7scenes_redkitchen/data"
-if [[ ! -f "$DATA/camera-intrinsics.txt" ]]; then
-  echo "error: 7-Scenes redkitchen not found at $DATA (pass DATASETS_DIR or set GMM_MCL_DATASETS)" >&2
-  exit 1
-fi
+require_input "$DATA/camera-intrinsics.txt" "7-Scenes redkitchen" "$DATA"
 mkdir -p "$(dirname "$OUT")"
 "$GMM_FIT" --7scenes "$DATA" --first 0 --last 990 --step 10 --min-depth 0.1 --max-depth 4.0 \
   --voxel 0.02 -m 1000 --seed 1 --save-cloud "${OUT%.gmm}.pcd" -o "$OUT" "$@"

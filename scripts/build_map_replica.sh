@@ -15,20 +15,12 @@
 # every GMM_MCL_REPLICA_STRIDE-th, default 1; GMM_MCL_RENDER names the binary). The Replica
 # world is z up. The map and the sequence together are a localization test case.
 set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-DATASETS="${1:-${GMM_MCL_DATASETS:-$ROOT/../shared/datasets}}"
-OUT="${2:-${GMM_MCL_MAP_DIR:-$ROOT/build/maps}/replica_office0_m1000.gmm}"
-shift $(( $# < 2 ? $# : 2 ))
-
-source "$ROOT/scripts/common.sh"
-GMM_FIT="$(find_tool gmm_fit GMM_FIT)"
-GMM_INSPECT="$(find_tool gmm_inspect GMM_INSPECT)"
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+map_builder_args replica_office0_m1000.gmm "$@"
+shift "$MAP_ARGS_USED"
 
 MESH="$DATASETS/replica_office0/office0_mesh.ply"
-if [[ ! -f "$MESH" ]]; then
-  echo "error: Replica office0 mesh not found at $MESH (pass DATASETS_DIR or set GMM_MCL_DATASETS)" >&2
-  exit 1
-fi
+require_input "$MESH" "Replica office0 mesh"
 mkdir -p "$(dirname "$OUT")"
 "$GMM_FIT" "$MESH" --mesh-samples 250000 -m 1000 --seed 1 -o "$OUT" "$@"
 "$GMM_INSPECT" "$OUT"

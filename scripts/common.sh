@@ -3,6 +3,8 @@
 export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
 GMM_MCL_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 export GMM_MCL_ROOT
+# The data sets: $GMM_MCL_DATASETS, else ../shared/datasets beside the package.
+GMM_MCL_DATASETS_DIR="${GMM_MCL_DATASETS:-$GMM_MCL_ROOT/../shared/datasets}"
 
 # ensure_packages PKG...: installs the Debian packages that are not installed yet (apt-get
 # update once), as root or through sudo.
@@ -41,4 +43,55 @@ find_tool() {
   done
   echo "error: $name not found; build it (cmake --build <dir> --target $name) or set $var" >&2
   exit 1
+}
+
+# map_builder_args NAME [DATASETS_DIR] [OUTPUT_MAP]: the map-building scripts' arguments:
+# DATASETS (default GMM_MCL_DATASETS_DIR), OUT (default $GMM_MCL_MAP_DIR/NAME, GMM_MCL_MAP_DIR
+# defaulting to build/maps), MAP_ARGS_USED (how many of the two were given: the caller shifts
+# them off) and the tools GMM_FIT and GMM_INSPECT.
+map_builder_args() {
+  local name="$1"
+  shift
+  DATASETS="${1:-$GMM_MCL_DATASETS_DIR}"
+  OUT="${2:-${GMM_MCL_MAP_DIR:-$GMM_MCL_ROOT/build/maps}/$name}"
+  MAP_ARGS_USED=$(( $# < 2 ? $# : 2 ))
+  GMM_FIT="$(find_tool gmm_fit GMM_FIT)"
+  GMM_INSPECT="$(find_tool gmm_inspect GMM_INSPECT)"
+}
+
+# require_input FILE WHAT [WHERE]: exits with an error naming WHAT and WHERE (default FILE)
+# unless FILE exists.
+require_input() {
+  if [[ ! -f "$1" ]]; then
+    echo "error: $2 not found at ${3:-$1} (pass DATASETS_DIR or set GMM_MCL_DATASETS)" >&2
+    exit 1
+  fi
+}
+
+
+# configure_gpu_tools BUILD ARCH NVCC [CMAKE_ARGS...]: configures BUILD (Release, no ROS, the
+# CUDA backend for ARCH, the tests) for a GPU machine: x86-64 with AVX2/FMA instead of
+# -march=native, which is this machine's CPU. Shows the log and exits on failure.
+configure_gpu_tools() {
+  local build="$1" arch="$2" nvcc="$3"
+  shift 3
+  cmake -S "$GMM_MCL_ROOT" -B "$build" -DGMM_MCL_BUILD_ROS=OFF -DGMM_MCL_WITH_CUDA=ON \
+    -DGMM_MCL_BUILD_TESTS=ON -DGMM_MCL_NATIVE_ARCH=OFF -DCMAKE_CXX_FLAGS="-mavx2 -mfma" \
+    -DCMAKE_CUDA_ARCHITECTURES="$arch" -DCMAKE_CUDA_COMPILER="$nvcc" \
+    -DCMAKE_BUILD_TYPE=Release "$@" > "$build.cmake.log" 2>&1 \
+    || { cat "$build.cmake.log"; exit 1; }
+}
+
+# bundle_binaries BUNDLE BUILD TOOL...: the tools of BUILD into BUNDLE/bin (stripped) and the
+# shared libraries they need beyond the C library and the loader into BUNDLE/lib (the GPU
+# machine has a newer glibc).
+bundle_binaries() {
+  local bundle="$1" build="$2" t
+  shift 2
+  mkdir -p "$bundle/bin" "$bundle/lib"
+  for t in "$@"; do cp "$build/$t" "$bundle/bin/"; done
+  strip "$bundle"/bin/*
+  for t in "$bundle"/bin/*; do ldd "$t" | awk '/=> \// {print $3}'; done | sort -u \
+    | grep -vE '/(libc|libm|libpthread|libdl|librt|ld-linux[^/]*)\.so' \
+    | while read -r lib; do cp -L "$lib" "$bundle/lib/"; done
 }

@@ -14,29 +14,19 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$ROOT/scripts/common.sh"
 BUNDLE="${BUNDLE:-$ROOT/.deps/gpu}"
 BUILD="${GMM_MCL_GPU_TOOLS_BUILD:-$ROOT/build/gpu-tools}"
-DATASETS="${GMM_MCL_DATASETS:-$ROOT/../shared/datasets}"
+DATASETS="$GMM_MCL_DATASETS_DIR"
 ARCH="${CUDA_ARCH:-90}"
 NVCC="$(command -v nvcc || echo /usr/local/cuda/bin/nvcc)"
 TOOLS=(gmm_mcl_replay gmm_mcl_kidnap gmm_mcl_render gmm_fit gmm_mcl_bench test_cuda_backend)
 ensure_packages "${CORE_PACKAGES[@]}"
 
-cmake -S "$ROOT" -B "$BUILD" -DGMM_MCL_BUILD_ROS=OFF -DGMM_MCL_WITH_CUDA=ON -DGMM_MCL_BUILD_TESTS=ON \
-  -DGMM_MCL_NATIVE_ARCH=OFF -DCMAKE_CXX_FLAGS="-mavx2 -mfma" -DCMAKE_CUDA_ARCHITECTURES="$ARCH" \
-  -DCMAKE_CUDA_COMPILER="$NVCC" -DCMAKE_BUILD_TYPE=Release > "$BUILD.cmake.log" 2>&1 \
-  || { cat "$BUILD.cmake.log"; exit 1; }
+configure_gpu_tools "$BUILD" "$ARCH" "$NVCC"
 cmake --build "$BUILD" -j2 --target gmm_mcl_replay_tool gmm_mcl_kidnap gmm_mcl_render gmm_fit \
   gmm_mcl_bench test_cuda_backend
 
 rm -rf "$BUNDLE"
-mkdir -p "$BUNDLE/bin" "$BUNDLE/lib" "$BUNDLE/data/maps" "$BUNDLE/data/replica_office0"
-for t in "${TOOLS[@]}"; do cp "$BUILD/$t" "$BUNDLE/bin/"; done
-strip "$BUNDLE"/bin/*
-# Shared libraries beyond the C library and the loader (the GPU machine has a newer glibc).
-for t in "$BUNDLE"/bin/*; do
-  ldd "$t" | awk '/=> \// {print $3}'
-done | sort -u | grep -vE '/(libc|libm|libpthread|libdl|librt|ld-linux[^/]*)\.so' | while read -r lib; do
-  cp -L "$lib" "$BUNDLE/lib/"
-done
+mkdir -p "$BUNDLE/data/maps" "$BUNDLE/data/replica_office0"
+bundle_binaries "$BUNDLE" "$BUILD" "${TOOLS[@]}"
 
 # Data: the Replica mesh and trajectory, the maps, the reduced 7-Scenes sequence.
 cp "$DATASETS/replica_office0/office0_mesh.ply" "$DATASETS/replica_office0/traj.txt" \

@@ -21,27 +21,18 @@ if [[ "$mode" == bundle ]]; then
   source "$ROOT/scripts/common.sh"
   BUNDLE="${2:-$ROOT/.deps/gpufilter}"
   BUILD="${GMM_MCL_GPU_FILTER_BUILD:-$ROOT/build/gpufilter-tools}"
-  DATASETS="${GMM_MCL_DATASETS:-$ROOT/../shared/datasets}"
+  DATASETS="$GMM_MCL_DATASETS_DIR"
   MAP="${GMM_MCL_MAP:-$ROOT/build/maps/7scenes_redkitchen_m1000.gmm}"
   NVCC="$(command -v nvcc || echo /usr/local/cuda/bin/nvcc)"
   [[ -f "$MAP" ]] || { echo "no map at $MAP (scripts/build_map_7scenes.sh)" >&2; exit 1; }
-  cmake -S "$ROOT" -B "$BUILD" -DGMM_MCL_BUILD_ROS=OFF -DGMM_MCL_WITH_CUDA=ON \
-    -DGMM_MCL_BUILD_TESTS=ON -DGMM_MCL_BUILD_FIT=OFF -DGMM_MCL_NATIVE_ARCH=OFF \
-    -DCMAKE_CXX_FLAGS="-mavx2 -mfma" -DCMAKE_CUDA_ARCHITECTURES="${CUDA_ARCH:-90}" \
-    -DCMAKE_CUDA_COMPILER="$NVCC" -DCMAKE_BUILD_TYPE=Release > "$BUILD.cmake.log" 2>&1 \
-    || { cat "$BUILD.cmake.log"; exit 1; }
+  configure_gpu_tools "$BUILD" "${CUDA_ARCH:-90}" "$NVCC" -DGMM_MCL_BUILD_FIT=OFF
   tools=(gmm_mcl_bench gmm_mcl_replay test_cuda_backend test_cuda_particle_filter
     test_cuda_localizer)
   cmake --build "$BUILD" -j2 --target gmm_mcl_bench gmm_mcl_replay_tool test_cuda_backend \
     test_cuda_particle_filter test_cuda_localizer
   rm -rf "$BUNDLE"
-  mkdir -p "$BUNDLE/bin" "$BUNDLE/lib" "$BUNDLE/data"
-  for t in "${tools[@]}"; do cp "$BUILD/$t" "$BUNDLE/bin/"; done
-  strip "$BUNDLE"/bin/*
-  # Shared libraries beyond the C library and the loader (the GPU machine has a newer glibc).
-  for t in "$BUNDLE"/bin/*; do ldd "$t" | awk '/=> \// {print $3}'; done | sort -u \
-    | grep -vE '/(libc|libm|libpthread|libdl|librt|ld-linux[^/]*)\.so' \
-    | while read -r lib; do cp -L "$lib" "$BUNDLE/lib/"; done
+  mkdir -p "$BUNDLE/data"
+  bundle_binaries "$BUNDLE" "$BUILD" "${tools[@]}"
   cp "$MAP" "$BUNDLE/data/7scenes_m1000.gmm"
   "$BUNDLE/bin/gmm_mcl_bench" --map "$MAP" --frames-dir "$DATASETS/7scenes_redkitchen/data" \
     --frames 30 --export-frames "$BUNDLE/data/7scenes_frames30.bin" > /dev/null

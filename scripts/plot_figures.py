@@ -18,6 +18,9 @@ import math
 import os
 import sys
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from plot_common import import_pyplot  # noqa: E402
+
 AXES = ("x", "y", "z", "yaw")
 
 
@@ -147,13 +150,8 @@ def main(argv):
     ap.add_argument("dirs", nargs="+")
     ap.add_argument("--dpi", type=int, default=110)
     args = ap.parse_args(argv)
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError as e:
-        print("plot_figures: matplotlib is missing (%s); install python3-matplotlib and run with "
-              "/usr/bin/python3" % e, file=sys.stderr)
+    plt = import_pyplot("plot_figures")
+    if plt is None:
         return 3
     written = []
     for d in args.dirs:

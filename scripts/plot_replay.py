@@ -24,6 +24,9 @@ import os
 import re
 import sys
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from plot_common import import_pyplot  # noqa: E402
+
 CONVERGED_BELOW_M = 0.10
 HOLD_FRAMES = 30
 TAIL_FRAMES = 100
@@ -282,13 +285,8 @@ def main(argv):
                     help="write summary.md/.csv even when replay already did")
     ap.add_argument("--dpi", type=int, default=110)
     args = ap.parse_args(argv)
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError as e:
-        print("plot_replay: matplotlib is missing (%s); install python3-matplotlib and run with "
-              "/usr/bin/python3" % e, file=sys.stderr)
+    plt = import_pyplot("plot_replay")
+    if plt is None:
         return 3
     seeds = find_seeds(args.out_dir)
     if not seeds:

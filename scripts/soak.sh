@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Soak test of the ROS nodelet (issue 7, docs/soak.md): N synthetic frames (default 50,000,
+# Soak test of the ROS nodelet (docs/soak.md): N synthetic frames (default 50,000,
 # 160x120, looped ping-pong) through gmm_mcl/LocalizationNodelet in a nodelet manager (100
 # particles, pixel stride 8, one OpenMP thread), in lockstep with the nodelet (the next frame
 # when the previous frame's ~status arrives, 2 s timeout). Prints one table: frames sent /

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Soak-test monitor (issue 7, docs/soak.md): watches the localization nodelet while
+"""Soak-test monitor (docs/soak.md): watches the localization nodelet while
 gmm_mcl_soak_publisher feeds it, and prints one table of the figures with PASS/FAIL per target.
 
 Measures: the manager process's VmRSS (from /proc/<pid>/status every --rss-period s) at the end

@@ -14,7 +14,7 @@ bool cudaBackendCompiled() { return false; }
 
 std::unique_ptr<LikelihoodBackend> makeBackend(const std::string& name, std::string* warning) {
   if (warning) warning->clear();
-  if (name == "cpu") return std::unique_ptr<LikelihoodBackend>(new CpuBackend());
+  if (name == "cpu") return std::make_unique<CpuBackend>();
   if (name != "cuda") throw std::invalid_argument("unknown backend '" + name + "' (cpu, cuda)");
 #if defined(GMM_MCL_HAVE_CUDA)
   std::string why;
@@ -24,7 +24,7 @@ std::unique_ptr<LikelihoodBackend> makeBackend(const std::string& name, std::str
 #else
   if (warning) *warning = "CUDA backend not built (GMM_MCL_WITH_CUDA=OFF); using the CPU backend";
 #endif
-  return std::unique_ptr<LikelihoodBackend>(new CpuBackend());
+  return std::make_unique<CpuBackend>();
 }
 
 }  // namespace gmm_mcl

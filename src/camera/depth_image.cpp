@@ -26,13 +26,24 @@ const char* depthEncodingName(DepthEncoding encoding) {
   return encoding == DepthEncoding::kMono16Millimetres ? "16UC1" : "32FC1";
 }
 
-DepthImage DepthImage::fromMillimetres(int width, int height, const std::vector<uint16_t>& mm) {
+namespace {
+
+// An image of `values` depths of bytes_per_value bytes each, rows of `width` values, zeroed.
+DepthImage blankImage(int width, int height, DepthEncoding encoding, size_t bytes_per_value,
+                      size_t values) {
   DepthImage img;
   img.width_px = width;
   img.height_px = height;
-  img.encoding = DepthEncoding::kMono16Millimetres;
-  img.row_bytes = static_cast<size_t>(width) * 2;
-  img.data.resize(mm.size() * 2);
+  img.encoding = encoding;
+  img.row_bytes = static_cast<size_t>(width) * bytes_per_value;
+  img.data.resize(values * bytes_per_value);
+  return img;
+}
+
+}  // namespace
+
+DepthImage DepthImage::fromMillimetres(int width, int height, const std::vector<uint16_t>& mm) {
+  DepthImage img = blankImage(width, height, DepthEncoding::kMono16Millimetres, 2, mm.size());
   for (size_t i = 0; i < mm.size(); ++i) {
     img.data[2 * i] = static_cast<uint8_t>(mm[i] & 0xFF);
     img.data[2 * i + 1] = static_cast<uint8_t>(mm[i] >> 8);
@@ -41,12 +52,7 @@ DepthImage DepthImage::fromMillimetres(int width, int height, const std::vector<
 }
 
 DepthImage DepthImage::fromMetres(int width, int height, const std::vector<float>& m) {
-  DepthImage img;
-  img.width_px = width;
-  img.height_px = height;
-  img.encoding = DepthEncoding::kFloat32Metres;
-  img.row_bytes = static_cast<size_t>(width) * 4;
-  img.data.resize(m.size() * 4);
+  DepthImage img = blankImage(width, height, DepthEncoding::kFloat32Metres, 4, m.size());
   if (!m.empty()) std::memcpy(img.data.data(), m.data(), img.data.size());
   return img;
 }

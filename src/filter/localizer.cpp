@@ -1,20 +1,16 @@
 #include "gmm_mcl/filter/localizer.h"
 
 #include <algorithm>
-#include <chrono>
 #include <limits>
 #include <utility>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
 
+#include "gmm_mcl/common/timing.h"
+
 namespace gmm_mcl {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
 
 const LocalizerParams& validated(const LocalizerParams& p) {
   const std::string err = p.validate();
@@ -194,7 +190,7 @@ void Localizer::backendFailed(const std::string& what, StepResult* res) {
       } catch (const std::exception&) {
         particles.clear();
       }
-      std::unique_ptr<ParticleFilterBase> host(new ParticleFilter(params_.filter));
+      std::unique_ptr<ParticleFilterBase> host = std::make_unique<ParticleFilter>(params_.filter);
       double total = 0.0;
       for (double w : weights) total += w;
       if (!particles.empty() && particles.size() == weights.size() && total > 0.0 &&
@@ -245,258 +241,6 @@ StepResult Localizer::step(const StepInput& in) {
     have_estimate_ = true;
   }
   return res;
-}
-
-void Localizer::stepOnce(const StepInput& in, StepResult* res_out) {
-  StepResult& res = *res_out;
-  const Clock::time_point t_start = Clock::now();
-  host_frame_ready_ = false;
-  // Time going backwards (a looped bag): start over from the initial region.
-  if (have_stamp_ && in.stamp_s < last_stamp_s_) {
-    std::ostringstream msg;
-    msg << "time jumped back from " << last_stamp_s_ << " s to " << in.stamp_s
-        << " s: filter re-initialised";
-    filter_->initialiseUniform(region_);
-    lost_.restart();
-    screen_pending_ = true;
-    have_refined_ = false;
-    have_odometry_ = false;
-    have_stamp_ = false;
-    res.status = StepStatus::kTimeJumpBack;
-    res.message = msg.str();
-  }
-  have_stamp_ = true;
-  last_stamp_s_ = in.stamp_s;
-  if (in.has_T_base_cam) {
-    if (in.T_base_cam.matrix().allFinite()) {
-      params_.T_base_cam = in.T_base_cam;
-    } else {
-      res.message += std::string(res.message.empty() ? "" : "; ") +
-                     "base -> camera transform not finite: the previous one used";
-    }
-  }
-
-  // Attitude shared by all particles.
-  if (in.has_attitude) {
-    roll_rad_ = in.roll_rad;
-    pitch_rad_ = in.pitch_rad;
-  } else if (in.has_odometry) {
-    double yaw;
-    rpyFromRotation(in.T_odom_base.linear(), &roll_rad_, &pitch_rad_, &yaw);
-  }
-
-  // Predict.
-  Clock::time_point t0 = Clock::now();
-  PlanarDelta delta;
-  if (in.has_odometry && have_odometry_) {
-    delta = odometryDelta(last_odom_, in.T_odom_base);
-    if (!(delta.translation_m.norm() <= params_.max_odometry_step_m) ||
-        !std::isfinite(delta.yaw_rad)) {
-      std::ostringstream msg;
-      msg << "odometry step of " << delta.translation_m.norm() << " m exceeds "
-          << params_.max_odometry_step_m << " m: ignored";
-      res.odometry_jump = true;
-      res.message += (res.message.empty() ? "" : "; ") + msg.str();
-      delta = PlanarDelta();
-    }
-  }
-  if (in.has_odometry) {
-    last_odom_ = in.T_odom_base;
-    have_odometry_ = true;
-  }
-  filter_->predict(delta);
-  if (have_refined_) {  // the last refined pose moved like a particle, without noise
-    const double c = std::cos(last_refined_.yaw_rad), sn = std::sin(last_refined_.yaw_rad);
-    last_refined_.x_m += c * delta.translation_m.x() - sn * delta.translation_m.y();
-    last_refined_.y_m += sn * delta.translation_m.x() + c * delta.translation_m.y();
-    last_refined_.z_m += delta.translation_m.z();
-    last_refined_.yaw_rad = wrapAngle(last_refined_.yaw_rad + delta.yaw_rad);
-  }
-  res.timings.predict_ms = msSince(t0);
-
-  auto finish = [&](StepStatus status, const std::string& why) {
-    if (res.status == StepStatus::kOk) res.status = status;
-    if (!why.empty()) res.message += (res.message.empty() ? "" : "; ") + why;
-    t0 = Clock::now();
-    res.estimate = filter_->estimate();
-    res.refinement.pose = res.estimate.mean;
-    res.neff = filter_->effectiveSampleSize();
-    res.particles = filter_->size();
-    res.timings.estimate_ms = msSince(t0);
-    res.timings.total_ms = msSince(t_start);
-  };
-
-  if (in.depth == nullptr) return finish(StepStatus::kPredictOnly, "");
-
-  // Frame preparation: with the device filter the raw image is uploaded once and prepared on
-  // the GPU; on the host otherwise (and wherever the host needs the points: refinement).
-  t0 = Clock::now();
-  long long patches_with_pixels = -1;  // from the device frame
-  try {
-    DeviceFrameSummary summary;
-    if (filter_->prepareDeviceFrame(*in.depth, in.intrinsics, params_.frame, &summary)) {
-      res.pixels = summary.pixels;
-      patches_with_pixels = summary.patches_with_pixels;
-    } else {
-      res.pixels = static_cast<int>(hostFrame(in).size());
-    }
-  } catch (const BackendError&) {
-    throw;
-  } catch (const std::exception& e) {
-    return finish(StepStatus::kBadFrame, e.what());
-  }
-  res.timings.frame_prep_ms = msSince(t0);
-  if (res.pixels == 0) {
-    const DepthFrame& frame = hostFrame(in);
-    std::ostringstream msg;
-    msg << "no valid depth pixel (" << frame.invalid_pixels << " invalid, "
-        << frame.out_of_range_pixels << " out of range of " << frame.total_pixels_sampled << ")";
-    return finish(StepStatus::kNoValidPixels, msg.str());
-  }
-  MeasurementContext ctx;
-  ctx.backend = backend_.get();
-  ctx.frame = host_frame_ready_ ? &host_frame_ : nullptr;
-  ctx.roll_rad = roll_rad_;
-  ctx.pitch_rad = pitch_rad_;
-  ctx.T_base_cam = params_.T_base_cam;
-  ctx.params = &params_.measurement;
-
-  // Likelihood of every particle; after a uniform (re)initialisation the set is first replaced
-  // by the best of candidates_per_particle times as many uniform draws.
-  EvaluationStats stats;
-  try {
-    if (screen_pending_ && params_.lost.candidates_per_particle > 1) {
-      screenCandidates(ctx, filter_->size());
-      filter_->replaceAllByBestCandidates();
-      res.screened_candidates = filter_->size() * params_.lost.candidates_per_particle;
-    }
-    screen_pending_ = false;
-    filter_->evaluateFrame(ctx, &stats);
-  } catch (const BackendError&) {
-    throw;
-  } catch (const std::exception& e) {
-    return finish(StepStatus::kBackendError, std::string("likelihood backend: ") + e.what());
-  }
-  if (patches_with_pixels >= 0) stats.patches_with_pixels = patches_with_pixels;
-  res.timings.projection_membership_ms = stats.projection_membership_ms;
-  res.timings.likelihood_ms = stats.likelihood_ms;
-  res.evaluations = stats.evaluations;
-  if (stats.patches_with_pixels > 0) {
-    res.relevant_per_patch = static_cast<double>(stats.relevant_pairs) /
-                             (stats.patches_with_pixels * static_cast<double>(filter_->size()));
-  }
-
-  // Weights.
-  t0 = Clock::now();
-  FrameScores scores;
-  if (!filter_->weighFrame(res.pixels, &scores)) {
-    return finish(StepStatus::kDegenerateWeights,
-                  "no particle has a usable likelihood: weights kept");
-  }
-  res.beta_fraction = scores.beta_fraction;
-  res.best_loglik_per_pixel = scores.best_loglik / res.pixels;
-  res.mean_loglik_per_pixel = scores.mean_loglik / res.pixels;
-  res.floor_hit_fraction = static_cast<double>(scores.best_floor_hits) / res.pixels;
-  if (scores.best_floor_hits >= res.pixels) {
-    res.message += std::string(res.message.empty() ? "" : "; ") +
-                   "every used pixel is at the likelihood floor for every particle: no particle "
-                   "sees the mapped surfaces";
-  }
-  res.timings.weights_ms = msSince(t0);
-
-  // Estimate from the updated weights (refined when the filter has converged), then resample
-  // and recover.
-  t0 = Clock::now();
-  res.estimate = filter_->estimate();
-  res.neff = filter_->effectiveSampleSize();
-  res.particles = filter_->size();
-  res.timings.estimate_ms = msSince(t0);
-  res.refinement.pose = res.estimate.mean;
-  if (params_.refinement.enabled) {
-    const Eigen::Matrix<double, 6, 6>& C = res.estimate.covariance;
-    const double position_sigma = std::sqrt(std::max({C(0, 0), C(1, 1), C(2, 2)}));
-    const double yaw_sigma = std::sqrt(C(5, 5));
-    if (position_sigma <= params_.refinement.max_position_sigma_m &&
-        yaw_sigma <= params_.refinement.max_yaw_sigma_rad) {
-      // Warm start from the last refined pose moved by this frame's odometry, while it stays
-      // near the particle mean (a few iterations instead of a dozen when tracking).
-      Particle start = res.estimate.mean;
-      if (have_refined_ && std::hypot(std::hypot(last_refined_.x_m - start.x_m,
-                                                 last_refined_.y_m - start.y_m),
-                                      last_refined_.z_m - start.z_m) <
-                               0.5 * params_.refinement.max_correction_m &&
-          std::abs(wrapAngle(last_refined_.yaw_rad - start.yaw_rad)) <
-              0.5 * params_.refinement.max_correction_rad) {
-        start = last_refined_;
-      }
-      // The pixel sums run on the backend (on the GPU with the CUDA backend, reading the frame it
-      // prepared there), else on the host with the points prepared there now.
-      NormalEquationsEvaluator* sums = backend_->normalEquations();
-      RefinementFrame rf;
-      if (!host_frame_ready_ && sums != nullptr && sums->hasBackendFrame()) {
-        rf.intrinsics = in.intrinsics;
-        rf.grid = PatchGrid::forImage(in.depth->width_px, in.depth->height_px,
-                                      params_.frame.patch_size_px);
-        rf.pixels = res.pixels;
-      } else {
-        const Clock::time_point tp = Clock::now();
-        rf = RefinementFrame::of(hostFrame(in));
-        res.timings.frame_prep_ms += msSince(tp);
-      }
-      res.refinement = refinePose(map_.packed(), rf, start, roll_rad_, pitch_rad_,
-                                  params_.T_base_cam, params_.measurement, params_.refinement,
-                                  sums);
-      // Judged against the particle mean, whatever the start.
-      const Particle& r = res.refinement.pose;
-      if (res.refinement.refined &&
-          (std::hypot(std::hypot(r.x_m - res.estimate.mean.x_m, r.y_m - res.estimate.mean.y_m),
-                      r.z_m - res.estimate.mean.z_m) > params_.refinement.max_correction_m ||
-           std::abs(wrapAngle(r.yaw_rad - res.estimate.mean.yaw_rad)) >
-               params_.refinement.max_correction_rad)) {
-        res.refinement.refined = false;
-        res.refinement.why = "refined pose too far from the particle mean: rejected";
-        res.refinement.pose = res.estimate.mean;
-      }
-      res.timings.refine_ms = res.refinement.ms;
-    } else {
-      res.refinement.why = "not converged";
-    }
-  }
-  have_refined_ = res.refinement.refined;
-  if (have_refined_) last_refined_ = res.refinement.pose;
-  t0 = Clock::now();
-  res.resampled = filter_->resampleIfNeeded();
-  res.reinitialised = filter_->recoverFrame(res.pixels, region_);
-  // Absolute-quality recovery: the worst particles by this frame's likelihood (after any
-  // resampling, each particle carries its source's likelihood) are redrawn.
-  if (lost_.update(res.best_loglik_per_pixel)) {
-    res.lost = true;
-    have_refined_ = false;
-    // The worst fraction is redrawn; with an adaptive count the set grows back to its largest.
-    const int n = filter_->size();
-    const int keep = n - static_cast<int>(std::floor(params_.lost.reinit_fraction * n));
-    const int count = params_.filter.adaptive() ? params_.filter.num_particles - keep : n - keep;
-    try {
-      screenCandidates(ctx, count, true);
-      filter_->replaceWorstByBestCandidates(keep, count);
-      res.lost_reinitialised = count;
-      res.screened_candidates += count * params_.lost.candidates_per_particle;
-    } catch (const BackendError&) {
-      throw;
-    } catch (const std::exception& e) {
-      return finish(StepStatus::kBackendError, std::string("likelihood backend: ") + e.what());
-    }
-    std::ostringstream msg;
-    msg << "lost: best log-likelihood " << res.best_loglik_per_pixel << " nats/px stayed more than "
-        << params_.lost.margin_nats << " below the reference " << lost_.reference() << " for "
-        << params_.lost.frames << " frames: " << res.lost_reinitialised
-        << " particles redrawn from the recovery region (best of "
-        << params_.lost.candidates_per_particle << " candidates each)";
-    res.message += (res.message.empty() ? "" : "; ") + msg.str();
-  }
-  res.reference_loglik_per_pixel = lost_.reference();
-  res.timings.resample_ms = msSince(t0);
-  res.timings.total_ms = msSince(t_start);
 }
 
 }  // namespace gmm_mcl

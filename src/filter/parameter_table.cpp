@@ -76,251 +76,306 @@ bool ParamValue::operator==(const ParamValue& o) const {
   return false;
 }
 
+namespace {
+
+using P = LocalizerParams;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr bool kRuntime = true, kStartup = false;
+
+void add(ParamTable<P>* t, ParamSpec<P> p) { t->push_back(std::move(p)); }
+
+// Particles.
+void addParticlesParams(ParamTable<P>* t) {
+  const char* g = "particles";
+  add(t, paramSpec<P>("num_particles", GMM_MCL_PARAM_FIELD(P, filter.num_particles), "", g,
+                      {1, 1e7}, kRuntime,
+                      "Particle count at every (re)initialisation and the largest count (paper: "
+                      "1068); a change resamples the current set to the new count"));
+  add(t,
+      paramSpec<P>(
+          "min_particles", GMM_MCL_PARAM_FIELD(P, filter.min_particles), "", g, {0, 1e7}, kRuntime,
+          "Smallest count of the adaptive (KLD-sampling) particle count, which moves within "
+          "[min_particles, num_particles] at each resampling; 0 = a fixed count"));
+  add(t, paramSpec<P>("kld_epsilon", GMM_MCL_PARAM_FIELD(P, filter.kld_epsilon), "", g, {1e-4, 1},
+                      kRuntime,
+                      "KLD-sampling: bound on the Kullback-Leibler error of the resampled set"));
+  add(t, paramSpec<P>(
+             "kld_z", GMM_MCL_PARAM_FIELD(P, filter.kld_z), "", g, {0.1, 10}, kRuntime,
+             "KLD-sampling: standard normal quantile of the bound's probability (2.326: 0.99)"));
+  add(t, paramSpec<P>("kld_bin_m", GMM_MCL_PARAM_FIELD(P, filter.kld_bin_m), "m", g, {1e-3, 10},
+                      kRuntime, "KLD-sampling: bin size along x, y and z"));
+  add(t, paramSpec<P>("kld_bin_rad", GMM_MCL_PARAM_FIELD(P, filter.kld_bin_rad), "rad", g,
+                      {1e-3, 3.15}, kRuntime, "KLD-sampling: bin size in yaw"));
+  add(t, paramSpec<P>(
+             "resample_neff_fraction", GMM_MCL_PARAM_FIELD(P, filter.resample_neff_fraction), "", g,
+             {0, 1}, kRuntime,
+             "Resample when the effective sample size falls below this fraction of the count"));
+  add(t, paramSpec<P>("resample_groups", GMM_MCL_PARAM_FIELD(P, filter.resample_groups), "", g,
+                      {1, 1e7}, kRuntime,
+                      "Stratified resampling groups (low-variance sampling inside each); at most "
+                      "the smallest count"));
+  add(t, paramSpec<P>("seed", GMM_MCL_PARAM_FIELD(P, filter.seed), "", g, {0, 2147483647}, kStartup,
+                      "Seed of the filter's random generator: equal inputs give equal outputs"));
+}
+
+// Motion model.
+void addMotionParams(ParamTable<P>* t) {
+  const char* g = "motion";
+  add(t, paramSpec<P>(
+             "sigma_translation_m", GMM_MCL_PARAM_FIELD(P, filter.sigma_translation_m), "m", g,
+             {0, 1}, kRuntime,
+             "Process noise per update along x, y and z (paper Table 1: 0.02 desktop, 0.025 TX2)"));
+  add(t, paramSpec<P>("sigma_yaw_rad", GMM_MCL_PARAM_FIELD(P, filter.sigma_yaw_rad), "rad", g,
+                      {0, 1}, kRuntime,
+                      "Process noise per update in yaw (paper Table 1: 0.01 desktop, 0.1 TX2)"));
+  add(t, paramSpec<P>("max_odometry_step_m", GMM_MCL_PARAM_FIELD(P, max_odometry_step_m), "m", g,
+                      {1e-3, 1000}, kRuntime,
+                      "An odometry step longer than this between two updates is a jump: not "
+                      "applied, reported in the status"));
+  add(t, paramSpec<P>(
+             "attitude_sigma_rad", GMM_MCL_PARAM_FIELD(P, filter.attitude_sigma_rad), "rad", g,
+             {0, 1}, kRuntime,
+             "Roll and pitch standard deviation reported in the pose covariance (the IMU's)"));
+}
+
+// Weighting.
+void addWeightingParams(ParamTable<P>* t) {
+  const char* g = "weighting";
+  {
+    ParamSpec<P> p;
+    p.name = "weighting";
+    p.field = "filter.weighting";
+    p.type = ParamType::kString;
+    p.group = g;
+    p.runtime = kRuntime;
+    p.choices = {"tempered", "paper"};
+    p.help =
+        "Particle weights: tempered = exp of the tempered mean log-likelihood with an Neff "
+        "floor; paper = 1 / NLL with its guard";
+    p.get = [](const P& s) {
+      ParamValue v;
+      v.type = ParamType::kString;
+      v.s = weightingModeName(s.filter.weighting);
+      return v;
+    };
+    p.set = [](P* s, const ParamValue& v) { parseWeightingMode(v.s, &s->filter.weighting); };
+    add(t, p);
+  }
+  add(t, paramSpec<P>("temperature", GMM_MCL_PARAM_FIELD(P, filter.temperature), "", g, {0.01, 100},
+                      kRuntime, "tempered: the temperature T (weights exp(L / (T pixels)))"));
+  add(t, paramSpec<P>("neff_floor_fraction", GMM_MCL_PARAM_FIELD(P, filter.neff_floor_fraction), "",
+                      g, {0, 0.99}, kRuntime,
+                      "tempered: one update never leaves fewer effective particles than this "
+                      "fraction of the count (0 = off)"));
+  add(t, paramSpec<P>(
+             "paper_min_nll_per_pixel", GMM_MCL_PARAM_FIELD(P, filter.paper_min_nll_per_pixel),
+             "nats/px", g, {0, 100}, kRuntime,
+             "paper: guard, the best particle's NLL is shifted up to at least this per pixel"));
+}
+
+// Recovery.
+void addRecoveryParams(ParamTable<P>* t) {
+  const char* g = "recovery";
+  add(t,
+      paramSpec<P>("alpha_slow", GMM_MCL_PARAM_FIELD(P, filter.alpha_slow), "", g, {0, 1}, kRuntime,
+                   "Augmented MCL: rate of the slow likelihood average (the smaller of the pair; "
+                   "0 = no recovery)"));
+  add(t,
+      paramSpec<P>("alpha_fast", GMM_MCL_PARAM_FIELD(P, filter.alpha_fast), "", g, {0, 1}, kRuntime,
+                   "Augmented MCL: rate of the fast likelihood average (the larger of the pair)"));
+  add(t,
+      paramSpec<P>(
+          "recovery_threshold", GMM_MCL_PARAM_FIELD(P, filter.recovery_threshold), "", g, {1e-3, 1},
+          kRuntime,
+          "Augmented MCL: reinitialise only once w_fast < threshold * w_slow (1 = Thrun's rule)"));
+}
+
+// Lost detector.
+void addLostParams(ParamTable<P>* t) {
+  const char* g = "lost";
+  add(t, paramSpec<P>("lost_margin_nats", GMM_MCL_PARAM_FIELD(P, lost.margin_nats), "nats/px", g,
+                      {0, 100}, kRuntime,
+                      "Lost detector: the best particle's log-likelihood this far below the "
+                      "reference counts as below (0 = detector off)"));
+  add(t, paramSpec<P>("lost_frames", GMM_MCL_PARAM_FIELD(P, lost.frames), "", g, {1, 1e5}, kRuntime,
+                      "Lost detector: consecutive frames below before the filter is judged lost"));
+  add(t,
+      paramSpec<P>("lost_grace_frames", GMM_MCL_PARAM_FIELD(P, lost.grace_frames), "", g, {0, 1e6},
+                   kRuntime, "Lost detector: frames after any (re)initialisation before judging"));
+  add(t, paramSpec<P>(
+             "lost_reference_rate_up", GMM_MCL_PARAM_FIELD(P, lost.reference_rate_up), "", g,
+             {1e-4, 1}, kRuntime,
+             "Lost detector: per-frame rate at which the reference follows a better best score"));
+  add(t, paramSpec<P>(
+             "lost_reference_rate_down", GMM_MCL_PARAM_FIELD(P, lost.reference_rate_down), "", g,
+             {1e-4, 1}, kRuntime,
+             "Lost detector: per-frame rate at which the reference follows a worse best score"));
+  add(t, paramSpec<P>("lost_reference_max_drop_nats",
+                      GMM_MCL_PARAM_FIELD(P, lost.reference_max_drop_nats), "nats/px", g, {0, 100},
+                      kRuntime,
+                      "Lost detector: the reference never sinks further than this below the level "
+                      "the map predicts for a correct pose"));
+  add(t, paramSpec<P>("lost_reinit_fraction", GMM_MCL_PARAM_FIELD(P, lost.reinit_fraction), "", g,
+                      {1e-3, 1}, kRuntime,
+                      "Lost detector: fraction of the particles (the worst) redrawn when lost"));
+  add(t,
+      paramSpec<P>("lost_candidates_per_particle",
+                   GMM_MCL_PARAM_FIELD(P, lost.candidates_per_particle), "", g, {1, 1000}, kRuntime,
+                   "Redrawn particles (and a uniform start) are the best of this many scored "
+                   "candidates each (1 = plain draws)"));
+  add(t, paramSpec<P>(
+             "lost_local_candidate_fraction", GMM_MCL_PARAM_FIELD(P, lost.local_candidate_fraction),
+             "", g, {0, 0.99}, kRuntime,
+             "Lost redraw: fraction of the candidates drawn around the best uniform ones"));
+  add(t, paramSpec<P>(
+             "lost_elite_fraction", GMM_MCL_PARAM_FIELD(P, lost.elite_fraction), "", g, {1e-4, 1},
+             kRuntime,
+             "Lost redraw: the local candidates surround this best fraction of the uniform ones"));
+  add(t, paramSpec<P>("lost_local_sigma_m", GMM_MCL_PARAM_FIELD(P, lost.local_sigma_m), "m", g,
+                      {1e-3, 10}, kRuntime,
+                      "Lost redraw: spread of the local candidates along x, y and z"));
+  add(t,
+      paramSpec<P>("lost_local_sigma_rad", GMM_MCL_PARAM_FIELD(P, lost.local_sigma_rad), "rad", g,
+                   {1e-3, 3.15}, kRuntime, "Lost redraw: spread of the local candidates in yaw"));
+  add(t, paramSpec<P>("lost_redraw_blur_m", GMM_MCL_PARAM_FIELD(P, lost.redraw_blur_m), "m", g,
+                      {0, 2}, kRuntime,
+                      "Lost redraw: uniform candidates are scored against the map blurred by this "
+                      "much (a wider basin; 0 = the map)"));
+}
+
+// Depth frame.
+void addFrameParams(ParamTable<P>* t) {
+  const char* g = "frame";
+  add(t, paramSpec<P>("pixel_stride", GMM_MCL_PARAM_FIELD(P, frame.pixel_stride), "px", g, {1, 64},
+                      kRuntime, "Use every n-th pixel along rows and columns"));
+  add(t,
+      paramSpec<P>(
+          "patch_size_px", GMM_MCL_PARAM_FIELD(P, frame.patch_size_px), "px", g, {4, 256}, kStartup,
+          "Side of the square patches for which relevant components are selected (paper: 32)"));
+  add(t, paramSpec<P>("min_range_m", GMM_MCL_PARAM_FIELD(P, frame.min_range_m), "m", g, {1e-3, 100},
+                      kRuntime, "Depths nearer than this are not used"));
+  add(t, paramSpec<P>("max_range_m", GMM_MCL_PARAM_FIELD(P, frame.max_range_m), "m", g, {1e-2, 100},
+                      kRuntime, "Depths farther than this are not used"));
+}
+
+// Measurement model.
+void addMeasurementParams(ParamTable<P>* t) {
+  const char* g = "measurement";
+  add(t, paramSpec<P>("min_component_depth_m",
+                      GMM_MCL_PARAM_FIELD(P, measurement.min_component_depth_m), "m", g, {1e-3, 10},
+                      kRuntime,
+                      "Components whose mean is nearer to the camera (or behind it) are left out"));
+  add(t, paramSpec<P>("sigma_bound", GMM_MCL_PARAM_FIELD(P, measurement.sigma_bound), "sigma", g,
+                      {0.5, 10}, kRuntime,
+                      "A component is relevant to a patch when its ellipse of this many standard "
+                      "deviations overlaps it"));
+  add(t, paramSpec<P>(
+             "floor_log_density", GMM_MCL_PARAM_FIELD(P, measurement.floor_log_density),
+             "ln(1/m^3)", g, {-80, 20}, kRuntime,
+             "Outlier floor: each pixel's log-likelihood is ln(exp(floor) + mixture density)"));
+  add(t, paramSpec<P>("depth_noise_a_m", GMM_MCL_PARAM_FIELD(P, measurement.depth_noise.a_m), "m",
+                      g, {0, 1}, kRuntime,
+                      "Camera depth noise sigma(z) = a + b (z - z0)^2: the constant a (a = b = 0: "
+                      "the map alone, the paper's model)"));
+  add(t,
+      paramSpec<P>("depth_noise_b_per_m", GMM_MCL_PARAM_FIELD(P, measurement.depth_noise.b_per_m),
+                   "1/m", g, {0, 1}, kRuntime, "Camera depth noise: the quadratic coefficient b"));
+  add(t,
+      paramSpec<P>("depth_noise_z0_m", GMM_MCL_PARAM_FIELD(P, measurement.depth_noise.z0_m), "m", g,
+                   {0, 10}, kRuntime, "Camera depth noise: the depth z0 of the smallest noise"));
+}
+
+// Refinement.
+void addRefinementParams(ParamTable<P>* t) {
+  const char* g = "refinement";
+  add(t, paramSpec<P>(
+             "refine", GMM_MCL_PARAM_FIELD(P, refinement.enabled), "", g, {}, kRuntime,
+             "Refine the converged estimate below the particle spacing (reported in the status)"));
+  add(t, paramSpec<P>("refine_max_iterations", GMM_MCL_PARAM_FIELD(P, refinement.max_iterations),
+                      "", g, {1, 100}, kRuntime, "Refinement: iterations at most"));
+  add(t, paramSpec<P>("refine_max_position_sigma_m",
+                      GMM_MCL_PARAM_FIELD(P, refinement.max_position_sigma_m), "m", g, {1e-3, 10},
+                      kRuntime,
+                      "Refinement runs only while the particles' position spread is below this"));
+  add(t,
+      paramSpec<P>("refine_max_yaw_sigma_rad", GMM_MCL_PARAM_FIELD(P, refinement.max_yaw_sigma_rad),
+                   "rad", g, {1e-3, 3.15}, kRuntime,
+                   "Refinement runs only while the particles' yaw spread is below this"));
+  add(t,
+      paramSpec<P>("refine_max_correction_m", GMM_MCL_PARAM_FIELD(P, refinement.max_correction_m),
+                   "m", g, {1e-3, 10}, kRuntime,
+                   "A refined pose farther than this from the particle mean is rejected"));
+  add(t,
+      paramSpec<P>("refine_max_correction_rad",
+                   GMM_MCL_PARAM_FIELD(P, refinement.max_correction_rad), "rad", g, {1e-3, 3.15},
+                   kRuntime, "A refined yaw farther than this from the particle mean is rejected"));
+  add(t,
+      paramSpec<P>(
+          "refine_attitude_prior_sigma_rad",
+          GMM_MCL_PARAM_FIELD(P, refinement.attitude_prior_sigma_rad), "rad", g, {0, 1}, kRuntime,
+          "Refinement: prior on roll and pitch around the attitude input (0 = held fixed)"));
+  add(t,
+      paramSpec<P>("refine_tolerance_m", GMM_MCL_PARAM_FIELD(P, refinement.tolerance_m), "m", g,
+                   {1e-6, 1}, kRuntime,
+                   "Refinement stops when a step moves less than this and refine_tolerance_rad"));
+  add(t, paramSpec<P>("refine_tolerance_rad", GMM_MCL_PARAM_FIELD(P, refinement.tolerance_rad),
+                      "rad", g, {1e-6, 1}, kRuntime,
+                      "Refinement stops when a step turns less than this and moves less than "
+                      "refine_tolerance_m"));
+}
+
+// Initial region.
+void addInitParams(ParamTable<P>* t) {
+  const char* g = "init";
+  add(t, paramSpec<P>("init_centre", GMM_MCL_PARAM_FIELD(P, init.centre_m), "m", g, {}, kStartup,
+                      "Centre of the uniform initial region in the map frame [x, y, z] (also where "
+                      "recovery draws from)"));
+  add(t,
+      paramSpec<P>("init_half_extent", GMM_MCL_PARAM_FIELD(P, init.half_extent_m), "m", g, {},
+                   kStartup, "Half extents of the initial region [x, y, z] (paper: a 4 m cube)"));
+  add(t, paramSpec<P>("init_yaw_centre", GMM_MCL_PARAM_FIELD(P, init.yaw_centre_rad), "rad", g,
+                      {-kInf, kInf}, kStartup, "Centre of the initial yaw range"));
+  add(t, paramSpec<P>("init_yaw_half_range", GMM_MCL_PARAM_FIELD(P, init.yaw_half_range_rad), "rad",
+                      g, {0, M_PI}, kStartup,
+                      "Half of the initial yaw range (paper: pi / 2, a range of pi)"));
+}
+
+// Backend.
+void addBackendParams(ParamTable<P>* t) {
+  const char* g = "backend";
+  {
+    ParamSpec<P> p =
+        paramSpec<P>("backend", GMM_MCL_PARAM_FIELD(P, backend), "", g, {}, kStartup,
+                     "Likelihood backend: cpu (OpenMP) or cuda (falls back to the CPU with a "
+                     "warning where CUDA is not built or no device is usable)");
+    p.choices = {"cpu", "cuda"};
+    add(t, p);
+  }
+  add(t, paramSpec<P>("device_filter", GMM_MCL_PARAM_FIELD(P, device_filter), "", g, {}, kStartup,
+                      "With the cuda backend the whole filter step runs on the GPU (the particle "
+                      "set lives there); false: the set stays on the host and only the likelihood "
+                      "runs on the GPU. No effect with the cpu backend"));
+  add(t, paramSpec<P>("cpu_fallback", GMM_MCL_PARAM_FIELD(P, cpu_fallback), "", g, {}, kRuntime,
+                      "When the cuda backend fails at run time (a CUDA error, the GPU out of "
+                      "memory), switch to the cpu backend keeping the particles instead of failing "
+                      "every frame (reported in /diagnostics)"));
+}
+
+}  // namespace
+
 const ParamTable<LocalizerParams>& localizerParamTable() {
-  using P = LocalizerParams;
-  constexpr double kInf = std::numeric_limits<double>::infinity();
-  constexpr bool kRuntime = true, kStartup = false;
   static const ParamTable<P> table = [] {
     ParamTable<P> t;
-    auto add = [&t](ParamSpec<P> p) { t.push_back(std::move(p)); };
-    // Particles.
-    const char* g = "particles";
-    add(paramSpec<P>("num_particles", GMM_MCL_PARAM_FIELD(P, filter.num_particles), "", g, {1, 1e7},
-                     kRuntime,
-                     "Particle count at every (re)initialisation and the largest count (paper: "
-                     "1068); a change resamples the current set to the new count"));
-    add(paramSpec<P>(
-        "min_particles", GMM_MCL_PARAM_FIELD(P, filter.min_particles), "", g, {0, 1e7}, kRuntime,
-        "Smallest count of the adaptive (KLD-sampling) particle count, which moves within "
-        "[min_particles, num_particles] at each resampling; 0 = a fixed count"));
-    add(paramSpec<P>("kld_epsilon", GMM_MCL_PARAM_FIELD(P, filter.kld_epsilon), "", g, {1e-4, 1},
-                     kRuntime,
-                     "KLD-sampling: bound on the Kullback-Leibler error of the resampled set"));
-    add(paramSpec<P>(
-        "kld_z", GMM_MCL_PARAM_FIELD(P, filter.kld_z), "", g, {0.1, 10}, kRuntime,
-        "KLD-sampling: standard normal quantile of the bound's probability (2.326: 0.99)"));
-    add(paramSpec<P>("kld_bin_m", GMM_MCL_PARAM_FIELD(P, filter.kld_bin_m), "m", g, {1e-3, 10},
-                     kRuntime, "KLD-sampling: bin size along x, y and z"));
-    add(paramSpec<P>("kld_bin_rad", GMM_MCL_PARAM_FIELD(P, filter.kld_bin_rad), "rad", g,
-                     {1e-3, 3.15}, kRuntime, "KLD-sampling: bin size in yaw"));
-    add(paramSpec<P>(
-        "resample_neff_fraction", GMM_MCL_PARAM_FIELD(P, filter.resample_neff_fraction), "", g,
-        {0, 1}, kRuntime,
-        "Resample when the effective sample size falls below this fraction of the count"));
-    add(paramSpec<P>("resample_groups", GMM_MCL_PARAM_FIELD(P, filter.resample_groups), "", g,
-                     {1, 1e7}, kRuntime,
-                     "Stratified resampling groups (low-variance sampling inside each); at most "
-                     "the smallest count"));
-    add(paramSpec<P>("seed", GMM_MCL_PARAM_FIELD(P, filter.seed), "", g, {0, 2147483647}, kStartup,
-                     "Seed of the filter's random generator: equal inputs give equal outputs"));
-    // Motion model.
-    g = "motion";
-    add(paramSpec<P>(
-        "sigma_translation_m", GMM_MCL_PARAM_FIELD(P, filter.sigma_translation_m), "m", g, {0, 1},
-        kRuntime,
-        "Process noise per update along x, y and z (paper Table 1: 0.02 desktop, 0.025 TX2)"));
-    add(paramSpec<P>("sigma_yaw_rad", GMM_MCL_PARAM_FIELD(P, filter.sigma_yaw_rad), "rad", g,
-                     {0, 1}, kRuntime,
-                     "Process noise per update in yaw (paper Table 1: 0.01 desktop, 0.1 TX2)"));
-    add(paramSpec<P>("max_odometry_step_m", GMM_MCL_PARAM_FIELD(P, max_odometry_step_m), "m", g,
-                     {1e-3, 1000}, kRuntime,
-                     "An odometry step longer than this between two updates is a jump: not "
-                     "applied, reported in the status"));
-    add(paramSpec<P>(
-        "attitude_sigma_rad", GMM_MCL_PARAM_FIELD(P, filter.attitude_sigma_rad), "rad", g, {0, 1},
-        kRuntime, "Roll and pitch standard deviation reported in the pose covariance (the IMU's)"));
-    // Weighting.
-    g = "weighting";
-    {
-      ParamSpec<P> p;
-      p.name = "weighting";
-      p.field = "filter.weighting";
-      p.type = ParamType::kString;
-      p.group = g;
-      p.runtime = kRuntime;
-      p.choices = {"tempered", "paper"};
-      p.help =
-          "Particle weights: tempered = exp of the tempered mean log-likelihood with an Neff "
-          "floor; paper = 1 / NLL with its guard";
-      p.get = [](const P& s) {
-        ParamValue v;
-        v.type = ParamType::kString;
-        v.s = weightingModeName(s.filter.weighting);
-        return v;
-      };
-      p.set = [](P* s, const ParamValue& v) { parseWeightingMode(v.s, &s->filter.weighting); };
-      add(p);
-    }
-    add(paramSpec<P>("temperature", GMM_MCL_PARAM_FIELD(P, filter.temperature), "", g, {0.01, 100},
-                     kRuntime, "tempered: the temperature T (weights exp(L / (T pixels)))"));
-    add(paramSpec<P>("neff_floor_fraction", GMM_MCL_PARAM_FIELD(P, filter.neff_floor_fraction), "",
-                     g, {0, 0.99}, kRuntime,
-                     "tempered: one update never leaves fewer effective particles than this "
-                     "fraction of the count (0 = off)"));
-    add(paramSpec<P>(
-        "paper_min_nll_per_pixel", GMM_MCL_PARAM_FIELD(P, filter.paper_min_nll_per_pixel),
-        "nats/px", g, {0, 100}, kRuntime,
-        "paper: guard, the best particle's NLL is shifted up to at least this per pixel"));
-    // Recovery.
-    g = "recovery";
-    add(paramSpec<P>("alpha_slow", GMM_MCL_PARAM_FIELD(P, filter.alpha_slow), "", g, {0, 1},
-                     kRuntime,
-                     "Augmented MCL: rate of the slow likelihood average (the smaller of the pair; "
-                     "0 = no recovery)"));
-    add(paramSpec<P>(
-        "alpha_fast", GMM_MCL_PARAM_FIELD(P, filter.alpha_fast), "", g, {0, 1}, kRuntime,
-        "Augmented MCL: rate of the fast likelihood average (the larger of the pair)"));
-    add(paramSpec<P>(
-        "recovery_threshold", GMM_MCL_PARAM_FIELD(P, filter.recovery_threshold), "", g, {1e-3, 1},
-        kRuntime,
-        "Augmented MCL: reinitialise only once w_fast < threshold * w_slow (1 = Thrun's rule)"));
-    // Lost detector.
-    g = "lost";
-    add(paramSpec<P>("lost_margin_nats", GMM_MCL_PARAM_FIELD(P, lost.margin_nats), "nats/px", g,
-                     {0, 100}, kRuntime,
-                     "Lost detector: the best particle's log-likelihood this far below the "
-                     "reference counts as below (0 = detector off)"));
-    add(paramSpec<P>("lost_frames", GMM_MCL_PARAM_FIELD(P, lost.frames), "", g, {1, 1e5}, kRuntime,
-                     "Lost detector: consecutive frames below before the filter is judged lost"));
-    add(paramSpec<P>("lost_grace_frames", GMM_MCL_PARAM_FIELD(P, lost.grace_frames), "", g,
-                     {0, 1e6}, kRuntime,
-                     "Lost detector: frames after any (re)initialisation before judging"));
-    add(paramSpec<P>(
-        "lost_reference_rate_up", GMM_MCL_PARAM_FIELD(P, lost.reference_rate_up), "", g, {1e-4, 1},
-        kRuntime,
-        "Lost detector: per-frame rate at which the reference follows a better best score"));
-    add(paramSpec<P>(
-        "lost_reference_rate_down", GMM_MCL_PARAM_FIELD(P, lost.reference_rate_down), "", g,
-        {1e-4, 1}, kRuntime,
-        "Lost detector: per-frame rate at which the reference follows a worse best score"));
-    add(paramSpec<P>("lost_reference_max_drop_nats",
-                     GMM_MCL_PARAM_FIELD(P, lost.reference_max_drop_nats), "nats/px", g, {0, 100},
-                     kRuntime,
-                     "Lost detector: the reference never sinks further than this below the level "
-                     "the map predicts for a correct pose"));
-    add(paramSpec<P>("lost_reinit_fraction", GMM_MCL_PARAM_FIELD(P, lost.reinit_fraction), "", g,
-                     {1e-3, 1}, kRuntime,
-                     "Lost detector: fraction of the particles (the worst) redrawn when lost"));
-    add(paramSpec<P>("lost_candidates_per_particle",
-                     GMM_MCL_PARAM_FIELD(P, lost.candidates_per_particle), "", g, {1, 1000},
-                     kRuntime,
-                     "Redrawn particles (and a uniform start) are the best of this many scored "
-                     "candidates each (1 = plain draws)"));
-    add(paramSpec<P>("lost_local_candidate_fraction",
-                     GMM_MCL_PARAM_FIELD(P, lost.local_candidate_fraction), "", g, {0, 0.99},
-                     kRuntime,
-                     "Lost redraw: fraction of the candidates drawn around the best uniform ones"));
-    add(paramSpec<P>(
-        "lost_elite_fraction", GMM_MCL_PARAM_FIELD(P, lost.elite_fraction), "", g, {1e-4, 1},
-        kRuntime,
-        "Lost redraw: the local candidates surround this best fraction of the uniform ones"));
-    add(paramSpec<P>("lost_local_sigma_m", GMM_MCL_PARAM_FIELD(P, lost.local_sigma_m), "m", g,
-                     {1e-3, 10}, kRuntime,
-                     "Lost redraw: spread of the local candidates along x, y and z"));
-    add(paramSpec<P>("lost_local_sigma_rad", GMM_MCL_PARAM_FIELD(P, lost.local_sigma_rad), "rad", g,
-                     {1e-3, 3.15}, kRuntime, "Lost redraw: spread of the local candidates in yaw"));
-    add(paramSpec<P>("lost_redraw_blur_m", GMM_MCL_PARAM_FIELD(P, lost.redraw_blur_m), "m", g,
-                     {0, 2}, kRuntime,
-                     "Lost redraw: uniform candidates are scored against the map blurred by this "
-                     "much (a wider basin; 0 = the map)"));
-    // Depth frame.
-    g = "frame";
-    add(paramSpec<P>("pixel_stride", GMM_MCL_PARAM_FIELD(P, frame.pixel_stride), "px", g, {1, 64},
-                     kRuntime, "Use every n-th pixel along rows and columns"));
-    add(paramSpec<P>(
-        "patch_size_px", GMM_MCL_PARAM_FIELD(P, frame.patch_size_px), "px", g, {4, 256}, kStartup,
-        "Side of the square patches for which relevant components are selected (paper: 32)"));
-    add(paramSpec<P>("min_range_m", GMM_MCL_PARAM_FIELD(P, frame.min_range_m), "m", g, {1e-3, 100},
-                     kRuntime, "Depths nearer than this are not used"));
-    add(paramSpec<P>("max_range_m", GMM_MCL_PARAM_FIELD(P, frame.max_range_m), "m", g, {1e-2, 100},
-                     kRuntime, "Depths farther than this are not used"));
-    // Measurement model.
-    g = "measurement";
-    add(paramSpec<P>("min_component_depth_m",
-                     GMM_MCL_PARAM_FIELD(P, measurement.min_component_depth_m), "m", g, {1e-3, 10},
-                     kRuntime,
-                     "Components whose mean is nearer to the camera (or behind it) are left out"));
-    add(paramSpec<P>("sigma_bound", GMM_MCL_PARAM_FIELD(P, measurement.sigma_bound), "sigma", g,
-                     {0.5, 10}, kRuntime,
-                     "A component is relevant to a patch when its ellipse of this many standard "
-                     "deviations overlaps it"));
-    add(paramSpec<P>(
-        "floor_log_density", GMM_MCL_PARAM_FIELD(P, measurement.floor_log_density), "ln(1/m^3)", g,
-        {-80, 20}, kRuntime,
-        "Outlier floor: each pixel's log-likelihood is ln(exp(floor) + mixture density)"));
-    add(paramSpec<P>("depth_noise_a_m", GMM_MCL_PARAM_FIELD(P, measurement.depth_noise.a_m), "m", g,
-                     {0, 1}, kRuntime,
-                     "Camera depth noise sigma(z) = a + b (z - z0)^2: the constant a (a = b = 0: "
-                     "the map alone, the paper's model)"));
-    add(paramSpec<P>("depth_noise_b_per_m", GMM_MCL_PARAM_FIELD(P, measurement.depth_noise.b_per_m),
-                     "1/m", g, {0, 1}, kRuntime,
-                     "Camera depth noise: the quadratic coefficient b"));
-    add(paramSpec<P>("depth_noise_z0_m", GMM_MCL_PARAM_FIELD(P, measurement.depth_noise.z0_m), "m",
-                     g, {0, 10}, kRuntime,
-                     "Camera depth noise: the depth z0 of the smallest noise"));
-    // Refinement.
-    g = "refinement";
-    add(paramSpec<P>(
-        "refine", GMM_MCL_PARAM_FIELD(P, refinement.enabled), "", g, {}, kRuntime,
-        "Refine the converged estimate below the particle spacing (reported in the status)"));
-    add(paramSpec<P>("refine_max_iterations", GMM_MCL_PARAM_FIELD(P, refinement.max_iterations), "",
-                     g, {1, 100}, kRuntime, "Refinement: iterations at most"));
-    add(paramSpec<P>("refine_max_position_sigma_m",
-                     GMM_MCL_PARAM_FIELD(P, refinement.max_position_sigma_m), "m", g, {1e-3, 10},
-                     kRuntime,
-                     "Refinement runs only while the particles' position spread is below this"));
-    add(paramSpec<P>("refine_max_yaw_sigma_rad",
-                     GMM_MCL_PARAM_FIELD(P, refinement.max_yaw_sigma_rad), "rad", g, {1e-3, 3.15},
-                     kRuntime,
-                     "Refinement runs only while the particles' yaw spread is below this"));
-    add(paramSpec<P>("refine_max_correction_m", GMM_MCL_PARAM_FIELD(P, refinement.max_correction_m),
-                     "m", g, {1e-3, 10}, kRuntime,
-                     "A refined pose farther than this from the particle mean is rejected"));
-    add(paramSpec<P>("refine_max_correction_rad",
-                     GMM_MCL_PARAM_FIELD(P, refinement.max_correction_rad), "rad", g, {1e-3, 3.15},
-                     kRuntime,
-                     "A refined yaw farther than this from the particle mean is rejected"));
-    add(paramSpec<P>(
-        "refine_attitude_prior_sigma_rad",
-        GMM_MCL_PARAM_FIELD(P, refinement.attitude_prior_sigma_rad), "rad", g, {0, 1}, kRuntime,
-        "Refinement: prior on roll and pitch around the attitude input (0 = held fixed)"));
-    add(paramSpec<P>("refine_tolerance_m", GMM_MCL_PARAM_FIELD(P, refinement.tolerance_m), "m", g,
-                     {1e-6, 1}, kRuntime,
-                     "Refinement stops when a step moves less than this and refine_tolerance_rad"));
-    add(paramSpec<P>("refine_tolerance_rad", GMM_MCL_PARAM_FIELD(P, refinement.tolerance_rad),
-                     "rad", g, {1e-6, 1}, kRuntime,
-                     "Refinement stops when a step turns less than this and moves less than "
-                     "refine_tolerance_m"));
-    // Initial region.
-    g = "init";
-    add(paramSpec<P>("init_centre", GMM_MCL_PARAM_FIELD(P, init.centre_m), "m", g, {}, kStartup,
-                     "Centre of the uniform initial region in the map frame [x, y, z] (also where "
-                     "recovery draws from)"));
-    add(paramSpec<P>("init_half_extent", GMM_MCL_PARAM_FIELD(P, init.half_extent_m), "m", g, {},
-                     kStartup, "Half extents of the initial region [x, y, z] (paper: a 4 m cube)"));
-    add(paramSpec<P>("init_yaw_centre", GMM_MCL_PARAM_FIELD(P, init.yaw_centre_rad), "rad", g,
-                     {-kInf, kInf}, kStartup, "Centre of the initial yaw range"));
-    add(paramSpec<P>("init_yaw_half_range", GMM_MCL_PARAM_FIELD(P, init.yaw_half_range_rad), "rad",
-                     g, {0, M_PI}, kStartup,
-                     "Half of the initial yaw range (paper: pi / 2, a range of pi)"));
-    // Backend.
-    g = "backend";
-    {
-      ParamSpec<P> p =
-          paramSpec<P>("backend", GMM_MCL_PARAM_FIELD(P, backend), "", g, {}, kStartup,
-                       "Likelihood backend: cpu (OpenMP) or cuda (falls back to the CPU with a "
-                       "warning where CUDA is not built or no device is usable)");
-      p.choices = {"cpu", "cuda"};
-      add(p);
-    }
-    add(paramSpec<P>("device_filter", GMM_MCL_PARAM_FIELD(P, device_filter), "", g, {}, kStartup,
-                     "With the cuda backend the whole filter step runs on the GPU (the particle "
-                     "set lives there); false: the set stays on the host and only the likelihood "
-                     "runs on the GPU. No effect with the cpu backend"));
-    add(paramSpec<P>("cpu_fallback", GMM_MCL_PARAM_FIELD(P, cpu_fallback), "", g, {}, kRuntime,
-                     "When the cuda backend fails at run time (a CUDA error, the GPU out of "
-                     "memory), switch to the cpu backend keeping the particles instead of failing "
-                     "every frame (reported in /diagnostics)"));
+    addParticlesParams(&t);
+    addMotionParams(&t);
+    addWeightingParams(&t);
+    addRecoveryParams(&t);
+    addLostParams(&t);
+    addFrameParams(&t);
+    addMeasurementParams(&t);
+    addRefinementParams(&t);
+    addInitParams(&t);
+    addBackendParams(&t);
     return t;
   }();
   return table;

@@ -31,7 +31,7 @@ std::unique_ptr<ParticleFilterBase> makeParticleFilter(const ParticleFilterParam
   (void)backend;
   (void)device;
 #endif
-  return std::unique_ptr<ParticleFilterBase>(new ParticleFilter(params));
+  return std::make_unique<ParticleFilter>(params);
 }
 
 }  // namespace gmm_mcl

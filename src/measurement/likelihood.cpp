@@ -31,8 +31,8 @@ constexpr float kNegligibleBelowFloor = 25.f;
 // the vectors whose used lanes (used[v]) all have exponents below `negligible`. Two passes: the
 // exponents of all members (9 FMA per vector, each member's 10 constants broadcast once for all
 // V vectors), with the indices of the non-negligible vectors; then exp and the sum over those
-// only, in member order (no branch per member: on the bench, ~70% of (member, patch) pairs are
-// negligible, in an unpredictable pattern).
+// only, in member order (no branch per member: on the benchmark most (member, patch) pairs are
+// negligible, in an unpredictable pattern; the share is in docs/benchmark.md).
 template <int V>
 __attribute__((noinline)) void patchMixture(const EvalComponentF* __restrict comps,
                                             const int* __restrict members, int k, float shift,

@@ -102,8 +102,8 @@ std::unique_ptr<FrameSource> makeBoxSceneSource(const Intrinsics& K, int frames)
     return sim::renderDepth(*scene, K, T_map_cam, DepthEncoding::kMono16Millimetres, 9.0,
                             sim::DepthNoise{0.0015, 0.02}, rng);
   };
-  return std::unique_ptr<FrameSource>(
-      new SimSceneSource("box", K, frames, sim::tileScene(*scene, 0.4, 0.015), render));
+  return std::make_unique<SimSceneSource>("box", K, frames, sim::tileScene(*scene, 0.4, 0.015),
+                                          render);
 }
 
 // The built-in mesh scene (boxes and cylinders) rendered through the structured-light sensor
@@ -115,8 +115,8 @@ std::unique_ptr<FrameSource> makeSyntheticSource(const Intrinsics& K, int frames
     return sim::renderDepth(*scene->bvh, K, T_map_cam, DepthEncoding::kMono16Millimetres, 9.0,
                             &noise, (*rng)());
   };
-  return std::unique_ptr<FrameSource>(new SimSceneSource(
-      "synthetic", K, frames, sim::tileScene(scene->primitives, 0.4, 0.015), render));
+  return std::make_unique<SimSceneSource>(
+      "synthetic", K, frames, sim::tileScene(scene->primitives, 0.4, 0.015), render);
 }
 
 std::unique_ptr<FrameSource> makeSevenScenesSource(const std::string& data_dir,
@@ -127,8 +127,7 @@ std::unique_ptr<FrameSource> makeSevenScenesSource(const std::string& data_dir,
 std::unique_ptr<FrameSource> makeSequenceSource(const std::string& format,
                                                 const std::string& data_dir,
                                                 const std::string& map_path) {
-  return std::unique_ptr<FrameSource>(
-      new SequenceSource(openSequence(format, data_dir), map_path, format));
+  return std::make_unique<SequenceSource>(openSequence(format, data_dir), map_path, format);
 }
 
 KidnapResult planKidnap(const FrameSource& src, const KidnapParams& params, uint64_t seed) {

@@ -10,29 +10,40 @@
 namespace gmm_mcl {
 namespace ros_conv {
 
+#ifdef GMM_MCL_HAVE_PNG
+
 bool depthImageFromCompressedDepth(const sensor_msgs::CompressedImage& msg, DepthImage* out,
                                    std::string* error) {
-#ifndef GMM_MCL_HAVE_PNG
-  (void)msg;
-  (void)out;
-  *error = "compressedDepth needs libpng, which this build lacks";
-  return false;
-#else
   return decodeCompressedDepth(msg.format, msg.data.data(), msg.data.size(), out, error);
-#endif
 }
 
 bool compressedDepthFromImage(const DepthImage& image, sensor_msgs::CompressedImage* out,
                               std::string* error) {
-#ifndef GMM_MCL_HAVE_PNG
-  (void)image;
-  (void)out;
+  return encodeCompressedDepth(image, &out->format, &out->data, error);
+}
+
+#else  // a build without libpng: both directions say so
+
+namespace {
+
+bool withoutPng(std::string* error) {
   *error = "compressedDepth needs libpng, which this build lacks";
   return false;
-#else
-  return encodeCompressedDepth(image, &out->format, &out->data, error);
-#endif
 }
+
+}  // namespace
+
+bool depthImageFromCompressedDepth(const sensor_msgs::CompressedImage&, DepthImage*,
+                                   std::string* error) {
+  return withoutPng(error);
+}
+
+bool compressedDepthFromImage(const DepthImage&, sensor_msgs::CompressedImage*,
+                              std::string* error) {
+  return withoutPng(error);
+}
+
+#endif
 
 }  // namespace ros_conv
 }  // namespace gmm_mcl

@@ -247,5 +247,40 @@ void markersFromMap(const GmmMap& map, const std::string& frame_id,
   }
 }
 
+sensor_msgs::Imu imuFromAttitude(const ros::Time& stamp, const std::string& frame_id,
+                                 double roll_rad, double pitch_rad, double yaw_rad,
+                                 double attitude_variance_rad2, bool rates_absent) {
+  sensor_msgs::Imu imu;
+  imu.header.stamp = stamp;
+  imu.header.frame_id = frame_id;
+  const Eigen::Quaterniond q(rotationFromRpy(roll_rad, pitch_rad, yaw_rad));
+  imu.orientation.w = q.w();
+  imu.orientation.x = q.x();
+  imu.orientation.y = q.y();
+  imu.orientation.z = q.z();
+  imu.orientation_covariance[0] = imu.orientation_covariance[4] = attitude_variance_rad2;
+  imu.orientation_covariance[8] = 1.0;
+  if (rates_absent) {
+    imu.angular_velocity_covariance[0] = -1.0;
+    imu.linear_acceleration_covariance[0] = -1.0;
+  }
+  return imu;
+}
+
+sensor_msgs::CameraInfo cameraInfoFromIntrinsics(const Intrinsics& K, const ros::Time& stamp,
+                                                 const std::string& frame_id) {
+  sensor_msgs::CameraInfo info;
+  info.distortion_model = "plumb_bob";
+  info.width = K.width_px;
+  info.height = K.height_px;
+  info.header.stamp = stamp;
+  info.header.frame_id = frame_id;
+  info.D.assign(5, 0.0);
+  info.K = {K.fx_px, 0, K.cx_px, 0, K.fy_px, K.cy_px, 0, 0, 1};
+  info.R = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  info.P = {K.fx_px, 0, K.cx_px, 0, 0, K.fy_px, K.cy_px, 0, 0, 0, 1, 0};
+  return info;
+}
+
 }  // namespace ros_conv
 }  // namespace gmm_mcl

@@ -69,10 +69,10 @@ DepthInput::DepthInput(ros::NodeHandle nh, ros::NodeHandle pnh, tf2_ros::Buffer*
         new message_filters::Subscriber<sensor_msgs::CompressedImage>(nh, depth_topic_, queue));
     connectImage(compressed_sub_.get(), tf, nh, queue);
   } else {
-    it_.reset(new image_transport::ImageTransport(nh));
-    image_sub_.reset(new image_transport::SubscriberFilter(
+    it_ = std::make_unique<image_transport::ImageTransport>(nh);
+    image_sub_ = std::make_unique<image_transport::SubscriberFilter>(
         *it_, "depth/image", queue,
-        image_transport::TransportHints(opts.image_transport, ros::TransportHints(), pnh)));
+        image_transport::TransportHints(opts.image_transport, ros::TransportHints(), pnh));
     connectImage(image_sub_.get(), tf, nh, queue);
   }
 }

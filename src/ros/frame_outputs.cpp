@@ -14,7 +14,7 @@ void FrameOutputs::advertise(ros::NodeHandle& pnh, image_transport::ImageTranspo
   particles_pub_ = pnh.advertise<geometry_msgs::PoseArray>("particles", 2);
   status_pub_ = pnh.advertise<FilterStatus>("status", 10);
   debug_image_pub_ = it.advertise("debug_image", 1);
-  tf_broadcaster_.reset(new tf2_ros::TransformBroadcaster());
+  tf_broadcaster_ = std::make_unique<tf2_ros::TransformBroadcaster>();
 }
 
 void FrameOutputs::poses(const std_msgs::Header& header, const StepResult& r,

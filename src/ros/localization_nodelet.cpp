@@ -71,12 +71,12 @@ bool LocalizationNodelet::configure(std::vector<std::string>* unknown) {
 
 void LocalizationNodelet::advertise() {
   ros::NodeHandle &nh = getNodeHandle(), &pnh = getPrivateNodeHandle();
-  tf_.reset(new tf2_ros::Buffer(ros::Duration(30.0)));
+  tf_ = std::make_unique<tf2_ros::Buffer>(ros::Duration(30.0));
   // On the single-threaded queue, with the depth input's tf2 message filter (header: Threads).
-  tf_listener_.reset(new tf2_ros::TransformListener(*tf_, nh, false));
-  inputs_.reset(new StepInputs(tf_.get()));
+  tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_, nh, false);
+  inputs_ = std::make_unique<StepInputs>(tf_.get());
   inputs_->setOptions(opts_);
-  it_.reset(new image_transport::ImageTransport(pnh));
+  it_ = std::make_unique<image_transport::ImageTransport>(pnh);
   outputs_.advertise(pnh, *it_);
   markers_.advertise(pnh, "gmm_markers");
   markers_.set(localizer_->map(), opts_.map_frame);
@@ -109,7 +109,7 @@ void LocalizationNodelet::advertise() {
     onFrame(h, d, K);
   };
   cb.note = [this](const std::string& note) { NODELET_WARN_ONCE("gmm_mcl: %s", note.c_str()); };
-  input_.reset(new DepthInput(nh, pnh, tf_.get(), opts_, cb));
+  input_ = std::make_unique<DepthInput>(nh, pnh, tf_.get(), opts_, cb);
   health_.set([this](NodeHealth* h) {
     h->depth_topic = input_->depthTopic(), h->camera_info_topic = input_->cameraInfoTopic();
   });

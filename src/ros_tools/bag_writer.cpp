@@ -34,21 +34,6 @@ sensor_msgs::Image imageFromDepth(const DepthImage& depth, const ros::Time& stam
   return img;
 }
 
-sensor_msgs::CameraInfo cameraInfoFromIntrinsics(const Intrinsics& K, const ros::Time& stamp,
-                                                 const std::string& frame_id) {
-  sensor_msgs::CameraInfo info;
-  info.header.stamp = stamp;
-  info.header.frame_id = frame_id;
-  info.width = K.width_px;
-  info.height = K.height_px;
-  info.distortion_model = "plumb_bob";
-  info.D.assign(5, 0.0);
-  info.K = {K.fx_px, 0, K.cx_px, 0, K.fy_px, K.cy_px, 0, 0, 1};
-  info.R = {1, 0, 0, 0, 1, 0, 0, 0, 1};
-  info.P = {K.fx_px, 0, K.cx_px, 0, 0, K.fy_px, K.cy_px, 0, 0, 0, 1, 0};
-  return info;
-}
-
 sensor_msgs::PointCloud2 organizedCloudFromDepth(const DepthImage& depth, const Intrinsics& K,
                                                  const ros::Time& stamp,
                                                  const std::string& frame_id) {
@@ -109,19 +94,9 @@ void SensorBagWriter::writeStaticTransform(const ros::Time& stamp, const std::st
 
 void SensorBagWriter::writeImu(const ros::Time& stamp, const ros::Time& receipt, double roll_rad,
                                double pitch_rad, double yaw_rad, double attitude_sigma_rad) {
-  sensor_msgs::Imu imu;
-  imu.header.stamp = stamp;
-  imu.header.frame_id = layout_.base_frame;
-  const Eigen::Quaterniond q(rotationFromRpy(roll_rad, pitch_rad, yaw_rad));
-  imu.orientation.w = q.w();
-  imu.orientation.x = q.x();
-  imu.orientation.y = q.y();
-  imu.orientation.z = q.z();
-  imu.orientation_covariance[0] = imu.orientation_covariance[4] =
-      attitude_sigma_rad * attitude_sigma_rad;
-  imu.orientation_covariance[8] = 1.0;
-  imu.angular_velocity_covariance[0] = -1.0;     // not provided
-  imu.linear_acceleration_covariance[0] = -1.0;  // not provided
+  const sensor_msgs::Imu imu =
+      ros_conv::imuFromAttitude(stamp, layout_.base_frame, roll_rad, pitch_rad, yaw_rad,
+                                attitude_sigma_rad * attitude_sigma_rad);
   bag_.write(layout_.imu_topic, receipt, imu);
 }
 
@@ -146,7 +121,7 @@ void SensorBagWriter::writeDepth(const ros::Time& stamp, const DepthImage& depth
                                  const Intrinsics& K) {
   bag_.write(layout_.depth_topic, stamp, imageFromDepth(depth, stamp, layout_.camera_frame));
   bag_.write(layout_.camera_info_topic, stamp,
-             cameraInfoFromIntrinsics(K, stamp, layout_.camera_frame));
+             ros_conv::cameraInfoFromIntrinsics(K, stamp, layout_.camera_frame));
 }
 
 void SensorBagWriter::writeCloud(const ros::Time& stamp, const DepthImage& depth,

@@ -19,7 +19,7 @@
 #include "gmm_mcl/ros/conversions.h"
 #include "gmm_mcl/tools/command_line.h"
 
-using namespace gmm_mcl;
+namespace gmm_mcl {
 
 namespace {
 
@@ -42,7 +42,7 @@ std::string polyline(const std::vector<std::pair<double, double>>& pts, const st
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int run(int argc, char** argv) {
   std::string bag_path, pose_topic = "/gmm_mcl/pose", gt_topic = "/ground_truth", out_prefix;
   double skip_s = 2.0;
   cli::CommandLine cl("evaluate_pose_bag",
@@ -142,3 +142,7 @@ int main(int argc, char** argv) {
               rows.back().err_m, out_prefix.c_str(), out_prefix.c_str());
   return 0;
 }
+
+}  // namespace gmm_mcl
+
+int main(int argc, char** argv) { return gmm_mcl::run(argc, argv); }

@@ -31,7 +31,7 @@
 #include "gmm_mcl/datasets/tum_sequence.h"
 #include "gmm_mcl/ros/conversions.h"
 
-using namespace gmm_mcl;
+namespace gmm_mcl {
 
 namespace {
 
@@ -87,7 +87,7 @@ class GroundTruthOdometry {
     std::string tum_out;
     pnh.param<std::string>("truth_tum", tum_out, "");
     if (ok && !tum_out.empty()) {
-      tum_.reset(new std::ofstream(tum_out));
+      tum_ = std::make_unique<std::ofstream>(tum_out);
       if (!*tum_) {
         why = "~truth_tum: cannot write " + tum_out;
         ok = false;
@@ -107,7 +107,7 @@ class GroundTruthOdometry {
       ROS_FATAL("ground_truth_odometry: %s; publishing nothing", why.c_str());
       return;
     }
-    synth_.reset(new OdometrySynthesizer(noise, static_cast<uint64_t>(seed)));
+    synth_ = std::make_unique<OdometrySynthesizer>(noise, static_cast<uint64_t>(seed));
     odom_pub_ = nh.advertise<nav_msgs::Odometry>("odom", 50);
     imu_pub_ = nh.advertise<sensor_msgs::Imu>("imu", 50);
     truth_pub_ = nh.advertise<geometry_msgs::PoseStamped>("ground_truth", 50);
@@ -127,8 +127,8 @@ class GroundTruthOdometry {
       if (source_ == "tf") {
         pnh.param<std::string>("truth_parent_frame", truth_parent_, "world");
         pnh.param<std::string>("truth_child_frame", truth_child_, "kinect");
-        tf_buffer_.reset(new tf2_ros::Buffer());
-        tf_listener_.reset(new tf2_ros::TransformListener(*tf_buffer_));
+        tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
+        tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_);
       }
       timer_ = nh.createTimer(ros::Duration(1.0 / poll_hz), &GroundTruthOdometry::onTimer, this);
     }
@@ -195,21 +195,9 @@ class GroundTruthOdometry {
     ts.transform = ros_conv::transformFromIsometry(T_odom_base);
     broadcaster_.sendTransform(ts);
 
-    sensor_msgs::Imu imu;
-    imu.header.stamp = stamp;
-    imu.header.frame_id = base_frame_;
-    const Eigen::Quaterniond q(
-        rotationFromRpy(roll, pitch, yawFromRotation(T_world_base.linear())));
-    imu.orientation.w = q.w();
-    imu.orientation.x = q.x();
-    imu.orientation.y = q.y();
-    imu.orientation.z = q.z();
-    imu.orientation_covariance[0] = imu.orientation_covariance[4] =
-        attitude_sigma_rad_ * attitude_sigma_rad_;
-    imu.orientation_covariance[8] = 1.0;
-    imu.angular_velocity_covariance[0] = -1.0;
-    imu.linear_acceleration_covariance[0] = -1.0;
-    imu_pub_.publish(imu);
+    imu_pub_.publish(ros_conv::imuFromAttitude(stamp, base_frame_, roll, pitch,
+                                               yawFromRotation(T_world_base.linear()),
+                                               attitude_sigma_rad_ * attitude_sigma_rad_));
 
     geometry_msgs::PoseStamped gt;
     gt.header.stamp = stamp;
@@ -249,10 +237,14 @@ class GroundTruthOdometry {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int run(int argc, char** argv) {
   ros::init(argc, argv, "ground_truth_odometry");
   ros::NodeHandle nh, pnh("~");
   GroundTruthOdometry node(nh, pnh);
   ros::spin();
   return 0;
 }
+
+}  // namespace gmm_mcl
+
+int main(int argc, char** argv) { return gmm_mcl::run(argc, argv); }

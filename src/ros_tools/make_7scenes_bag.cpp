@@ -13,9 +13,9 @@
 #include "gmm_mcl/ros/sequence_bag.h"
 #include "gmm_mcl/tools/command_line.h"
 
-using namespace gmm_mcl;
+namespace gmm_mcl {
 
-int main(int argc, char** argv) {
+int run(int argc, char** argv) {
   std::string data_dir, map_in, bag_path;
   int frames = -1;
   ros_bag::SequenceBagOptions bo;
@@ -46,3 +46,7 @@ int main(int argc, char** argv) {
   }
   return 0;
 }
+
+}  // namespace gmm_mcl
+
+int main(int argc, char** argv) { return gmm_mcl::run(argc, argv); }

@@ -12,7 +12,7 @@
 #include "gmm_mcl/ros/sequence_bag.h"
 #include "gmm_mcl/tools/sequence_flags.h"
 
-using namespace gmm_mcl;
+namespace gmm_mcl {
 
 namespace {
 
@@ -33,7 +33,7 @@ const char* kUsage =
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int run(int argc, char** argv) {
   std::string format, dir, bag_path, map_path, marker_to_camera;
   SequenceOptions so;
   ros_bag::SequenceBagOptions bo;
@@ -70,13 +70,13 @@ int main(int argc, char** argv) {
       sp.frames = so.max_frames > 0 ? so.max_frames : 240;
       sp.width_px = width;
       sp.seed = bo.seed;
-      SimSequence* sim = new SimSequence(sp);
-      seq.reset(sim);
-      if (map_path.empty()) map.reset(new GmmMap(sim->map()));
+      std::unique_ptr<SimSequence> sim = std::make_unique<SimSequence>(sp);
+      if (map_path.empty()) map = std::make_unique<GmmMap>(sim->map());
+      seq = std::move(sim);
     } else {
       seq = openSequence(format, dir, so);
     }
-    if (!map_path.empty()) map.reset(new GmmMap(loadMap(map_path)));
+    if (!map_path.empty()) map = std::make_unique<GmmMap>(loadMap(map_path));
     if (!quiet) {
       bo.progress = [](int f, int total) {
         if (f % 30 == 0 || f == total - 1) {
@@ -98,3 +98,7 @@ int main(int argc, char** argv) {
   }
   return 0;
 }
+
+}  // namespace gmm_mcl
+
+int main(int argc, char** argv) { return gmm_mcl::run(argc, argv); }

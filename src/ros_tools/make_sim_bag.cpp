@@ -2,13 +2,6 @@
 // the demo: depth (16UC1 mm or 32FC1 m) + CameraInfo, IMU attitude, drifting odometry (as
 // nav_msgs/Odometry and as tf odom -> base_link), the static base -> camera tf, ground truth,
 // plus the map file and a parameter file with the initial region around the true start.
-#include <cmath>
-#include <cstdio>
-#include <cstdlib>
-#include <fstream>
-#include <random>
-#include <string>
-
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <nav_msgs/Odometry.h>
@@ -20,6 +13,13 @@
 #include <sensor_msgs/point_cloud2_iterator.h>
 #include <tf2_msgs/TFMessage.h>
 
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <random>
+#include <string>
+
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/ros/bag_writer.h"
@@ -28,57 +28,145 @@
 #include "gmm_mcl/sim/mesh_scene.h"
 #include "gmm_mcl/tools/command_line.h"
 
-using namespace gmm_mcl;
-
+namespace gmm_mcl {
 namespace {
 
 const char* kUsage =
-      "usage: make_sim_bag --bag FILE [--map FILE] [--params FILE] [--frames N] [--width PX]\n"
-      "                    [--seed S] [--encoding 16UC1|32FC1] [--start-time S]\n"
-      "                    [--init-half-extent M] [--init-yaw-half-range RAD] [--compressed] [--cloud] [--quiet]\n"
-      "Topics: /camera/depth/image_raw, /camera/depth/camera_info, /imu/data, /odom, /tf,\n"
-      "/tf_static, /ground_truth (base pose in map); --compressed adds\n"
-      "/camera/depth/image_raw/compressedDepth, --cloud /camera/depth/points (organized).\n"
-      "Frames map, odom, base_link,\n"
-      "camera_depth_optical_frame; 30 Hz.\n";
+    "usage: make_sim_bag --bag FILE [--map FILE] [--params FILE] [--frames N] [--width PX]\n"
+    "                    [--seed S] [--encoding 16UC1|32FC1] [--start-time S]\n"
+    "                    [--init-half-extent M] [--init-yaw-half-range RAD] [--compressed] "
+    "[--cloud] [--quiet]\n"
+    "Topics: /camera/depth/image_raw, /camera/depth/camera_info, /imu/data, /odom, /tf,\n"
+    "/tf_static, /ground_truth (base pose in map); --compressed adds\n"
+    "/camera/depth/image_raw/compressedDepth, --cloud /camera/depth/points (organized).\n"
+    "Frames map, odom, base_link,\n"
+    "camera_depth_optical_frame; 30 Hz.\n";
 
-}  // namespace
-
-int main(int argc, char** argv) {
+struct Options {
   int frames = 240, width_px = 320;
   uint64_t seed = 1;
   double start_s = 1000.0, init_half_extent_m = 0.5, init_yaw_half_range_rad = 0.3;
   std::string bag_path, map_path, params_path, encoding = "16UC1";
   bool quiet = false, compressed = false, cloud = false;
+};
+
+// The command line, checked: a usage error exits with status 2.
+Options parseOptions(int argc, char** argv) {
+  Options o;
   cli::CommandLine cl("make_sim_bag", kUsage);
-  cl.flags({{"bag", &bag_path}, {"map", &map_path}, {"params", &params_path}, {"frames", &frames},
-            {"width", &width_px}, {"seed", &seed}, {"encoding", &encoding},
-            {"start-time", &start_s}, {"init-half-extent", &init_half_extent_m},
-            {"init-yaw-half-range", &init_yaw_half_range_rad}, {"quiet", &quiet},
-            {"compressed", &compressed}, {"cloud", &cloud}});
+  // clang-format off
+  cl.flags({{"bag", &o.bag_path}, {"map", &o.map_path}, {"params", &o.params_path},
+            {"frames", &o.frames}, {"width", &o.width_px}, {"seed", &o.seed},
+            {"encoding", &o.encoding}, {"start-time", &o.start_s},
+            {"init-half-extent", &o.init_half_extent_m},
+            {"init-yaw-half-range", &o.init_yaw_half_range_rad}, {"quiet", &o.quiet},
+            {"compressed", &o.compressed}, {"cloud", &o.cloud}});
+  // clang-format on
   cl.parse(argc, argv);
-  if (bag_path.empty()) cl.fail("--bag is needed");
-  if (frames < 2 || width_px < 64 || (encoding != "16UC1" && encoding != "32FC1")) {
+  if (o.bag_path.empty()) cl.fail("--bag is needed");
+  if (o.frames < 2 || o.width_px < 64 || (o.encoding != "16UC1" && o.encoding != "32FC1")) {
     cl.fail("--frames >= 2, --width >= 64, --encoding 16UC1 or 32FC1");
   }
-  if (params_path.empty()) {
-    params_path = bag_path.substr(0, bag_path.rfind('.')) + "_init.yaml";
+  if (o.params_path.empty()) {
+    o.params_path = o.bag_path.substr(0, o.bag_path.rfind('.')) + "_init.yaml";
   }
-  if (map_path.empty()) map_path = bag_path.substr(0, bag_path.rfind('.')) + ".gmm";
+  if (o.map_path.empty()) o.map_path = o.bag_path.substr(0, o.bag_path.rfind('.')) + ".gmm";
+  return o;
+}
 
+// The latched base -> camera transform on /tf_static, as a static broadcaster's would be:
+// rosbag play republishes it latched.
+void writeStaticTransform(rosbag::Bag* bag, const ros::Time& t0,
+                          const Eigen::Isometry3d& T_base_cam, const std::string& cam_frame) {
+  tf2_msgs::TFMessage st;
+  geometry_msgs::TransformStamped t;
+  t.header.stamp = t0;
+  t.header.frame_id = "base_link";
+  t.child_frame_id = cam_frame;
+  t.transform = ros_conv::transformFromIsometry(T_base_cam);
+  st.transforms.push_back(t);
+  auto header = boost::make_shared<ros::M_string>();
+  (*header)["latching"] = "1";
+  (*header)["callerid"] = "/make_sim_bag";
+  (*header)["type"] = ros::message_traits::datatype<tf2_msgs::TFMessage>();
+  (*header)["md5sum"] = ros::message_traits::md5sum<tf2_msgs::TFMessage>();
+  (*header)["message_definition"] = ros::message_traits::definition<tf2_msgs::TFMessage>();
+  bag->write("/tf_static", t0, st, header);
+}
+
+// The IMU attitude (truth plus noise from rng), the odometry (Odometry and tf) 2 ms before the
+// frame's stamp t (g: the bag's one normal distribution, whose cached draws keep the sequence).
+void writeImuAndOdometry(rosbag::Bag* bag, const ros::Time& t, const Eigen::Isometry3d& truth,
+                         const Eigen::Isometry3d& odom, double att_sigma, std::mt19937_64* rng,
+                         std::normal_distribution<double>* g) {
+  const ros::Time t_before = t - ros::Duration(0.002);
+  double roll, pitch, yaw;
+  rpyFromRotation(truth.linear(), &roll, &pitch, &yaw);
+  sensor_msgs::Imu imu;
+  imu.header.stamp = t;
+  imu.header.frame_id = "base_link";
+  const Eigen::Quaterniond q(
+      rotationFromRpy(roll + att_sigma * (*g)(*rng), pitch + att_sigma * (*g)(*rng), yaw));
+  imu.orientation.w = q.w();
+  imu.orientation.x = q.x();
+  imu.orientation.y = q.y();
+  imu.orientation.z = q.z();
+  imu.orientation_covariance[0] = imu.orientation_covariance[4] = att_sigma * att_sigma;
+  imu.orientation_covariance[8] = 1.0;
+  bag->write("/imu/data", t_before, imu);
+
+  nav_msgs::Odometry od;
+  od.header.stamp = t;
+  od.header.frame_id = "odom";
+  od.child_frame_id = "base_link";
+  od.pose.pose = ros_conv::poseFromIsometry(odom);
+  bag->write("/odom", t_before, od);
+  tf2_msgs::TFMessage tf;
+  geometry_msgs::TransformStamped ts;
+  ts.header = od.header;
+  ts.child_frame_id = "base_link";
+  ts.transform = ros_conv::transformFromIsometry(odom);
+  tf.transforms.push_back(ts);
+  bag->write("/tf", t_before, tf);
+}
+
+// The depth image, its CameraInfo, optionally the organized cloud and the compressedDepth
+// image; false (said on stderr) when compressedDepth cannot encode it.
+bool writeDepth(rosbag::Bag* bag, const ros::Time& t, const DepthImage& depth, const Intrinsics& K,
+                const std::string& cam_frame, const Options& o) {
+  const sensor_msgs::Image img = ros_bag::imageFromDepth(depth, t, cam_frame);
+  bag->write("/camera/depth/image_raw", t, img);
+  bag->write("/camera/depth/camera_info", t, ros_conv::cameraInfoFromIntrinsics(K, t, cam_frame));
+  if (o.cloud) {
+    bag->write("/camera/depth/points", t, ros_bag::organizedCloudFromDepth(depth, K, t, cam_frame));
+  }
+  if (o.compressed) {
+    sensor_msgs::CompressedImage c;
+    std::string why;
+    if (!ros_conv::compressedDepthFromImage(depth, &c, &why)) {
+      std::fprintf(stderr, "compressedDepth: %s\n", why.c_str());
+      return false;
+    }
+    c.header = img.header;
+    bag->write("/camera/depth/image_raw/compressedDepth", t, c);
+  }
+  return true;
+}
+
+int run(int argc, char** argv) {
+  const Options o = parseOptions(argc, argv);
   const sim::BoxScene scene = sim::makeDefaultScene();
   const GmmMap map = sim::tileScene(scene, 0.4, 0.015);
-  saveMap(map, map_path);
-  const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(frames);
+  saveMap(map, o.map_path);
+  const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(o.frames);
   const Eigen::Isometry3d T_base_cam = sim::defaultBaseToCamera();
-  const Intrinsics K = sim::defaultCamera(width_px);
+  const Intrinsics K = sim::defaultCamera(o.width_px);
 
   const Particle start = poseToParticle(truth[0]);
   try {
-    ros_bag::writeInitRegionYaml(params_path,
-                                 "Initial region around the true start of " + bag_path +
-                                     " (make_sim_bag)",
-                                 start, init_half_extent_m, init_yaw_half_range_rad);
+    ros_bag::writeInitRegionYaml(
+        o.params_path, "Initial region around the true start of " + o.bag_path + " (make_sim_bag)",
+        start, o.init_half_extent_m, o.init_yaw_half_range_rad);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "%s\n", e.what());
     return 1;
@@ -86,105 +174,52 @@ int main(int argc, char** argv) {
 
   rosbag::Bag bag;
   try {
-    bag.open(bag_path, rosbag::bagmode::Write);
+    bag.open(o.bag_path, rosbag::bagmode::Write);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "cannot write %s: %s\n", bag_path.c_str(), e.what());
+    std::fprintf(stderr, "cannot write %s: %s\n", o.bag_path.c_str(), e.what());
     return 1;
   }
   const std::string cam_frame = "camera_depth_optical_frame";
-  const ros::Time t0(start_s);
-  {
-    tf2_msgs::TFMessage st;
-    geometry_msgs::TransformStamped t;
-    t.header.stamp = t0;
-    t.header.frame_id = "base_link";
-    t.child_frame_id = cam_frame;
-    t.transform = ros_conv::transformFromIsometry(T_base_cam);
-    st.transforms.push_back(t);
-    // Latched, as a static broadcaster's would be: rosbag play republishes it latched.
-    auto header = boost::make_shared<ros::M_string>();
-    (*header)["latching"] = "1";
-    (*header)["callerid"] = "/make_sim_bag";
-    (*header)["type"] = ros::message_traits::datatype<tf2_msgs::TFMessage>();
-    (*header)["md5sum"] = ros::message_traits::md5sum<tf2_msgs::TFMessage>();
-    (*header)["message_definition"] = ros::message_traits::definition<tf2_msgs::TFMessage>();
-    bag.write("/tf_static", t0, st, header);
-  }
+  const ros::Time t0(o.start_s);
+  writeStaticTransform(&bag, t0, T_base_cam, cam_frame);
 
-  std::mt19937_64 rng(seed + 1000);
+  std::mt19937_64 rng(o.seed + 1000);
   std::normal_distribution<double> g(0.0, 1.0);
   const sim::DepthNoise noise{0.0015, 0.02};
   Eigen::Isometry3d odom = Eigen::Isometry3d::Identity();
   const double att_sigma = 0.5 * M_PI / 180.0;
   const DepthEncoding enc =
-      encoding == "16UC1" ? DepthEncoding::kMono16Millimetres : DepthEncoding::kFloat32Metres;
-  for (int f = 0; f < frames; ++f) {
+      o.encoding == "16UC1" ? DepthEncoding::kMono16Millimetres : DepthEncoding::kFloat32Metres;
+  for (int f = 0; f < o.frames; ++f) {
     if (f > 0) {
       Eigen::Isometry3d delta = truth[f - 1].inverse() * truth[f];
       delta.translation() += 0.005 * Eigen::Vector3d(g(rng), g(rng), g(rng));
-      delta.linear() = delta.linear() *
-                       Eigen::AngleAxisd(0.002 * g(rng), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+      delta.linear() =
+          delta.linear() *
+          Eigen::AngleAxisd(0.002 * g(rng), Eigen::Vector3d::UnitZ()).toRotationMatrix();
       odom = odom * delta;
     }
     const ros::Time t = t0 + ros::Duration(f / 30.0);
-    const ros::Time t_before = t - ros::Duration(0.002);
-
-    double roll, pitch, yaw;
-    rpyFromRotation(truth[f].linear(), &roll, &pitch, &yaw);
-    sensor_msgs::Imu imu;
-    imu.header.stamp = t;
-    imu.header.frame_id = "base_link";
-    const Eigen::Quaterniond q(rotationFromRpy(roll + att_sigma * g(rng), pitch + att_sigma * g(rng), yaw));
-    imu.orientation.w = q.w();
-    imu.orientation.x = q.x();
-    imu.orientation.y = q.y();
-    imu.orientation.z = q.z();
-    imu.orientation_covariance[0] = imu.orientation_covariance[4] = att_sigma * att_sigma;
-    imu.orientation_covariance[8] = 1.0;
-    bag.write("/imu/data", t_before, imu);
-
-    nav_msgs::Odometry od;
-    od.header.stamp = t;
-    od.header.frame_id = "odom";
-    od.child_frame_id = "base_link";
-    od.pose.pose = ros_conv::poseFromIsometry(odom);
-    bag.write("/odom", t_before, od);
-    tf2_msgs::TFMessage tf;
-    geometry_msgs::TransformStamped ts;
-    ts.header = od.header;
-    ts.child_frame_id = "base_link";
-    ts.transform = ros_conv::transformFromIsometry(odom);
-    tf.transforms.push_back(ts);
-    bag.write("/tf", t_before, tf);
-
-    const DepthImage depth = sim::renderDepth(scene, K, truth[f] * T_base_cam, enc, 8.0, noise, &rng);
-    const sensor_msgs::Image img = ros_bag::imageFromDepth(depth, t, cam_frame);
-    bag.write("/camera/depth/image_raw", t, img);
-    bag.write("/camera/depth/camera_info", t, ros_bag::cameraInfoFromIntrinsics(K, t, cam_frame));
-    if (cloud) {
-      bag.write("/camera/depth/points", t, ros_bag::organizedCloudFromDepth(depth, K, t, cam_frame));
-    }
-    if (compressed) {
-      sensor_msgs::CompressedImage c;
-      std::string why;
-      if (!ros_conv::compressedDepthFromImage(depth, &c, &why)) {
-        std::fprintf(stderr, "compressedDepth: %s\n", why.c_str());
-        return 1;
-      }
-      c.header = img.header;
-      bag.write("/camera/depth/image_raw/compressedDepth", t, c);
-    }
+    writeImuAndOdometry(&bag, t, truth[f], odom, att_sigma, &rng, &g);
+    const DepthImage depth =
+        sim::renderDepth(scene, K, truth[f] * T_base_cam, enc, 8.0, noise, &rng);
+    if (!writeDepth(&bag, t, depth, K, cam_frame, o)) return 1;
 
     geometry_msgs::PoseStamped gt;
     gt.header.stamp = t;
     gt.header.frame_id = "map";
     gt.pose = ros_conv::poseFromIsometry(truth[f]);
     bag.write("/ground_truth", t, gt);
-    if (!quiet && f % 30 == 0) std::printf("frame %d / %d\n", f, frames);
+    if (!o.quiet && f % 30 == 0) std::printf("frame %d / %d\n", f, o.frames);
   }
   bag.close();
   std::printf("wrote %s (%d frames %dx%d %s, %.1f s), map %s (%zu components), params %s\n",
-              bag_path.c_str(), frames, K.width_px, K.height_px, encoding.c_str(), frames / 30.0,
-              map_path.c_str(), map.size(), params_path.c_str());
+              o.bag_path.c_str(), o.frames, K.width_px, K.height_px, o.encoding.c_str(),
+              o.frames / 30.0, o.map_path.c_str(), map.size(), o.params_path.c_str());
   return 0;
 }
+
+}  // namespace
+}  // namespace gmm_mcl
+
+int main(int argc, char** argv) { return gmm_mcl::run(argc, argv); }

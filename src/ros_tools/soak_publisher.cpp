@@ -1,4 +1,4 @@
-// Soak-test input for the localization nodelet (issue 7): renders a few hundred frames of the
+// Soak-test input for the localization nodelet: renders a few hundred frames of the
 // built-in box scene once, then publishes them over and over, ping-pong (forward, then
 // backward, so that the motion stays continuous), with stamps that keep increasing by a fixed
 // period: depth 16UC1 + CameraInfo, IMU attitude, tf odom -> base_link (the nodelet's default
@@ -43,7 +43,7 @@
 #include "gmm_mcl/sim/mesh_scene.h"
 #include "gmm_mcl/tools/command_line.h"
 
-using namespace gmm_mcl;
+namespace gmm_mcl {
 
 namespace {
 
@@ -254,17 +254,7 @@ class SoakPublisher {
     const ros::Time stamp = stampOf(k);
     double roll, pitch, yaw;
     rpyFromRotation(f.T_map_base.linear(), &roll, &pitch, &yaw);
-    sensor_msgs::Imu imu;
-    imu.header.stamp = stamp;
-    imu.header.frame_id = "base_link";
-    const Eigen::Quaterniond q(rotationFromRpy(roll, pitch, yaw));
-    imu.orientation.w = q.w();
-    imu.orientation.x = q.x();
-    imu.orientation.y = q.y();
-    imu.orientation.z = q.z();
-    imu.orientation_covariance[0] = imu.orientation_covariance[4] = 1e-4;
-    imu.orientation_covariance[8] = 1.0;
-    imu_pub_.publish(imu);
+    imu_pub_.publish(ros_conv::imuFromAttitude(stamp, "base_link", roll, pitch, yaw, 1e-4, false));
 
     geometry_msgs::PoseStamped gt;
     gt.header.stamp = stamp;
@@ -272,17 +262,8 @@ class SoakPublisher {
     gt.pose = ros_conv::poseFromIsometry(f.T_map_base);
     truth_pub_.publish(gt);
 
-    sensor_msgs::CameraInfo info;
-    info.header.stamp = stamp;
-    info.header.frame_id = kCameraFrame;
+    sensor_msgs::CameraInfo info = ros_conv::cameraInfoFromIntrinsics(K_, stamp, kCameraFrame);
     info.header.seq = static_cast<uint32_t>(k);
-    info.width = static_cast<uint32_t>(K_.width_px);
-    info.height = static_cast<uint32_t>(K_.height_px);
-    info.distortion_model = "plumb_bob";
-    info.D.assign(5, 0.0);
-    info.K = {K_.fx_px, 0, K_.cx_px, 0, K_.fy_px, K_.cy_px, 0, 0, 1};
-    info.R = {1, 0, 0, 0, 1, 0, 0, 0, 1};
-    info.P = {K_.fx_px, 0, K_.cx_px, 0, 0, K_.fy_px, K_.cy_px, 0, 0, 0, 1, 0};
     sensor_msgs::Image img;
     img.header = info.header;
     img.width = info.width;
@@ -324,7 +305,7 @@ class SoakPublisher {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int run(int argc, char** argv) {
   ros::init(argc, argv, "soak_publisher");  // strips remappings and __name before parsing
   Options o;
   parse(argc, argv, &o);
@@ -333,3 +314,7 @@ int main(int argc, char** argv) {
   pub.render();
   return pub.run();
 }
+
+}  // namespace gmm_mcl
+
+int main(int argc, char** argv) { return gmm_mcl::run(argc, argv); }

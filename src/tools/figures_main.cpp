@@ -27,8 +27,8 @@
 #include "gmm_mcl/figures/map_series.h"
 #endif
 
-using namespace gmm_mcl;
-using namespace gmm_mcl::figures;
+namespace gmm_mcl {
+namespace figures {
 
 namespace {
 
@@ -366,7 +366,7 @@ int runSensitivity(const Options& o, const char* argv0) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int run(int argc, char** argv) {
   Options o;
   parseArgs(argc, argv, &o);
   try {
@@ -379,3 +379,8 @@ int main(int argc, char** argv) {
     return 1;
   }
 }
+
+}  // namespace figures
+}  // namespace gmm_mcl
+
+int main(int argc, char** argv) { return gmm_mcl::figures::run(argc, argv); }

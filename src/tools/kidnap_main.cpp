@@ -14,8 +14,8 @@
 #include "gmm_mcl/sim/mesh_scene.h"
 #include "gmm_mcl/tools/command_line.h"
 
-using namespace gmm_mcl;
-using namespace gmm_mcl::reliability;
+namespace gmm_mcl {
+namespace reliability {
 
 namespace {
 
@@ -43,7 +43,7 @@ const char* kUsage =
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int run(int argc, char** argv) {
   std::string scene = "synthetic", map_path, backend = "cpu";
   const char* env = std::getenv("GMM_MCL_DATASETS");
   std::string dataset =
@@ -160,3 +160,8 @@ int main(int argc, char** argv) {
   }
   return 0;
 }
+
+}  // namespace reliability
+}  // namespace gmm_mcl
+
+int main(int argc, char** argv) { return gmm_mcl::reliability::run(argc, argv); }

@@ -24,7 +24,7 @@
 #include "gmm_mcl/sim/trajectory_io.h"
 #include "gmm_mcl/tools/command_line.h"
 
-using namespace gmm_mcl;
+namespace gmm_mcl {
 
 namespace {
 
@@ -230,7 +230,7 @@ int run(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int toolMain(int argc, char** argv) {
   try {
     return run(argc, argv);
   } catch (const std::exception& e) {
@@ -238,3 +238,7 @@ int main(int argc, char** argv) {
     return 1;
   }
 }
+
+}  // namespace gmm_mcl
+
+int main(int argc, char** argv) { return gmm_mcl::toolMain(argc, argv); }

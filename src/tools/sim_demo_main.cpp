@@ -19,7 +19,7 @@
 #include "gmm_mcl/sim/mesh_scene.h"
 #include "gmm_mcl/tools/command_line.h"
 
-using namespace gmm_mcl;
+namespace gmm_mcl {
 
 namespace {
 
@@ -33,7 +33,7 @@ const char* kUsage =
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int run(int argc, char** argv) {
   int frames = 300, particles = kDefaultParticleCount, stride = 8;
   double spacing_m = 0.4, normal_sigma_m = 0.015;
   int width_px = 640;
@@ -147,3 +147,7 @@ int main(int argc, char** argv) {
               total_ms / frames);
   return 0;
 }
+
+}  // namespace gmm_mcl
+
+int main(int argc, char** argv) { return gmm_mcl::run(argc, argv); }

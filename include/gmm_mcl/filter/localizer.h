@@ -2,6 +2,7 @@
 // plain values (no ROS); the nodelet, replay and demo all drive it through step().
 #pragma once
 
+#include <chrono>
 #include <memory>
 #include <string>
 
@@ -125,6 +126,22 @@ class Localizer {
   // local_stage a fraction (lost.local_candidate_fraction) around the best uniform ones instead.
   void screenCandidates(const MeasurementContext& context, int count, bool local_stage = false);
   void stepOnce(const StepInput& input, StepResult* res);
+  // The stages of stepOnce in order; those returning a status other than kOk end the step
+  // (finishStep) with *why.
+  void takeStepInputs(const StepInput& input, StepResult* res);  // stamp, mount, attitude
+  void predictStep(const StepInput& input, StepResult* res);
+  StepStatus prepareStepFrame(const StepInput& input, long long* patches_with_pixels,
+                              StepResult* res, std::string* why);
+  StepStatus evaluateStep(const MeasurementContext& context, long long patches_with_pixels,
+                          StepResult* res, std::string* why);
+  StepStatus weighStep(StepResult* res, std::string* why);
+  void estimateAndRefine(const StepInput& input, StepResult* res);
+  void refineEstimate(const StepInput& input, StepResult* res);  // the converged estimate
+  StepStatus resampleAndRecover(const MeasurementContext& context, StepResult* res,
+                                std::string* why);
+  // An early end: the status (unless one is set), the message, the estimate and the timings.
+  void finishStep(StepStatus status, const std::string& why,
+                  std::chrono::steady_clock::time_point t_start, StepResult* res);
   // The host frame of this step (prepared here when the filter prepared it on the device).
   const DepthFrame& hostFrame(const StepInput& input);
   // A backend failure: the status, and with cpu_fallback the switch to the CPU backend.

@@ -2,18 +2,16 @@
 #pragma once
 
 #include <Eigen/Core>
-#include <array>
-#include <cstdint>
 #include <vector>
+
+#include "gmm_mcl/sim/mesh.h"
 
 namespace gmm_mcl {
 
 // Unordered points, float32 as in PCD/PLY files.
 using PointCloud = std::vector<Eigen::Vector3f>;
 
-struct TriangleMesh {
-  std::vector<Eigen::Vector3f> vertices_m;
-  std::vector<std::array<uint32_t, 3>> triangles;  // vertex indices (polygons fan-triangulated)
-};
+// The package's one triangle mesh type.
+using TriangleMesh = sim::Mesh;
 
 }  // namespace gmm_mcl

@@ -1,5 +1,5 @@
-// Point-cloud and mesh files without PCL: PCD (ascii, binary, binary_compressed), PLY (ascii,
-// binary little/big endian; vertices and faces) and XYZ text (three numbers a line).
+// Point-cloud and mesh files without PCL: PCD (ascii, binary, binary_compressed), PLY (the
+// package's one PLY reader, sim/mesh.h: vertices and faces) and XYZ text (three numbers a line).
 #pragma once
 
 #include <string>

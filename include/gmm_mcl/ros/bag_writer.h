@@ -33,11 +33,9 @@ struct BagLayout {
   std::string camera_frame = "camera_depth_optical_frame";
 };
 
-// 16UC1 (millimetres) or 32FC1 image and its CameraInfo (plumb_bob, no distortion).
+// 16UC1 (millimetres) or 32FC1 image (its CameraInfo: ros_conv::cameraInfoFromIntrinsics).
 sensor_msgs::Image imageFromDepth(const DepthImage& depth, const ros::Time& stamp,
                                   const std::string& frame_id);
-sensor_msgs::CameraInfo cameraInfoFromIntrinsics(const Intrinsics& K, const ros::Time& stamp,
-                                                 const std::string& frame_id);
 // Organized cloud (float32 x, y, z in the optical frame; NaN where there is no depth).
 sensor_msgs::PointCloud2 organizedCloudFromDepth(const DepthImage& depth, const Intrinsics& K,
                                                  const ros::Time& stamp,

@@ -72,6 +72,17 @@ bool attitudeFromImu(const sensor_msgs::Imu& msg, double* roll_rad, double* pitc
 Eigen::Isometry3d isometryFromPose(const geometry_msgs::Pose& msg);
 Eigen::Isometry3d isometryFromTransform(const geometry_msgs::Transform& msg);
 geometry_msgs::Pose poseFromIsometry(const Eigen::Isometry3d& T);
+
+// sensor_msgs/Imu carrying the attitude roll, pitch, yaw with roll and pitch variance
+// attitude_variance_rad2 (yaw unknown: variance 1); with rates_absent, angular velocity and
+// linear acceleration marked as not provided (covariance[0] = -1).
+sensor_msgs::Imu imuFromAttitude(const ros::Time& stamp, const std::string& frame_id,
+                                 double roll_rad, double pitch_rad, double yaw_rad,
+                                 double attitude_variance_rad2, bool rates_absent = true);
+
+// CameraInfo of a pinhole camera without distortion (plumb_bob, D zero).
+sensor_msgs::CameraInfo cameraInfoFromIntrinsics(const Intrinsics& K, const ros::Time& stamp,
+                                                 const std::string& frame_id);
 geometry_msgs::Transform transformFromIsometry(const Eigen::Isometry3d& T);
 geometry_msgs::TransformStamped transformStamped(const Eigen::Isometry3d& T_parent_child,
                                                  const std::string& parent,

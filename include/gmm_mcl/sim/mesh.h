@@ -1,5 +1,5 @@
-// Triangle meshes for the synthetic scenes and the depth renderer (map frame, metres), and a
-// validating PLY reader/writer (ascii, binary little- and big-endian).
+// The package's triangle mesh (the synthetic scenes, the depth renderer, the map builder's mesh
+// input; map frame, metres) and its one PLY reader/writer (ascii, binary little- and big-endian).
 #pragma once
 
 #include <array>
@@ -34,12 +34,22 @@ class MeshError : public std::runtime_error {
   explicit MeshError(const std::string& what) : std::runtime_error(what) {}
 };
 
-// Reads a PLY mesh: a `vertex` element with x, y, z (any numeric type; other properties
-// ignored) and a `face` element with a `vertex_indices` (or `vertex_index`) list; other elements
-// are skipped. Polygons with more than 3 vertices are fan-triangulated. Throws MeshError naming
-// the file and the fault for a missing or unreadable file, a bad header, truncated data, a
-// vertex index out of range, a polygon with fewer than 3 vertices, a non-finite coordinate, or
-// no triangles at all.
+// What a PLY file holds: its vertices in file order and, with a face element, its triangles.
+struct PlyContents {
+  Mesh mesh;
+  bool has_faces = false;            // a face element (possibly with no faces)
+  long long first_bad_vertex = -1;   // the first vertex with a non-finite or huge (> 1e9) coordinate
+};
+
+// The package's one PLY reader, for meshes and point clouds: a `vertex` element with x, y, z
+// (any numeric type; other properties ignored), an optional `face` element with a
+// `vertex_indices` (or `vertex_index`) list of 3 to 1000 in-range indices (fan-triangulated);
+// other elements are skipped. Throws MeshError naming the file and the fault for a missing or
+// unreadable file, a bad header, truncated data, a malformed number or a bad face.
+PlyContents readPlyFile(const std::string& path);
+
+// Reads a PLY mesh (readPlyFile) and also throws MeshError for a non-finite or huge
+// coordinate, no face element, or no triangles at all.
 Mesh loadPlyMesh(const std::string& path);
 
 // Writes a binary little-endian PLY (float x y z, uchar-count int vertex_indices); throws
