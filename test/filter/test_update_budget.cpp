@@ -35,7 +35,7 @@ void feedFrames(UpdateBudget* b, int n, double period_s, double rate = 1.0, uint
   }
 }
 
-TEST(UpdateBudgetParams, DefaultsValidAndFaultsNamed) {
+TEST(UpdateBudgetParamsTest, DefaultsValidAndFaultsNamed) {
   EXPECT_EQ(UpdateBudgetParams().validate(), "");
   UpdateBudgetParams p;
   p.max_update_ms = -1;
@@ -47,7 +47,7 @@ TEST(UpdateBudgetParams, DefaultsValidAndFaultsNamed) {
   EXPECT_NE(err.find("min_particles"), std::string::npos) << err;
 }
 
-TEST(UpdateBudget, BudgetFromStampsSeqGapsAndClockRate) {
+TEST(UpdateBudgetTest, BudgetFromStampsSeqGapsAndClockRate) {
   BudgetSetup s;
   UpdateBudget b = s.make();
   EXPECT_EQ(b.budgetMs(), 0.0);  // no frame yet: no budget, and no cut
@@ -73,7 +73,7 @@ TEST(UpdateBudget, BudgetFromStampsSeqGapsAndClockRate) {
   EXPECT_EQ(fixed.budgetMs(), 20.0);
 }
 
-TEST(UpdateBudget, CutsStrideFirstThenParticlesWithinBounds) {
+TEST(UpdateBudgetTest, CutsStrideFirstThenParticlesWithinBounds) {
   BudgetSetup s;
   UpdateBudget b = s.make();
   feedFrames(&b, 10, kPeriod30HzS);
@@ -111,7 +111,7 @@ TEST(UpdateBudget, CutsStrideFirstThenParticlesWithinBounds) {
   EXPECT_FALSE(p.refinement.enabled);
 }
 
-TEST(UpdateBudget, StepsBackParticlesFirstOnlyAfterSustainedHeadroom) {
+TEST(UpdateBudgetTest, StepsBackParticlesFirstOnlyAfterSustainedHeadroom) {
   BudgetSetup s;
   s.budget.headroom_updates = 10;
   UpdateBudget b = s.make();
@@ -146,7 +146,7 @@ TEST(UpdateBudget, StepsBackParticlesFirstOnlyAfterSustainedHeadroom) {
 
 // A machine where an update costs a fixed part plus a part proportional to particles times
 // pixels: the budget settles under the period and stops changing (no oscillation).
-TEST(UpdateBudget, SettlesUnderTheBudgetWithoutOscillating) {
+TEST(UpdateBudgetTest, SettlesUnderTheBudgetWithoutOscillating) {
   BudgetSetup s;
   s.budget.max_pixel_stride = 16;
   s.budget.min_particles = 100;
@@ -173,7 +173,7 @@ TEST(UpdateBudget, SettlesUnderTheBudgetWithoutOscillating) {
   EXPECT_GE(b.state().cuts, 1);
 }
 
-TEST(UpdateBudget, DisabledChangesNothing) {
+TEST(UpdateBudgetTest, DisabledChangesNothing) {
   BudgetSetup s;
   s.budget.enabled = false;
   UpdateBudget b = s.make();
@@ -183,7 +183,7 @@ TEST(UpdateBudget, DisabledChangesNothing) {
   EXPECT_EQ(b.state().particle_cap, 1000);
 }
 
-TEST(UpdateBudget, ApplyKeepsAdaptiveRangesValidAndReconfigureClamps) {
+TEST(UpdateBudgetTest, ApplyKeepsAdaptiveRangesValidAndReconfigureClamps) {
   BudgetSetup s;
   s.configured.filter.num_particles = 3000;
   s.configured.filter.min_particles = 1068;

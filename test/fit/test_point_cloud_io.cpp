@@ -31,7 +31,7 @@ std::string floatBytes(std::initializer_list<float> v) {
   return s;
 }
 
-TEST(PointCloudIo, PcdBinaryRoundTrip) {
+TEST(PointCloudIoTest, PcdBinaryRoundTrip) {
   const PointCloud pts = {{1.f, 2.f, 3.f}, {-4.5f, 0.25f, 1e-3f}};
   const std::string path = tempPath("rt.pcd");
   writePcd(pts, path);
@@ -42,7 +42,7 @@ TEST(PointCloudIo, PcdBinaryRoundTrip) {
   std::remove(path.c_str());
 }
 
-TEST(PointCloudIo, PcdAsciiWithExtraFieldsAndNan) {
+TEST(PointCloudIoTest, PcdAsciiWithExtraFieldsAndNan) {
   const std::string path = tempPath("a.pcd");
   writeBytes(path,
              "VERSION .7\nFIELDS intensity x y z\nSIZE 4 4 4 4\nTYPE U F F F\nCOUNT 1 1 1 1\n"
@@ -55,7 +55,7 @@ TEST(PointCloudIo, PcdAsciiWithExtraFieldsAndNan) {
   std::remove(path.c_str());
 }
 
-TEST(PointCloudIo, PcdBinaryCompressedLzf) {
+TEST(PointCloudIoTest, PcdBinaryCompressedLzf) {
   // Two points, fields x y z stored field-major after LZF: x0 x1 y0 y1 z0 z1 (24 bytes).
   // Literal run of the first 12 bytes, then a 12-byte back-reference at distance 12 (the
   // y and z arrays repeat x: both points are (1,2)).
@@ -84,7 +84,7 @@ TEST(PointCloudIo, PcdBinaryCompressedLzf) {
   std::remove(path.c_str());
 }
 
-TEST(PointCloudIo, PlyAsciiQuadIsTwoTriangles) {
+TEST(PointCloudIoTest, PlyAsciiQuadIsTwoTriangles) {
   const std::string path = tempPath("q.ply");
   writeBytes(path,
              "ply\nformat ascii 1.0\ncomment unit square\nelement vertex 4\nproperty float x\n"
@@ -106,7 +106,7 @@ TEST(PointCloudIo, PlyAsciiQuadIsTwoTriangles) {
   std::remove(path.c_str());
 }
 
-TEST(PointCloudIo, PlyBinaryBigEndianVertices) {
+TEST(PointCloudIoTest, PlyBinaryBigEndianVertices) {
   std::string body;
   for (float v : {1.5f, -2.f, 3.25f}) {
     uint32_t bits;
@@ -125,7 +125,7 @@ TEST(PointCloudIo, PlyBinaryBigEndianVertices) {
   std::remove(path.c_str());
 }
 
-TEST(PointCloudIo, BadFilesAreClearErrors) {
+TEST(PointCloudIoTest, BadFilesAreClearErrors) {
   EXPECT_THROW(readCloudFile(tempPath("missing.pcd")), FitError);
   const std::string empty = tempPath("empty.pcd");
   writeBytes(empty, "");
@@ -149,7 +149,7 @@ TEST(PointCloudIo, BadFilesAreClearErrors) {
   for (const auto& p : {empty, trunc, badface}) std::remove(p.c_str());
 }
 
-TEST(PointCloudIo, ReplicaMeshWhenAvailable) {
+TEST(PointCloudIoTest, ReplicaMeshWhenAvailable) {
   const char* env = std::getenv("GMM_MCL_DATASETS");
   const char* def = std::getenv("GMM_MCL_DATASETS_DEFAULT");
   const std::string root = env ? env : (def ? def : GMM_MCL_TEST_DATASETS);
@@ -160,7 +160,7 @@ TEST(PointCloudIo, ReplicaMeshWhenAvailable) {
   EXPECT_EQ(f.mesh.triangles.size(), 50000u);
 }
 
-TEST(CloudFilter, VoxelCentroidsAndCrops) {
+TEST(CloudFilterTest, VoxelCentroidsAndCrops) {
   const PointCloud pts = {{0.01f, 0.01f, 0.01f},
                           {0.03f, 0.03f, 0.03f},
                           {0.5f, 0.5f, 0.5f},
@@ -188,7 +188,7 @@ TEST(CloudFilter, VoxelCentroidsAndCrops) {
   EXPECT_TRUE(CloudFilterParams().validate().empty());
 }
 
-TEST(MeshSampling, AreaUniform) {
+TEST(MeshSamplingTest, AreaUniform) {
   TriangleMesh mesh;
   mesh.vertices_m = {
       {0, 0, 0},  {1, 0, 0},  {0, 1, 0},  {10, 0, 0}, {13, 0, 0},

@@ -45,7 +45,7 @@ struct ConfigDiag {
 // Bad inputs one after another, each awaited (its ~status, or the drop counted on
 // /diagnostics, whose period the test's clock steps over): the node stays up, says what is
 // wrong, and uses good data again afterwards.
-TEST(BadInputs, NodeSaysWhatIsWrongAndRecovers) {
+TEST(BadInputsTest, NodeSaysWhatIsWrongAndRecovers) {
   ros::NodeHandle nh;
   Clock clock(nh);
   Observer obs(nh);
@@ -159,7 +159,7 @@ TEST(BadInputs, NodeSaysWhatIsWrongAndRecovers) {
                                       last.dropped_camera_info + last.dropped_extrinsics + last.frames_waiting);
 }
 
-TEST(BadConfig, ReportedAndNothingSubscribed) {
+TEST(BadConfigTest, ReportedAndNothingSubscribed) {
   ros::NodeHandle nh;
   std::vector<ConfigDiag> diags;
   ros::Subscriber sub = nh.subscribe<diagnostic_msgs::DiagnosticArray>(

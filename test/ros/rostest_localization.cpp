@@ -69,7 +69,7 @@ std::string bagPath() {
 
 }  // namespace
 
-TEST(LocalizationBag, TracksResetsAndPublishesTf) {
+TEST(LocalizationBagTest, TracksResetsAndPublishesTf) {
   ros::NodeHandle nh;
   Observer obs(nh);
   Truth truth(nh);
@@ -178,7 +178,7 @@ TEST(LocalizationBag, TracksResetsAndPublishesTf) {
   }
 }
 
-TEST(LocalizationBag, LoopedBagResets) {
+TEST(LocalizationBagTest, LoopedBagResets) {
   ros::NodeHandle nh;
   Observer obs(nh);
   Truth truth(nh);
@@ -228,6 +228,6 @@ int main(int argc, char** argv) {
   ros::NodeHandle nh;
   std::string mode;
   ros::param::param<std::string>("~mode", mode, "track");
-  testing::GTEST_FLAG(filter) = mode == "looped" ? "LocalizationBag.Looped*" : "LocalizationBag.Tracks*";
+  testing::GTEST_FLAG(filter) = mode == "looped" ? "LocalizationBagTest.Looped*" : "LocalizationBagTest.Tracks*";
   return RUN_ALL_TESTS();
 }

@@ -74,7 +74,7 @@ void expectTestMesh(const Mesh& m) {
   EXPECT_NEAR(m.area_m2(), 1.0 + 1.0, 1e-6);
 }
 
-TEST(PlyMesh, AsciiAndBothBinaryByteOrdersAgree) {
+TEST(PlyMeshTest, AsciiAndBothBinaryByteOrdersAgree) {
   expectTestMesh(loadPlyMesh(write("ascii.ply", std::string(kAsciiHeader) + kAsciiBody)));
   expectTestMesh(loadPlyMesh(write("le.ply", binaryPly(false))));
   expectTestMesh(loadPlyMesh(write("be.ply", binaryPly(true))));
@@ -99,7 +99,7 @@ void expectFault(const std::string& name, const std::string& content, const std:
   }
 }
 
-TEST(PlyMesh, EachFaultIsAClearError) {
+TEST(PlyMeshTest, EachFaultIsAClearError) {
   const std::string h = kAsciiHeader, b = kAsciiBody;
   try {
     loadPlyMesh(tempPath("does_not_exist.ply"));
@@ -155,7 +155,7 @@ TEST(PlyMesh, EachFaultIsAClearError) {
               "face element comes before the vertex element");
 }
 
-TEST(PlyMesh, RoundTripOfTheSceneMeshIsExact) {
+TEST(PlyMeshTest, RoundTripOfTheSceneMeshIsExact) {
   const Mesh m = meshFromScene(makeDefaultPrimitiveScene());
   const std::string p = tempPath("scene.ply");
   savePlyMesh(m, p);
@@ -166,7 +166,7 @@ TEST(PlyMesh, RoundTripOfTheSceneMeshIsExact) {
   for (size_t i = 0; i < m.triangles.size(); ++i) EXPECT_EQ(r.triangles[i], m.triangles[i]);
 }
 
-TEST(PlyMesh, InvalidMeshIsRefusedByWriterAndBvh) {
+TEST(PlyMeshTest, InvalidMeshIsRefusedByWriterAndBvh) {
   Mesh m;
   m.vertices_m = {Eigen::Vector3f(0, 0, 0), Eigen::Vector3f(1, 0, 0)};
   m.triangles = {{0, 1, 2}};
