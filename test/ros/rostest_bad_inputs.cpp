@@ -193,6 +193,6 @@ int main(int argc, char** argv) {
   ros::NodeHandle nh;
   std::string mode;
   ros::param::param<std::string>("~mode", mode, "inputs");
-  testing::GTEST_FLAG(filter) = mode == "config" ? "BadConfig.*" : "BadInputs.*";
+  testing::GTEST_FLAG(filter) = mode == "config" ? "BadConfigTest.*" : "BadInputsTest.*";
   return RUN_ALL_TESTS();
 }
