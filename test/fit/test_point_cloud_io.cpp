@@ -12,6 +12,7 @@
 #include "gmm_mcl/fit/cloud_filter.h"
 #include "gmm_mcl/fit/fit_error.h"
 #include "gmm_mcl/fit/point_cloud_io.h"
+#include "test_utils/synthetic_fixtures.h"
 
 namespace gmm_mcl {
 namespace {
@@ -150,10 +151,7 @@ TEST(PointCloudIoTest, BadFilesAreClearErrors) {
 }
 
 TEST(PointCloudIoTest, ReplicaMeshWhenAvailable) {
-  const char* env = std::getenv("GMM_MCL_DATASETS");
-  const char* def = std::getenv("GMM_MCL_DATASETS_DEFAULT");
-  const std::string root = env ? env : (def ? def : GMM_MCL_TEST_DATASETS);
-  const std::string path = root + "/replica_office0/office0_mesh.ply";
+  const std::string path = test::datasetsRoot() + "/replica_office0/office0_mesh.ply";
   if (!std::ifstream(path)) GTEST_SKIP() << "data set not found: " << path;
   const CloudFile f = readCloudFile(path);
   EXPECT_EQ(f.points.size(), 25149u);
