@@ -17,14 +17,14 @@ BUILD="${GMM_MCL_GPU_TOOLS_BUILD:-$ROOT/build/gpu-tools}"
 DATASETS="${GMM_MCL_DATASETS:-$ROOT/../shared/datasets}"
 ARCH="${CUDA_ARCH:-90}"
 NVCC="$(command -v nvcc || echo /usr/local/cuda/bin/nvcc)"
-TOOLS=(gmm_mcl_replay gmm_mcl_kidnap gmm_mcl_render gmm_fit gmm_mcl_bench test_cuda_backend)
+TOOLS=(gmm_mcl_replay gmm_mcl_kidnap gmm_mcl_render gmm_mcl_fit gmm_mcl_bench test_cuda_backend)
 ensure_packages "${CORE_PACKAGES[@]}"
 
 cmake -S "$ROOT" -B "$BUILD" -DGMM_MCL_BUILD_ROS=OFF -DGMM_MCL_WITH_CUDA=ON -DGMM_MCL_BUILD_TESTS=ON \
   -DGMM_MCL_NATIVE_ARCH=OFF -DCMAKE_CXX_FLAGS="-mavx2 -mfma" -DCMAKE_CUDA_ARCHITECTURES="$ARCH" \
   -DCMAKE_CUDA_COMPILER="$NVCC" -DCMAKE_BUILD_TYPE=Release > "$BUILD.cmake.log" 2>&1 \
   || { cat "$BUILD.cmake.log"; exit 1; }
-cmake --build "$BUILD" -j2 --target gmm_mcl_replay_tool gmm_mcl_kidnap gmm_mcl_render gmm_fit \
+cmake --build "$BUILD" -j2 --target gmm_mcl_replay_tool gmm_mcl_kidnap gmm_mcl_render gmm_mcl_fit_tool \
   gmm_mcl_bench test_cuda_backend
 
 rm -rf "$BUNDLE"
@@ -44,17 +44,17 @@ cp "$DATASETS/replica_office0/office0_mesh.ply" "$DATASETS/replica_office0/traj.
 MAPS="${GMM_MCL_EVAL_MAPS:-$ROOT/build/eval_unseen/maps}"
 mkdir -p "$MAPS"
 SEVEN="$DATASETS/7scenes_redkitchen/data"
-[[ -f "$MAPS/replica_office0_m1000.gmm" ]] || "$BUILD/gmm_fit" \
+[[ -f "$MAPS/replica_office0_m1000.gmm" ]] || "$BUILD/gmm_mcl_fit" \
   "$DATASETS/replica_office0/office0_mesh.ply" --mesh-samples 250000 -m 1000 --seed 1 \
   -o "$MAPS/replica_office0_m1000.gmm" -q
 for f0 in 0 5; do
   m="$MAPS/7scenes_redkitchen_m1000_first$f0.gmm"
-  [[ -f "$m" ]] || "$BUILD/gmm_fit" --7scenes "$SEVEN" --first $f0 --last $((990 + f0)) --step 10 \
+  [[ -f "$m" ]] || "$BUILD/gmm_mcl_fit" --7scenes "$SEVEN" --first $f0 --last $((990 + f0)) --step 10 \
     --min-depth 0.1 --max-depth 4.0 --voxel 0.02 -m 1000 --seed 1 -o "$m" -q
 done
 # The M=4000 map of the DESIGN.md protocol's frames (the benchmark's `large` workload; the
 # 7s-m4000 protocol of scripts/eval_unseen.sh).
-[[ -f "$MAPS/7scenes_redkitchen_m4000.gmm" ]] || "$BUILD/gmm_fit" --7scenes "$SEVEN" --first 0 \
+[[ -f "$MAPS/7scenes_redkitchen_m4000.gmm" ]] || "$BUILD/gmm_mcl_fit" --7scenes "$SEVEN" --first 0 \
   --last 990 --step 10 --min-depth 0.1 --max-depth 4.0 --voxel 0.02 -m 4000 --seed 1 \
   -o "$MAPS/7scenes_redkitchen_m4000.gmm" -q
 cp "$MAPS"/*.gmm "$BUNDLE/data/maps/"

@@ -45,8 +45,8 @@ const ParamTable<RosOptions>& rosOptionsTable() {
     };
     const char* g = "node";
     add(paramSpec<R>("map", GMM_MCL_PARAM_FIELD(R, map_path), "", g, {}, kStartup,
-                     "The GMM map file (gmm_fit's format); required. ~reload_map loads another one "
-                     "while running"));
+                     "The GMM map file (gmm_mcl_fit's format); required. ~reload_map loads another "
+                     "one while running"));
     add(paramSpec<R>("map_frame", GMM_MCL_PARAM_FIELD(R, map_frame), "", g, {}, kStartup,
                      "Frame of the map, the pose and the published transform"));
     add(paramSpec<R>("odom_frame", GMM_MCL_PARAM_FIELD(R, odom_frame), "", g, {}, kStartup,

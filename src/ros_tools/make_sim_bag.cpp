@@ -33,9 +33,10 @@ using namespace gmm_mcl;
 namespace {
 
 const char* kUsage =
-      "usage: make_sim_bag --bag FILE [--map FILE] [--params FILE] [--frames N] [--width PX]\n"
-      "                    [--seed S] [--encoding 16UC1|32FC1] [--start-time S]\n"
-      "                    [--init-half-extent M] [--init-yaw-half-range RAD] [--compressed] [--cloud] [--quiet]\n"
+      "usage: gmm_mcl_make_sim_bag --bag FILE [--map FILE] [--params FILE] [--frames N]\n"
+      "                            [--width PX] [--seed S] [--encoding 16UC1|32FC1]\n"
+      "                            [--start-time S] [--init-half-extent M]\n"
+      "                            [--init-yaw-half-range RAD] [--compressed] [--cloud] [--quiet]\n"
       "Topics: /camera/depth/image_raw, /camera/depth/camera_info, /imu/data, /odom, /tf,\n"
       "/tf_static, /ground_truth (base pose in map); --compressed adds\n"
       "/camera/depth/image_raw/compressedDepth, --cloud /camera/depth/points (organized).\n"
@@ -50,7 +51,7 @@ int main(int argc, char** argv) {
   double start_s = 1000.0, init_half_extent_m = 0.5, init_yaw_half_range_rad = 0.3;
   std::string bag_path, map_path, params_path, encoding = "16UC1";
   bool quiet = false, compressed = false, cloud = false;
-  cli::CommandLine cl("make_sim_bag", kUsage);
+  cli::CommandLine cl("gmm_mcl_make_sim_bag", kUsage);
   cl.flags({{"bag", &bag_path}, {"map", &map_path}, {"params", &params_path}, {"frames", &frames},
             {"width", &width_px}, {"seed", &seed}, {"encoding", &encoding},
             {"start-time", &start_s}, {"init-half-extent", &init_half_extent_m},
@@ -77,7 +78,7 @@ int main(int argc, char** argv) {
   try {
     ros_bag::writeInitRegionYaml(params_path,
                                  "Initial region around the true start of " + bag_path +
-                                     " (make_sim_bag)",
+                                     " (gmm_mcl_make_sim_bag)",
                                  start, init_half_extent_m, init_yaw_half_range_rad);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "%s\n", e.what());
@@ -104,7 +105,7 @@ int main(int argc, char** argv) {
     // Latched, as a static broadcaster's would be: rosbag play republishes it latched.
     auto header = boost::make_shared<ros::M_string>();
     (*header)["latching"] = "1";
-    (*header)["callerid"] = "/make_sim_bag";
+    (*header)["callerid"] = "/gmm_mcl_make_sim_bag";
     (*header)["type"] = ros::message_traits::datatype<tf2_msgs::TFMessage>();
     (*header)["md5sum"] = ros::message_traits::md5sum<tf2_msgs::TFMessage>();
     (*header)["message_definition"] = ros::message_traits::definition<tf2_msgs::TFMessage>();

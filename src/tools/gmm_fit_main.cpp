@@ -1,4 +1,4 @@
-// gmm_fit: point cloud or mesh -> GMM map file (see docs/map_builder.md).
+// gmm_mcl_fit: point cloud or mesh -> GMM map file (see docs/map_builder.md).
 #include <omp.h>
 #include <unistd.h>
 
@@ -26,9 +26,9 @@ namespace {
 using namespace gmm_mcl;
 
 const char* kUsage =
-    "usage: gmm_fit INPUT -o MAP [options]\n"
-    "       gmm_fit --7scenes DATA_DIR -o MAP [options]\n"
-    "       gmm_fit --import MAP.csv -o MAP          (a map made elsewhere, e.g. scikit-learn)\n"
+    "usage: gmm_mcl_fit INPUT -o MAP [options]\n"
+    "       gmm_mcl_fit --7scenes DATA_DIR -o MAP [options]\n"
+    "       gmm_mcl_fit --import MAP.csv -o MAP      (a map made elsewhere, e.g. scikit-learn)\n"
     "\n"
     "INPUT is a point cloud (.pcd ascii/binary/binary_compressed, .ply vertices, .xyz/.txt) or a\n"
     "PLY triangle mesh (faces present: points are sampled area-uniformly on its surface).\n"
@@ -59,16 +59,17 @@ const char* kUsage =
     "  --use-vertices           for a PLY mesh, fit its vertices instead of sampling faces\n"
     "import:\n"
     "  --import FILE.csv        a mixture as CSV, one component per row, header naming weight,\n"
-    "                           mean_x_m, mean_y_m, mean_z_m, cov_xx_m2 .. cov_zz_m2 (gmm_inspect\n"
-    "                           --csv writes one; scripts/sklearn_to_gmm_csv.py converts a\n"
-    "                           scikit-learn GaussianMixture); validated and written, no fitting\n"
+    "                           mean_x_m, mean_y_m, mean_z_m, cov_xx_m2 .. cov_zz_m2\n"
+    "                           (gmm_mcl_inspect --csv writes one; scripts/sklearn_to_gmm_csv.py\n"
+    "                           converts a scikit-learn GaussianMixture); validated and written,\n"
+    "                           no fitting\n"
     "7-Scenes (DESIGN.md accuracy protocol):\n"
     "  --7scenes DIR            stitch DIR/frame-NNNNNN.depth.png with frame-NNNNNN.pose.txt\n"
     "  --first F --last L --step S    frames F, F+S, ..., <= L (0, 990, 10)\n"
     "  --min-depth M --max-depth M    keep depth in (min, max] (0.1, 4.0); voxel default 0.02\n";
 
 [[noreturn]] void usageError(const std::string& what) {
-  std::cerr << "gmm_fit: " << what << "\n\n" << kUsage;
+  std::cerr << "gmm_mcl_fit: " << what << "\n\n" << kUsage;
   std::exit(2);
 }
 
@@ -92,7 +93,7 @@ int main(int argc, char** argv) {
   SevenScenesCloudParams seven;
   std::string init = "kmeans";
   std::vector<double> crop_box, crop_range, range_centre;
-  cli::CommandLine cl("gmm_fit", kUsage);
+  cli::CommandLine cl("gmm_mcl_fit", kUsage);
   cl.flags({{"input", &input}, {"import", &import_path}, {"output,o", &output},
             {"save-cloud", &save_cloud}, {"stats-json", &stats_json}, {"quiet,q", &quiet},
             {"components,m", &em.components}, {"max-iter", &em.max_iterations},
@@ -141,7 +142,7 @@ int main(int argc, char** argv) {
       }
       return 0;
     } catch (const std::exception& e) {
-      std::cerr << "gmm_fit: " << e.what() << "\n";
+      std::cerr << "gmm_mcl_fit: " << e.what() << "\n";
       return 1;
     }
   }
@@ -269,7 +270,7 @@ int main(int argc, char** argv) {
     }
   } catch (const std::exception& e) {
     if (tty && !quiet) std::cerr << "\n";
-    std::cerr << "gmm_fit: error: " << e.what() << "\n";
+    std::cerr << "gmm_mcl_fit: error: " << e.what() << "\n";
     return 1;
   }
   return 0;
