@@ -79,8 +79,16 @@ TEST(CameraInputValidationTest, HugePatchSizeAndStrideSampleTheImageOnce) {
   EXPECT_EQ(f.size(), 1u);
 }
 
-// An organized 4x4 cloud of a pinhole camera (f = 4, c = (1.5, 1.5)) at z = 1 + 0.1 u.
-std::vector<uint8_t> cloudData(uint32_t point_step) {
+// An organized 4x4 cloud of a pinhole camera (f = 4, c = (1.5, 1.5)) at z = 1 + 0.1 u, x, y, z
+// at bytes 0, 4, 8 of each point, and its layout.
+std::vector<uint8_t> cloudData(uint32_t point_step, CloudLayout* layout) {
+  layout->width = 4;
+  layout->height = 4;
+  layout->point_step = point_step;
+  layout->row_step = 4 * point_step;
+  layout->x_offset = 0;
+  layout->y_offset = 4;
+  layout->z_offset = 8;
   std::vector<uint8_t> d(point_step * 16, 0);
   for (int v = 0; v < 4; ++v) {
     for (int u = 0; u < 4; ++u) {
@@ -94,14 +102,7 @@ std::vector<uint8_t> cloudData(uint32_t point_step) {
 
 TEST(CameraInputValidationTest, CloudFieldsMustFitThePointAndRowsMustNotWrap) {
   CloudLayout l;
-  l.width = 4;
-  l.height = 4;
-  l.point_step = 16;
-  l.row_step = 64;
-  l.x_offset = 0;
-  l.y_offset = 4;
-  l.z_offset = 8;
-  const std::vector<uint8_t> d = cloudData(16);
+  const std::vector<uint8_t> d = cloudData(16, &l);
   DepthImage img;
   Intrinsics K;
   std::string why;

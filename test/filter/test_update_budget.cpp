@@ -35,6 +35,20 @@ void feedFrames(UpdateBudget* b, int n, double period_s, double rate = 1.0, uint
   }
 }
 
+// The budget's settings, and the parameters it gives the localizer configured with `configured`.
+void expectState(const UpdateBudget& b, int pixel_stride, int particle_cap, bool refine) {
+  EXPECT_EQ(b.state().pixel_stride, pixel_stride);
+  EXPECT_EQ(b.state().particle_cap, particle_cap);
+  EXPECT_EQ(b.state().refine, refine);
+}
+void expectApplied(const UpdateBudget& b, const LocalizerParams& configured, int pixel_stride,
+                   int num_particles, bool refine) {
+  const LocalizerParams p = b.apply(configured);
+  EXPECT_EQ(p.frame.pixel_stride, pixel_stride);
+  EXPECT_EQ(p.filter.num_particles, num_particles);
+  EXPECT_EQ(p.refinement.enabled, refine);
+}
+
 TEST(UpdateBudgetParamsTest, DefaultsValidAndFaultsNamed) {
   EXPECT_EQ(UpdateBudgetParams().validate(), "");
   UpdateBudgetParams p;
@@ -99,16 +113,10 @@ TEST(UpdateBudgetTest, CutsStrideFirstThenParticlesWithinBounds) {
     prev_stride = b.state().pixel_stride;
     prev_cap = b.state().particle_cap;
   }
-  EXPECT_EQ(b.state().pixel_stride, 12);
-  EXPECT_FALSE(b.state().refine);
-  EXPECT_EQ(b.state().particle_cap, 200);
+  expectState(b, 12, 200, false);
   EXPECT_FALSE(b.updateTook(1000.0, 200));
   EXPECT_TRUE(b.state().at_limit);
-
-  const LocalizerParams p = b.apply(s.configured);
-  EXPECT_EQ(p.frame.pixel_stride, 12);
-  EXPECT_EQ(p.filter.num_particles, 200);
-  EXPECT_FALSE(p.refinement.enabled);
+  expectApplied(b, s.configured, 12, 200, false);
 }
 
 TEST(UpdateBudgetTest, StepsBackParticlesFirstOnlyAfterSustainedHeadroom) {
@@ -135,13 +143,8 @@ TEST(UpdateBudgetTest, StepsBackParticlesFirstOnlyAfterSustainedHeadroom) {
     if (b.state().pixel_stride < 12 && !b.state().refine) out_of_order = true;
   }
   EXPECT_FALSE(out_of_order);
-  EXPECT_EQ(b.state().particle_cap, 1000);
-  EXPECT_TRUE(b.state().refine);
-  EXPECT_EQ(b.state().pixel_stride, 4);
-  const LocalizerParams p = b.apply(s.configured);
-  EXPECT_EQ(p.frame.pixel_stride, 4);
-  EXPECT_EQ(p.filter.num_particles, 1000);
-  EXPECT_TRUE(p.refinement.enabled);
+  expectState(b, 4, 1000, true);
+  expectApplied(b, s.configured, 4, 1000, true);
 }
 
 // A machine where an update costs a fixed part plus a part proportional to particles times

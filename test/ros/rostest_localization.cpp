@@ -223,11 +223,7 @@ TEST(LocalizationBagTest, LoopedBagResets) {
 }
 
 int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "rostest_localization");
-  ros::NodeHandle nh;
-  std::string mode;
-  ros::param::param<std::string>("~mode", mode, "track");
-  testing::GTEST_FLAG(filter) = mode == "looped" ? "LocalizationBagTest.Looped*" : "LocalizationBagTest.Tracks*";
-  return RUN_ALL_TESTS();
+  return runTestNode(argc, argv, "rostest_localization", "track", [](const std::string& mode) {
+    return std::string(mode == "looped" ? "LocalizationBagTest.Looped*" : "LocalizationBagTest.Tracks*");
+  });
 }

@@ -28,7 +28,7 @@
 #include "gmm_mcl/ros/bag_writer.h"
 #include "gmm_mcl/ros/conversions.h"
 #include "gmm_mcl/ros/sequence_bag.h"
-#include "temp_dir.h"
+#include "test_utils/temp_dir.h"
 #include "test_utils/synthetic_fixtures.h"
 
 namespace gmm_mcl {
