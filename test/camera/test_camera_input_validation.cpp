@@ -170,10 +170,10 @@ TEST(CameraInputValidationTest, CompressedDepthRoundTripThroughTheCore) {
   EXPECT_EQ(format, "16UC1; compressedDepth png");
   DepthImage img;
   ASSERT_TRUE(decodeCompressedDepth(format, data.data(), data.size(), &img, &why)) << why;
-  EXPECT_TRUE(std::isnan(img.depthMetres(0, 0)));   // 0: no measurement
+  EXPECT_TRUE(std::isnan(img.depthMetres(0, 0)));  // 0: no measurement
   EXPECT_NEAR(img.depthMetres(1, 0), 1.0f, 1e-6);
   EXPECT_NEAR(img.depthMetres(0, 1), 4.0f, 1e-6);
-  EXPECT_TRUE(std::isnan(img.depthMetres(1, 1)));   // 65535: no measurement
+  EXPECT_TRUE(std::isnan(img.depthMetres(1, 1)));  // 65535: no measurement
   EXPECT_NEAR(img.depthMetres(2, 1), 0.002f, 1e-7);
   EXPECT_FALSE(decodeCompressedDepth("16UC1; compressedDepth", data.data(), 12, &img, &why));
   EXPECT_EQ(why, "compressedDepth message shorter than its header");

@@ -651,9 +651,10 @@ TEST(CudaParticleFilterTest, LikelihoodOfDeviceParticlesMatchesTheHostPath) {
       worst = std::max(worst, relDiff(got[i], expected[i],
                                       std::max(std::abs(expected[i]), floor_scale)));
     }
-    std::printf("[ measured ] device-resident poses: max relative log-likelihood difference "
-                "%.2e (%d particles, %zu pixels), evaluations %lld vs %lld\n",
-                worst, n, view.frame.size(), ds.evaluations, hs.evaluations);
+    std::printf(
+        "[ measured ] device-resident poses: max relative log-likelihood difference "
+        "%.2e (%d particles, %zu pixels), evaluations %lld vs %lld\n",
+        worst, n, view.frame.size(), ds.evaluations, hs.evaluations);
     EXPECT_LT(worst, kLikelihoodRelTol);
     EXPECT_NEAR(static_cast<double>(ds.evaluations), static_cast<double>(hs.evaluations),
                 1e-3 * hs.evaluations);
@@ -707,8 +708,9 @@ TEST(CudaParticleFilterTest, ScreeningScoresTheDrawsAndKeepsTheBest) {
   cpu.evaluate(view.frame, poses, mp, &out);
   double worst = 0.0;
   for (size_t i = 0; i < pool.size(); ++i) {
-    worst = std::max(worst, relDiff(pool[i].first, out.log_likelihood[i],
-                                    std::max(std::abs(out.log_likelihood[i]), double(view.frame.size()))));
+    worst = std::max(worst,
+                     relDiff(pool[i].first, out.log_likelihood[i],
+                             std::max(std::abs(out.log_likelihood[i]), double(view.frame.size()))));
   }
   std::printf("[ measured ] screening: %zu candidates, max relative score difference %.2e\n",
               pool.size(), worst);

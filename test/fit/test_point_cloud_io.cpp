@@ -47,8 +47,10 @@ TEST(PointCloudIoTest, PcdBinaryRoundTrip) {
 }
 
 TEST(PointCloudIoTest, PcdAsciiWithExtraFieldsAndNan) {
-  const std::string path = writeTemp("a.pcd", "VERSION .7\nFIELDS intensity x y z\nSIZE 4 4 4 4\nTYPE U F F F\nCOUNT 1 1 1 1\n"
-             "WIDTH 3\nHEIGHT 1\nPOINTS 3\nDATA ascii\n7 1 2 3\n8 nan 0 0\n9 -1 -2 -3.5\n");
+  const std::string path =
+      writeTemp("a.pcd",
+                "VERSION .7\nFIELDS intensity x y z\nSIZE 4 4 4 4\nTYPE U F F F\nCOUNT 1 1 1 1\n"
+                "WIDTH 3\nHEIGHT 1\nPOINTS 3\nDATA ascii\n7 1 2 3\n8 nan 0 0\n9 -1 -2 -3.5\n");
   const PointCloud p = readPcd(path);
   ASSERT_EQ(p.size(), 3u);
   EXPECT_EQ(p[0], Eigen::Vector3f(1, 2, 3));
@@ -74,9 +76,11 @@ TEST(PointCloudIoTest, PcdBinaryCompressedLzf) {
   body.append(reinterpret_cast<const char*>(&csize), 4);
   body.append(reinterpret_cast<const char*>(&usize), 4);
   body += lzf;
-  const std::string path = writeTemp("c.pcd", "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\n"
-             "HEIGHT 1\nPOINTS 2\nDATA binary_compressed\n" +
-                 body);
+  const std::string path =
+      writeTemp("c.pcd",
+                "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\n"
+                "HEIGHT 1\nPOINTS 2\nDATA binary_compressed\n" +
+                    body);
   const PointCloud p = readPcd(path);
   ASSERT_EQ(p.size(), 2u);
   EXPECT_EQ(p[0], Eigen::Vector3f(1, 1, 1));
@@ -85,10 +89,12 @@ TEST(PointCloudIoTest, PcdBinaryCompressedLzf) {
 }
 
 TEST(PointCloudIoTest, PlyAsciiQuadIsTwoTriangles) {
-  const std::string path = writeTemp("q.ply", "ply\nformat ascii 1.0\ncomment unit square\nelement vertex 4\nproperty float x\n"
-             "property float y\nproperty float z\nproperty uchar red\nelement face 1\n"
-             "property list uchar int vertex_indices\nend_header\n0 0 0 1\n1 0 0 2\n1 1 0 3\n"
-             "0 1 0 4\n4 0 1 2 3\n");
+  const std::string path =
+      writeTemp("q.ply",
+                "ply\nformat ascii 1.0\ncomment unit square\nelement vertex 4\nproperty float x\n"
+                "property float y\nproperty float z\nproperty uchar red\nelement face 1\n"
+                "property list uchar int vertex_indices\nend_header\n0 0 0 1\n1 0 0 2\n1 1 0 3\n"
+                "0 1 0 4\n4 0 1 2 3\n");
   const CloudFile f = readCloudFile(path);
   ASSERT_EQ(f.points.size(), 4u);
   ASSERT_TRUE(f.hasFaces());
@@ -111,9 +117,11 @@ TEST(PointCloudIoTest, PlyBinaryBigEndianVertices) {
     std::memcpy(&bits, &v, 4);
     for (int k = 3; k >= 0; --k) body += static_cast<char>((bits >> (8 * k)) & 0xFF);
   }
-  const std::string path = writeTemp("be.ply", "ply\nformat binary_big_endian 1.0\nelement vertex 1\nproperty float x\n"
-             "property float y\nproperty float z\nend_header\n" +
-                 body);
+  const std::string path =
+      writeTemp("be.ply",
+                "ply\nformat binary_big_endian 1.0\nelement vertex 1\nproperty float x\n"
+                "property float y\nproperty float z\nend_header\n" +
+                    body);
   const CloudFile f = readCloudFile(path);
   ASSERT_EQ(f.points.size(), 1u);
   EXPECT_EQ(f.points[0], Eigen::Vector3f(1.5f, -2.f, 3.25f));
@@ -130,12 +138,15 @@ TEST(PointCloudIoTest, BadFilesAreClearErrors) {
   } catch (const FitError& e) {
     EXPECT_NE(std::string(e.what()).find(empty), std::string::npos) << e.what();
   }
-  const std::string trunc = writeTemp("trunc.pcd", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 10\nHEIGHT 1\nDATA binary\n" +
-                        floatBytes({1, 2, 3}));
+  const std::string trunc = writeTemp(
+      "trunc.pcd", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 10\nHEIGHT 1\nDATA binary\n" +
+                       floatBytes({1, 2, 3}));
   EXPECT_THROW(readPcd(trunc), FitError);
-  const std::string badface = writeTemp("badface.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-             "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
-             "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
+  const std::string badface =
+      writeTemp("badface.ply",
+                "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+                "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
   EXPECT_THROW(readPly(badface), FitError);
   EXPECT_THROW(readCloudFile(tempPath("cloud.las")), FitError);
   for (const auto& p : {empty, trunc, badface}) std::remove(p.c_str());

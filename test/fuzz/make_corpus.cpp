@@ -248,24 +248,15 @@ void depthFrameCorpus() {
   f.data = metres(8, 6, true);
   f.patch = 32;
   write("corpus", t, "image_32fc1_big_endian.bin", imageInput(f));
-  image("corpus", "image_bad_encoding.bin", [](ImageCase& bad) {
-    bad.encoding = "rgb8";
-  });
-  image("corpus", "image_short_step.bin", [](ImageCase& bad) {
-    bad.step = 15;
-  });
-  image("corpus", "image_short_data.bin", [](ImageCase& bad) {
-    bad.data.resize(50);
-  });
-  image("corpus", "image_size_mismatch.bin", [](ImageCase& bad) {
-    bad.info_width = 16;
-  });
+  image("corpus", "image_bad_encoding.bin", [](ImageCase& bad) { bad.encoding = "rgb8"; });
+  image("corpus", "image_short_step.bin", [](ImageCase& bad) { bad.step = 15; });
+  image("corpus", "image_short_data.bin", [](ImageCase& bad) { bad.data.resize(50); });
+  image("corpus", "image_size_mismatch.bin", [](ImageCase& bad) { bad.info_width = 16; });
   image("corpus", "camera_uncalibrated.bin", [](ImageCase& bad) {
     for (double& k : bad.K) k = 0.0;
   });
-  image("corpus", "camera_nan.bin", [](ImageCase& bad) {
-    bad.K[0] = std::numeric_limits<double>::quiet_NaN();
-  });
+  image("corpus", "camera_nan.bin",
+        [](ImageCase& bad) { bad.K[0] = std::numeric_limits<double>::quiet_NaN(); });
   image("corpus", "params_bad.bin", [](ImageCase& bad) {
     bad.stride = 0;
     bad.min_range = 5.0;
@@ -274,21 +265,13 @@ void depthFrameCorpus() {
   // Bugs: K values a float cannot hold were accepted (fx = 1e300 became an infinite focal
   // length, fy = 1e-300 passed the positivity check and became 0, cx = 3e38 gave infinite
   // points); patch sizes and strides near INT_MAX overflowed int in prepareFrame (UB).
-  image("regressions", "camera_fx_1e300.bin", [](ImageCase& bad) {
-    bad.K[0] = 1e300;
-  });
-  image("regressions", "camera_fy_1e-300.bin", [](ImageCase& bad) {
-    bad.K[4] = 1e-300;
-  });
-  image("regressions", "camera_cx_-1e300.bin", [](ImageCase& bad) {
-    bad.K[2] = -1e300;
-  });
-  image("regressions", "camera_cx_3e38_infinite_points.bin", [](ImageCase& bad) {
-    bad.K[2] = 3e38;
-  });
-  image("regressions", "params_patch_int_max.bin", [](ImageCase& bad) {
-    bad.patch = std::numeric_limits<int32_t>::max();
-  });
+  image("regressions", "camera_fx_1e300.bin", [](ImageCase& bad) { bad.K[0] = 1e300; });
+  image("regressions", "camera_fy_1e-300.bin", [](ImageCase& bad) { bad.K[4] = 1e-300; });
+  image("regressions", "camera_cx_-1e300.bin", [](ImageCase& bad) { bad.K[2] = -1e300; });
+  image("regressions", "camera_cx_3e38_infinite_points.bin",
+        [](ImageCase& bad) { bad.K[2] = 3e38; });
+  image("regressions", "params_patch_int_max.bin",
+        [](ImageCase& bad) { bad.patch = std::numeric_limits<int32_t>::max(); });
   image("regressions", "params_stride_int_max.bin", [](ImageCase& bad) {
     bad.stride = std::numeric_limits<int32_t>::max();
     bad.patch = 3;
@@ -303,20 +286,12 @@ void depthFrameCorpus() {
     fault(bad);
     write(folder, t, name, cloudInput(bad));
   };
-  cloud("corpus", "cloud_unorganized.bin", [](CloudCase& bad) {
-    bad.height = 1;
-  });
-  cloud("corpus", "cloud_no_z.bin", [](CloudCase& bad) {
-    bad.z = -1;
-  });
-  cloud("corpus", "cloud_short_data.bin", [](CloudCase& bad) {
-    bad.data.resize(100);
-  });
+  cloud("corpus", "cloud_unorganized.bin", [](CloudCase& bad) { bad.height = 1; });
+  cloud("corpus", "cloud_no_z.bin", [](CloudCase& bad) { bad.z = -1; });
+  cloud("corpus", "cloud_short_data.bin", [](CloudCase& bad) { bad.data.resize(100); });
   // Bugs: a field offset beyond the point read past the data (heap overflow), and
   // width x point_step wrapped around 32 bits, so a short row passed the layout check.
-  cloud("regressions", "cloud_field_offset_beyond_point.bin", [](CloudCase& bad) {
-    bad.z = 100;
-  });
+  cloud("regressions", "cloud_field_offset_beyond_point.bin", [](CloudCase& bad) { bad.z = 100; });
   cloud("regressions", "cloud_row_step_wraps_32_bits.bin", [](CloudCase& bad) {
     bad.width = 1u << 28;
     bad.point_step = 16;  // 2^32: wraps to 0 in uint32

@@ -8,13 +8,13 @@
 
 #include <gtest/gtest.h>
 
-#include "gmm_mcl/replay/seven_scenes_sequence.h"
 #include "gmm_mcl/replay/sequence_writer.h"
+#include "gmm_mcl/replay/seven_scenes_sequence.h"
 #include "gmm_mcl/replay/sim_sequence.h"
 #include "gmm_mcl/replay/stanford_sequence.h"
 #include "gmm_mcl/replay/tum_sequence.h"
-#include "test_utils/temp_dir.h"
 #include "test_utils/synthetic_fixtures.h"
+#include "test_utils/temp_dir.h"
 
 namespace gmm_mcl {
 namespace {
@@ -289,8 +289,10 @@ TEST(StanfordSequenceTest, BadInputNamesTheFileAndTheFault) {
        {"trajectory.log", "ends inside the matrix of frame 3"}},
       {good + "3 3 4\n1 0 0 0\n0 1 0 0\n0 0 1\n0 0 0 1\n",
        {"trajectory.log:19", "matrix row of 4 numbers"}},
-      {good + "3 3 4\n2 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n", {"trajectory.log:20", "not a rotation"}},
-      {good + "3 3 4\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 1 1\n", {"trajectory.log:20", "last matrix row"}},
+      {good + "3 3 4\n2 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n",
+       {"trajectory.log:20", "not a rotation"}},
+      {good + "3 3 4\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 1 1\n",
+       {"trajectory.log:20", "last matrix row"}},
       {good + "3 3 4\n1 0 0 0\n0 1 0 x\n0 0 1 0\n0 0 0 1\n",
        {"trajectory.log:18", "'x' is not a finite number"}},
       {good + "3 3 2\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n",

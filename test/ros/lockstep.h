@@ -318,7 +318,8 @@ class BagPlayer {
 
 // main() of a test node whose launch file picks its cases with the private parameter ~mode:
 // gtest and ROS initialised, the cases filterForMode(mode) names run.
-inline int runTestNode(int argc, char** argv, const std::string& node, const std::string& default_mode,
+inline int runTestNode(int argc, char** argv, const std::string& node,
+                       const std::string& default_mode,
                        const std::function<std::string(const std::string&)>& filterForMode) {
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, node);

@@ -224,6 +224,7 @@ TEST(LocalizationBagTest, LoopedBagResets) {
 
 int main(int argc, char** argv) {
   return runTestNode(argc, argv, "rostest_localization", "track", [](const std::string& mode) {
-    return std::string(mode == "looped" ? "LocalizationBagTest.Looped*" : "LocalizationBagTest.Tracks*");
+    return std::string(mode == "looped" ? "LocalizationBagTest.Looped*"
+                                        : "LocalizationBagTest.Tracks*");
   });
 }

@@ -2,13 +2,6 @@
 // from the synthetic scene, on the shared 7-Scenes data (skipped without), the cow_and_lady
 // layout; message counts, content against the sequence, the protocol's noise, seeding; and
 // gmm_mcl_replay_bag on converted bags.
-#include <cmath>
-#include <cstdlib>
-#include <fstream>
-#include <map>
-#include <sstream>
-#include <string>
-
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <gtest/gtest.h>
@@ -21,6 +14,13 @@
 #include <sensor_msgs/PointCloud2.h>
 #include <tf2_msgs/TFMessage.h>
 
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/replay/replay.h"
 #include "gmm_mcl/replay/sequence_writer.h"
@@ -28,8 +28,8 @@
 #include "gmm_mcl/ros/bag_writer.h"
 #include "gmm_mcl/ros/conversions.h"
 #include "gmm_mcl/ros/sequence_bag.h"
-#include "test_utils/temp_dir.h"
 #include "test_utils/synthetic_fixtures.h"
+#include "test_utils/temp_dir.h"
 
 namespace gmm_mcl {
 namespace {

@@ -54,8 +54,8 @@ Particle perturbed(const Particle& truth, std::normal_distribution<double>& n01,
   return p;
 }
 
-DepthImage renderImage(const Eigen::Isometry3d& T_map_base, const Intrinsics& K,
-                       double max_range_m, DepthEncoding encoding) {
+DepthImage renderImage(const Eigen::Isometry3d& T_map_base, const Intrinsics& K, double max_range_m,
+                       DepthEncoding encoding) {
   const SyntheticWorld& w = world();
   return sim::renderDepth(w.scene, K, T_map_base * w.T_base_cam, encoding, max_range_m);
 }

@@ -32,8 +32,7 @@ Eigen::Isometry3d referenceBasePose();
 FrameParams frameParams(int pixel_stride);
 
 // The synthetic world's depth image from the base pose T_map_base, ranges up to max_range_m.
-DepthImage renderImage(const Eigen::Isometry3d& T_map_base, const Intrinsics& K,
-                       double max_range_m,
+DepthImage renderImage(const Eigen::Isometry3d& T_map_base, const Intrinsics& K, double max_range_m,
                        DepthEncoding encoding = DepthEncoding::kMono16Millimetres);
 // Its frame (rendered 1 m beyond params.max_range_m, then prepared with params).
 DepthFrame renderFrame(const Eigen::Isometry3d& T_map_base, const Intrinsics& K,
