@@ -108,8 +108,12 @@ TEST(UpdateBudgetTest, CutsStrideFirstThenParticlesWithinBounds) {
     b.updateTook(1000.0, b.state().particle_cap, 10.0);
     EXPECT_GE(b.state().pixel_stride, prev_stride);
     EXPECT_LE(b.state().particle_cap, prev_cap);
-    if (!b.state().refine) EXPECT_EQ(b.state().pixel_stride, 12);
-    if (b.state().particle_cap < 1000) EXPECT_FALSE(b.state().refine);
+    if (!b.state().refine) {
+      EXPECT_EQ(b.state().pixel_stride, 12);
+    }
+    if (b.state().particle_cap < 1000) {
+      EXPECT_FALSE(b.state().refine);
+    }
     prev_stride = b.state().pixel_stride;
     prev_cap = b.state().particle_cap;
   }

@@ -151,7 +151,9 @@ TEST(LocalizationBagTest, TracksResetsAndPublishesTf) {
   for (const auto& p : poses) stamps.insert(p.header.stamp.toNSec());
   int dated = 0;
   for (size_t i = 0; i < obs.tf_stamps.size(); ++i) {
-    if (i > 0) EXPECT_GT(obs.tf_stamps[i], obs.tf_stamps[i - 1]) << "tf " << i << " not monotonic";
+    if (i > 0) {
+      EXPECT_GT(obs.tf_stamps[i], obs.tf_stamps[i - 1]) << "tf " << i << " not monotonic";
+    }
     const uint64_t frame = (obs.tf_stamps[i] - ros::Duration(kTransformTolerance)).toNSec();
     bool match = false;
     for (uint64_t s : {frame - 1, frame, frame + 1}) match = match || stamps.count(s);

@@ -48,7 +48,9 @@ TEST(RosConversionsTest, BothEncodingsGiveTheSameDepths) {
   for (int v = 0; v < 2; ++v) {
     for (int u = 0; u < 3; ++u) {
       const float za = a.depthMetres(u, v), zb = b.depthMetres(u, v);
-      if (std::isnan(zb)) EXPECT_TRUE(std::isnan(za)) << u << "," << v;
+      if (std::isnan(zb)) {
+        EXPECT_TRUE(std::isnan(za)) << u << "," << v;
+      }
       else EXPECT_NEAR(za, zb, 1e-6) << u << "," << v;
     }
   }
@@ -187,7 +189,9 @@ TEST(RosConversionsTest, OrganizedCloudGivesDepthAndIntrinsics) {
   for (int v = 0; v < K.height_px; v += 7) {
     for (int u = 0; u < K.width_px; u += 5) {
       const float a = depth.depthMetres(u, v), b = out.depthMetres(u, v);
-      if (std::isfinite(a)) EXPECT_NEAR(a, b, 1e-6);
+      if (std::isfinite(a)) {
+        EXPECT_NEAR(a, b, 1e-6);
+      }
       else EXPECT_TRUE(std::isnan(b));
     }
   }

@@ -104,7 +104,9 @@ void checkImageLayout(const BagContents& c, const Sequence& seq, int n) {
     EXPECT_EQ(img.header.frame_id, "camera_depth_optical_frame");
     EXPECT_NEAR((img.header.stamp - c.images[0].header.stamp).toSec(),
                 seq.stampS(f) - seq.stampS(0), 2e-6);
-    if (f % 5 == 0) EXPECT_EQ(img.data, seq.loadDepth(f).data) << "frame " << f;
+    if (f % 5 == 0) {
+      EXPECT_EQ(img.data, seq.loadDepth(f).data) << "frame " << f;
+    }
     EXPECT_FLOAT_EQ(c.infos[f].K[0], seq.intrinsics().fx_px);
     EXPECT_FLOAT_EQ(c.infos[f].K[5], seq.intrinsics().cy_px);
     EXPECT_EQ(c.truth[f].header.stamp, img.header.stamp);
