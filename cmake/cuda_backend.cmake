@@ -1,10 +1,8 @@
-# CUDA likelihood backend (GMM_MCL_WITH_CUDA=ON). Included by CMakeLists.txt after gmm_mcl_core.
+# CUDA likelihood backend (GMM_MCL_WITH_CUDA=ON): the kernels and the backend's host code as
+# OBJECT libraries, which CMakeLists.txt compiles into gmm_mcl_core. Included before the core.
 #
-# Architectures: CMAKE_CUDA_ARCHITECTURES (default "75;80;90"; Jetson TX2: 62; CI: one, e.g. 75).
+# Architectures: CMAKE_CUDA_ARCHITECTURES (CMakeLists.txt: default "75;80;90"; Jetson TX2: 62).
 # C++14 for host and device code, nothing newer than CUDA 10.2 accepts.
-if(NOT DEFINED CMAKE_CUDA_ARCHITECTURES OR CMAKE_CUDA_ARCHITECTURES STREQUAL "")
-  set(CMAKE_CUDA_ARCHITECTURES "75;80;90" CACHE STRING "CUDA architectures (TX2: 62)")
-endif()
 if(CMAKE_VERSION VERSION_LESS 3.18)
   # Older CMake (JetPack 4 ships 3.10) ignores CMAKE_CUDA_ARCHITECTURES: pass -gencode flags.
   foreach(arch ${CMAKE_CUDA_ARCHITECTURES})
@@ -26,8 +24,7 @@ else()
   set(GMM_MCL_CUDA_INCLUDE ${CUDAToolkit_INCLUDE_DIRS})
 endif()
 
-# Kernels (nvcc) and the backend's host code (the C++ compiler, CUDA runtime API only), as
-# objects inside gmm_mcl_core: backend_factory.cpp calls makeCudaBackend().
+# Kernels (nvcc) and the backend's host code (the C++ compiler, CUDA runtime API only).
 add_library(gmm_mcl_cuda OBJECT
   # The likelihood backend: kernels, host code.
   src/backend/cuda/membership_kernel.cu
@@ -57,7 +54,6 @@ if(CMAKE_CUDA_COMPILER_VERSION VERSION_GREATER_EQUAL 13)
   set_target_properties(gmm_mcl_cuda_sort PROPERTIES CUDA_STANDARD 17)
 endif()
 set_target_properties(gmm_mcl_cuda_sort PROPERTIES POSITION_INDEPENDENT_CODE ON)
-target_sources(gmm_mcl_core PRIVATE $<TARGET_OBJECTS:gmm_mcl_cuda_sort>)
 # The sources include each other as "cuda/<file>" from src/backend.
 target_include_directories(gmm_mcl_cuda PRIVATE
   ${CMAKE_CURRENT_SOURCE_DIR}/src/backend ${CMAKE_CURRENT_SOURCE_DIR}/include ${GMM_MCL_CUDA_INCLUDE})
@@ -69,29 +65,6 @@ target_include_directories(gmm_mcl_cuda SYSTEM PRIVATE
 target_compile_definitions(gmm_mcl_cuda PRIVATE
   $<TARGET_PROPERTY:gmm_mcl_core,INTERFACE_COMPILE_DEFINITIONS>)
 target_compile_options(gmm_mcl_cuda PRIVATE
-  $<$<COMPILE_LANGUAGE:CXX>:-Wall -Wextra>
   $<$<COMPILE_LANGUAGE:CUDA>:-Xcompiler=-Wall --expt-relaxed-constexpr -lineinfo>)
 set_target_properties(gmm_mcl_cuda PROPERTIES POSITION_INDEPENDENT_CODE ON)
-target_sources(gmm_mcl_core PRIVATE $<TARGET_OBJECTS:gmm_mcl_cuda>)
-target_link_libraries(gmm_mcl_core PUBLIC ${GMM_MCL_CUDART_TARGET})
-target_compile_definitions(gmm_mcl_core PUBLIC GMM_MCL_HAVE_CUDA=1)
 message(STATUS "gmm_mcl: CUDA backend for architectures ${CMAKE_CUDA_ARCHITECTURES}")
-
-# CPU-vs-CUDA parity tests: skip (GTEST_SKIP, printed reason) when no device is present.
-if(GMM_MCL_BUILD_TESTS)
-  enable_testing()
-  add_executable(test_cuda_backend test/backend/test_cuda_backend.cpp)
-  target_include_directories(test_cuda_backend PRIVATE ${CMAKE_CURRENT_SOURCE_DIR})
-  target_link_libraries(test_cuda_backend PRIVATE gmm_mcl_test_utils gmm_mcl_bench_data GTest::gtest_main)
-  add_test(NAME test_cuda_backend COMMAND test_cuda_backend)
-  set_tests_properties(test_cuda_backend PROPERTIES SKIP_RETURN_CODE 77)
-  # The device particle filter against ParticleFilter, and the localizer with it (threads,
-  # rebuilds, host vs device filter): exit 77 with the reason when no device is present.
-  foreach(name test_cuda_particle_filter test_cuda_localizer)
-    add_executable(${name} test/filter/${name}.cpp)
-    target_include_directories(${name} PRIVATE ${CMAKE_CURRENT_SOURCE_DIR})
-    target_link_libraries(${name} PRIVATE gmm_mcl_test_utils gmm_mcl_bench_data GTest::gtest)
-    add_test(NAME ${name} COMMAND ${name})
-    set_tests_properties(${name} PROPERTIES SKIP_RETURN_CODE 77)
-  endforeach()
-endif()

@@ -1,5 +1,5 @@
-# GoogleTest: an installed package, else sources (Debian's /usr/src/googletest, or a carried
-# copy named by GMM_MCL_GTEST_SRC on machines without it).
+# GoogleTest for test/CMakeLists.txt: an installed package, else sources (Debian's
+# /usr/src/googletest, or a carried copy named by GMM_MCL_GTEST_SRC on machines without it).
 find_package(GTest QUIET)
 if(NOT TARGET GTest::gtest AND TARGET gtest AND TARGET gtest_main)
   # catkin with testing on built googletest from its sources already (ROS Melodic on Ubuntu
@@ -23,11 +23,3 @@ if(NOT TARGET GTest::gtest)
   add_library(GTest::gtest ALIAS gtest)
   add_library(GTest::gtest_main ALIAS gtest_main)
 endif()
-
-# gmm_mcl_add_gtest(name source [libraries...]): a gtest suite linked with gtest_main and the
-# given libraries, registered with ctest under its name.
-function(gmm_mcl_add_gtest name src)
-  add_executable(${name} ${src})
-  target_link_libraries(${name} PRIVATE ${ARGN} GTest::gtest_main)
-  add_test(NAME ${name} COMMAND ${name})
-endfunction()

@@ -1,5 +1,5 @@
-# Sanitizer builds, included before any target so that the flags reach the core, the test
-# utilities and the tests alike.
+# Sanitizer builds, included by CMakeLists.txt (where the options are) before any target, so
+# that the flags reach the core, the test utilities and the tests alike.
 #
 # GMM_MCL_SANITIZE: every C++ target with AddressSanitizer and UndefinedBehaviorSanitizer
 # (scripts/test.sh builds the unit tests this way in their own folder and runs them).
@@ -8,12 +8,9 @@
 #   GCC's -fsanitize=undefined leaves out float-cast-overflow (clang's includes it): a float
 #   that does not fit the integer it is cast to (a projected pixel coordinate turned into an
 #   index, a NaN depth) is undefined behaviour, so ask for it.
-# GMM_MCL_BUILD_FUZZERS (clang only; cmake/fuzz.cmake, scripts/fuzz.sh): the libFuzzer targets.
+# GMM_MCL_BUILD_FUZZERS (clang only; test/CMakeLists.txt, scripts/fuzz.sh): the libFuzzer targets.
 #   Implies GMM_MCL_SANITIZE and adds libFuzzer's coverage instrumentation
 #   (-fsanitize=fuzzer-no-link) to every target, so that the core's branches guide the fuzzer.
-option(GMM_MCL_SANITIZE "Build with -fsanitize=address,undefined (tests in their own folder)" OFF)
-option(GMM_MCL_BUILD_FUZZERS "Build the libFuzzer targets (clang; implies GMM_MCL_SANITIZE)" OFF)
-
 if(GMM_MCL_BUILD_FUZZERS)
   if(NOT CMAKE_CXX_COMPILER_ID STREQUAL "Clang")
     message(FATAL_ERROR "GMM_MCL_BUILD_FUZZERS needs clang (-DCMAKE_CXX_COMPILER=clang++); "

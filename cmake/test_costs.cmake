@@ -1,6 +1,7 @@
 # ctest -j2 (scripts/test.sh) starts the tests with the highest COST first; a clean clone has no
 # timing history, so the long ones are named here (seconds on this 2-core machine, loaded).
-# Included last by the top-level CMakeLists.txt, after every add_test.
+# Included last by test/CMakeLists.txt, after every add_test (a test's properties can only be
+# set in the folder that registers it).
 set(_gmm_mcl_long_tests
   test_kidnap 220 test_unseen_scene 150 test_seven_scenes_regression 130 test_localizer 60
   test_degenerate 15 test_sensitivity 12 test_replay_tool_tum 11 test_make_bag 11)

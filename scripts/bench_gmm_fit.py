@@ -1,10 +1,10 @@
 #!/usr/bin/env python3
-"""Benchmark: gmm_fit against scikit-learn's GaussianMixture on the stitched 7-Scenes cloud.
+"""Benchmark: gmm_mcl_fit against scikit-learn's GaussianMixture on the stitched 7-Scenes cloud.
 
 Both fit the same training points (default 100k drawn from the stitched redkitchen cloud, M=1000,
 full covariance) with the same tolerance, reg_covar and iteration cap, one after the other in
 this run on this machine; then both maps are scored by sklearn's GaussianMixture.score on the
-same held-out points (drawn from the rest of the cloud). gmm_fit's map is read back from its
+same held-out points (drawn from the rest of the cloud). gmm_mcl_fit's map is read back from its
 float32 file. Prints both wall times, the ratio, train and held-out mean log-likelihoods, and
 the map file size. sklearn with M=1000 on 100k points takes many minutes: run it in the
 background and read the log.
@@ -39,7 +39,7 @@ def cpu_name():
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--gmm-fit", default=os.path.join(HERE, "..", "build-fit", "gmm_fit"))
+    ap.add_argument("--gmm-fit", default=os.path.join(HERE, "..", "build-fit", "gmm_mcl_fit"))
     ap.add_argument("--datasets", default=None,
                     help="data sets root (default $GMM_MCL_DATASETS or ../shared/datasets)")
     ap.add_argument("--cloud", default=None, help="stitched cloud .pcd (default: build it)")
@@ -53,7 +53,7 @@ def main():
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--sklearn-init", default="kmeans", choices=["kmeans", "k-means++"],
                     help="sklearn init_params (its default is kmeans)")
-    ap.add_argument("--skip-sklearn", action="store_true", help="time gmm_fit only")
+    ap.add_argument("--skip-sklearn", action="store_true", help="time gmm_mcl_fit only")
     args = ap.parse_args()
 
     import sklearn
@@ -103,7 +103,7 @@ def main():
         st = json.load(f)
     ours_train, ours_test = sc.map_score(map_path, train64), sc.map_score(map_path, test64)
     size = os.path.getsize(map_path)
-    print("gmm_fit : %7.2f s wall (process; init %.2f s, EM+init %.2f s), %d iterations, "
+    print("gmm_mcl_fit : %7.2f s wall (process; init %.2f s, EM+init %.2f s), %d iterations, "
           "converged %s, %d threads" % (ours_wall, st["init_s"], st["total_s"], st["iterations"],
                                         st["converged"], st["threads"]))
     print("          mean LL train %.5f  held-out %.5f; map %d bytes" % (ours_train, ours_test,
@@ -124,9 +124,9 @@ def main():
     print("          mean LL train %.5f  held-out %.5f" % (sk_train, sk_test))
     ratio = sk_wall / ours_wall
     rel = (ours_test - sk_test) / abs(sk_test)
-    print("speed-up: %.1fx (sklearn wall / gmm_fit wall; target >= 20x)  %s"
+    print("speed-up: %.1fx (sklearn wall / gmm_mcl_fit wall; target >= 20x)  %s"
           % (ratio, "OK" if ratio >= 20 else "MISSED"))
-    print("held-out: gmm_fit - sklearn = %+.5f nats/point (%+.2f %% of |sklearn|; target >= "
+    print("held-out: gmm_mcl_fit - sklearn = %+.5f nats/point (%+.2f %% of |sklearn|; target >= "
           "-0.5 %%)  %s" % (ours_test - sk_test, 100 * rel, "OK" if rel >= -0.005 else "MISSED"))
     print("map size: %d bytes for M=%d (paper: 40 KB)  %s"
           % (size, args.components, "OK" if size <= 40 * 1024 else "MISSED"))

@@ -35,7 +35,7 @@ fi
 if [ ! -f "$BUILD/CMakeCache.txt" ]; then
   cmake -S "$GMM_MCL_ROOT" -B "$BUILD" -DGMM_MCL_BUILD_ROS=ON -DCMAKE_BUILD_TYPE=Release
 fi
-cmake --build "$BUILD" -j2 --target gmm_mcl_ros make_7scenes_bag evaluate_pose_bag \
+cmake --build "$BUILD" -j2 --target gmm_mcl_ros gmm_mcl_make_7scenes_bag gmm_mcl_evaluate_pose_bag \
   gmm_mcl_generate_messages gmm_mcl_gencfg
 [ -f "$MAP" ] || "$GMM_MCL_ROOT/scripts/build_map_7scenes.sh" "$DATASETS" "$MAP"
 set +u
@@ -44,7 +44,7 @@ set -u
 mkdir -p "$OUT"
 BAG="$OUT/7s.bag"
 if [ ! -f "$BAG" ]; then
-  "$BUILD/devel/lib/gmm_mcl/make_7scenes_bag" "$DATASETS/7scenes_redkitchen/data" --map "$MAP" \
+  "$BUILD/devel/lib/gmm_mcl/gmm_mcl_make_7scenes_bag" "$DATASETS/7scenes_redkitchen/data" --map "$MAP" \
     --bag "$BAG" --frames "$FRAMES"
 fi
 SENT=$(python3 -c "import rosbag,sys; b=rosbag.Bag(sys.argv[1]); print(b.get_message_count('/camera/depth/image_raw'))" "$BAG")
@@ -104,7 +104,7 @@ PY
   echo "   wall $((SECONDS - t0)) s; load $load"
   grep -E "update budget" "$OUT/$name.log" | sed 's/^.*gmm_mcl: /   /' | tail -n 8 || true
   python3 "$GMM_MCL_ROOT/scripts/budget_status.py" "$OUT/$name.bag" "$SENT" | tee "$OUT/$name.summary"
-  "$BUILD/devel/lib/gmm_mcl/evaluate_pose_bag" "$OUT/$name.bag" --skip "$SKIP" --out "$OUT/$name" \
+  "$BUILD/devel/lib/gmm_mcl/gmm_mcl_evaluate_pose_bag" "$OUT/$name.bag" --skip "$SKIP" --out "$OUT/$name" \
     | tee "$OUT/$name.ate"
 }
 

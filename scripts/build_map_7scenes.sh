@@ -3,11 +3,11 @@
 # frame (0, 10, ..., 990) back-projected with its camera-to-world pose (frame-*.pose.txt),
 # depths in (0.1, 4.0] m, stitched, 2 cm voxel centroids, M=1000 full-covariance GMM.
 #
-# usage: scripts/build_map_7scenes.sh [DATASETS_DIR] [OUTPUT_MAP] [extra gmm_fit options...]
+# usage: scripts/build_map_7scenes.sh [DATASETS_DIR] [OUTPUT_MAP] [extra gmm_mcl_fit options...]
 #   DATASETS_DIR  default $GMM_MCL_DATASETS, else ../shared/datasets (from the package root)
 #   OUTPUT_MAP    default $GMM_MCL_MAP_DIR/7scenes_redkitchen_m1000.gmm (GMM_MCL_MAP_DIR
 #                 defaults to build/maps); the stitched cloud is written next to it (.pcd)
-#   GMM_FIT       the gmm_fit binary (default: build-fit/gmm_fit, build/gmm_fit, or on PATH)
+#   GMM_FIT       the gmm_mcl_fit binary (default: build-fit/gmm_fit, build/gmm_fit, or on PATH)
 # The benchmark's `large` workload map (M=4000 of the same frames; a later -m wins):
 #   scripts/build_map_7scenes.sh "" build/maps/7scenes_redkitchen_m4000.gmm -m 4000
 set -euo pipefail

@@ -3,11 +3,11 @@
 # (101 m^2 of surface: about one point per 4 cm^2, the density of 2 cm voxels), M=1000
 # full-covariance GMM.
 #
-# usage: scripts/build_map_replica.sh [DATASETS_DIR] [OUTPUT_MAP] [extra gmm_fit options...]
+# usage: scripts/build_map_replica.sh [DATASETS_DIR] [OUTPUT_MAP] [extra gmm_mcl_fit options...]
 #   DATASETS_DIR  default $GMM_MCL_DATASETS, else ../shared/datasets (from the package root)
 #   OUTPUT_MAP    default $GMM_MCL_MAP_DIR/replica_office0_m1000.gmm (GMM_MCL_MAP_DIR defaults
 #                 to build/maps)
-#   GMM_FIT       the gmm_fit binary (default: build-fit/gmm_fit, build/gmm_fit, or on PATH)
+#   GMM_FIT       the gmm_mcl_fit binary (default: build-fit/gmm_fit, build/gmm_fit, or on PATH)
 #
 # With GMM_MCL_REPLICA_SEQUENCE=DIR it also renders a depth sequence from the same mesh along
 # Replica's traj.txt with cam_params.json (1200x680) into DIR, in TUM RGB-D layout, with the

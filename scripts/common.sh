@@ -6,8 +6,32 @@ export GMM_MCL_ROOT
 # The data sets: $GMM_MCL_DATASETS, else ../shared/datasets beside the package.
 GMM_MCL_DATASETS_DIR="${GMM_MCL_DATASETS:-$GMM_MCL_ROOT/../shared/datasets}"
 
+# apt_get ARGS...: apt-get (as root or through sudo) that waits for the apt/dpkg locks while
+# another install holds them, up to APT_LOCK_TIMEOUT_S (600 s), instead of failing at once:
+# DPkg::Lock::Timeout covers the dpkg frontend lock (install); apt-get update's lists lock is
+# not covered by it, so a run that fails on a lock is tried again every 10 s until then.
+apt_get() {
+  local sudo="" timeout_s="${APT_LOCK_TIMEOUT_S:-600}" waited=0 rc err
+  if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
+  err="$(mktemp)"
+  while true; do
+    rc=0
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get -o DPkg::Lock::Timeout="$timeout_s" "$@" \
+      2> "$err" || rc=$?
+    cat "$err" >&2
+    if [ "$rc" -eq 0 ] || ! grep -qiE 'could not get lock|unable to acquire|is held by' "$err" \
+        || [ "$waited" -ge "$timeout_s" ]; then
+      rm -f "$err"
+      return "$rc"
+    fi
+    echo "== apt-get $1: another install holds the apt lock; waiting (${waited} s so far)" >&2
+    sleep 10
+    waited=$((waited + 10))
+  done
+}
+
 # ensure_packages PKG...: installs the Debian packages that are not installed yet (apt-get
-# update once), as root or through sudo.
+# update once), as root or through sudo, waiting for another install's apt lock (apt_get).
 ensure_packages() {
   local missing=()
   local p
@@ -15,14 +39,13 @@ ensure_packages() {
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
   done
   [ ${#missing[@]} -eq 0 ] && return 0
-  local sudo=""
-  if [ "$(id -u)" -ne 0 ]; then
-    command -v sudo >/dev/null || { echo "need root or sudo to install: ${missing[*]}" >&2; return 1; }
-    sudo="sudo"
+  if [ "$(id -u)" -ne 0 ] && ! command -v sudo >/dev/null; then
+    echo "need root or sudo to install: ${missing[*]}" >&2
+    return 1
   fi
   echo "== installing: ${missing[*]}"
-  $sudo apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+  apt_get update -qq
+  apt_get install -y -qq --no-install-recommends "${missing[@]}"
 }
 
 # Build dependencies of the ROS-free core, tools and tests.
@@ -55,8 +78,8 @@ map_builder_args() {
   DATASETS="${1:-$GMM_MCL_DATASETS_DIR}"
   OUT="${2:-${GMM_MCL_MAP_DIR:-$GMM_MCL_ROOT/build/maps}/$name}"
   MAP_ARGS_USED=$(( $# < 2 ? $# : 2 ))
-  GMM_FIT="$(find_tool gmm_fit GMM_FIT)"
-  GMM_INSPECT="$(find_tool gmm_inspect GMM_INSPECT)"
+  GMM_FIT="$(find_tool gmm_mcl_fit GMM_FIT)"
+  GMM_INSPECT="$(find_tool gmm_mcl_inspect GMM_INSPECT)"
 }
 
 # require_input FILE WHAT [WHERE]: exits with an error naming WHAT and WHERE (default FILE)

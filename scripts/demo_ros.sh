@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The full ROS path on the built-in synthetic scene: builds the nodelet (catkin, plain cmake
-# build), writes the synthetic bag (make_sim_bag), starts a roscore, runs the nodelet in a
+# build), writes the synthetic bag (gmm_mcl_make_sim_bag), starts a roscore, runs the nodelet in a
 # manager via roslaunch (replay.launch: rosbag play --clock, use_sim_time), records the pose
 # output, then prints the ATE against the ground truth and writes a plot (SVG) and a CSV.
 # Options (environment): FRAMES (300), WIDTH (320), RATE (0.5), CONFIG (sim_test overrides),
@@ -22,14 +22,14 @@ cmake -S "$GMM_MCL_ROOT" -B "$BUILD" -DGMM_MCL_BUILD_ROS=ON -DCMAKE_BUILD_TYPE=R
   > "$BUILD/cmake.log" 2>&1 || { cat "$BUILD/cmake.log"; exit 1; }
 # The nodelet, its tools, and the generated messages and services (C++ and Python: rostopic,
 # rosservice and rqt read the Python ones).
-cmake --build "$BUILD" -j2 --target gmm_mcl_ros gmm_mcl_node make_sim_bag evaluate_pose_bag \
+cmake --build "$BUILD" -j2 --target gmm_mcl_ros gmm_mcl_node gmm_mcl_make_sim_bag gmm_mcl_evaluate_pose_bag \
   gmm_mcl_generate_messages gmm_mcl_gencfg
 set +u
 source "$BUILD/devel/setup.bash"
 set -u
 OUT="$BUILD/demo"
 mkdir -p "$OUT"
-"$BUILD/devel/lib/gmm_mcl/make_sim_bag" --bag "$OUT/sim.bag" --frames "$FRAMES" --width "$WIDTH" --quiet
+"$BUILD/devel/lib/gmm_mcl/gmm_mcl_make_sim_bag" --bag "$OUT/sim.bag" --frames "$FRAMES" --width "$WIDTH" --quiet
 
 ros_start_master "$OUT/roscore.log"
 trap ros_stop_master EXIT
@@ -39,4 +39,4 @@ roslaunch --wait gmm_mcl replay.launch bag:="$OUT/sim.bag" map:="$OUT/sim.gmm" \
   overrides:="$OVERRIDES" params:="$OUT/sim_init.yaml" rate:="$RATE" \
   record:="$OUT/poses.bag" rviz:="${RVIZ:-false}" > "$OUT/roslaunch.log" 2>&1 || true
 grep -E "gmm_mcl:" "$OUT/roslaunch.log" | head -5 || true
-"$BUILD/devel/lib/gmm_mcl/evaluate_pose_bag" "$OUT/poses.bag" --skip 2 --out "$OUT/demo"
+"$BUILD/devel/lib/gmm_mcl/gmm_mcl_evaluate_pose_bag" "$OUT/poses.bag" --skip 2 --out "$OUT/demo"

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Builds the libFuzzer targets (clang, -fsanitize=fuzzer,address,undefined; cmake/fuzz.cmake)
+# Builds the libFuzzer targets (clang, -fsanitize=fuzzer,address,undefined; test/CMakeLists.txt)
 # in build/fuzz and runs each for a fixed number of executions, one after the other. Prints the
 # executions and exec/s per target; fails on any crash, leak, timeout, out-of-memory or
 # sanitizer report (libFuzzer saves the input under build/fuzz/artifacts/).

@@ -17,11 +17,11 @@ BUILD="${GMM_MCL_GPU_TOOLS_BUILD:-$ROOT/build/gpu-tools}"
 DATASETS="$GMM_MCL_DATASETS_DIR"
 ARCH="${CUDA_ARCH:-90}"
 NVCC="$(command -v nvcc || echo /usr/local/cuda/bin/nvcc)"
-TOOLS=(gmm_mcl_replay gmm_mcl_kidnap gmm_mcl_render gmm_fit gmm_mcl_bench test_cuda_backend)
+TOOLS=(gmm_mcl_replay gmm_mcl_kidnap gmm_mcl_render gmm_mcl_fit gmm_mcl_bench test_cuda_backend)
 ensure_packages "${CORE_PACKAGES[@]}"
 
 configure_gpu_tools "$BUILD" "$ARCH" "$NVCC"
-cmake --build "$BUILD" -j2 --target gmm_mcl_replay_tool gmm_mcl_kidnap gmm_mcl_render gmm_fit \
+cmake --build "$BUILD" -j2 --target gmm_mcl_replay_tool gmm_mcl_kidnap gmm_mcl_render gmm_mcl_fit_tool \
   gmm_mcl_bench test_cuda_backend
 
 rm -rf "$BUNDLE"

@@ -48,7 +48,7 @@ cmake -S "$GMM_MCL_ROOT" -B "$BUILD" -DGMM_MCL_BUILD_ROS=ON -DGMM_MCL_WITH_CUDA=
   "${launchers[@]}" > "$BUILD/cmake.log" 2>&1 || { cat "$BUILD/cmake.log"; exit 1; }
 # The nodelet, the demo's tools, every gmm_mcl executable a launch or test file names, and the
 # targets that write the rostests' data.
-targets=(gmm_mcl_ros gmm_mcl_node make_sim_bag evaluate_pose_bag)
+targets=(gmm_mcl_ros gmm_mcl_node gmm_mcl_make_sim_bag gmm_mcl_evaluate_pose_bag)
 # The CUDA suites (the backend, the device particle filter, the localizer with it).
 targets+=(test_cuda_backend test_cuda_particle_filter test_cuda_localizer)
 targets+=($(grep -ohE 'pkg="gmm_mcl" +type="[A-Za-z0-9_]+"' "$GMM_MCL_ROOT"/launch/*.launch \

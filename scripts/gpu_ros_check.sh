@@ -202,10 +202,10 @@ EOF
   say "rostests: $n_ok of $n passed with backend $BACKEND"
 }
 
-# make_demo_bag DIR FRAMES: the synthetic bag, map and initial region (make_sim_bag).
+# make_demo_bag DIR FRAMES: the synthetic bag, map and initial region (gmm_mcl_make_sim_bag).
 make_demo_bag() {
   mkdir -p "$1"
-  [[ -f "$1/sim.bag" ]] || "$BIN/make_sim_bag" --bag "$1/sim.bag" --frames "$2" --width "$WIDTH" --quiet
+  [[ -f "$1/sim.bag" ]] || "$BIN/gmm_mcl_make_sim_bag" --bag "$1/sim.bag" --frames "$2" --width "$WIDTH" --quiet
 }
 
 # run_replay DIR BACKEND RATE LABEL [ARGS...]: replay.launch until the bag ends, pose recorded.
@@ -231,7 +231,7 @@ step_demo() {
       fail "demo $b" "no pose bag (roslaunch_demo_$b.log)"
       continue
     fi
-    "$BIN/evaluate_pose_bag" "$d/poses_demo_$b.bag" --skip 2 --out "$OUT/demo_$b" > "$OUT/ate_$b.txt" 2>&1
+    "$BIN/gmm_mcl_evaluate_pose_bag" "$d/poses_demo_$b.bag" --skip 2 --out "$OUT/demo_$b" > "$OUT/ate_$b.txt" 2>&1
     local ate stats
     ate=$(grep -E "ATE" "$OUT/ate_$b.txt" | tail -1)
     stats=$(status_stats "$d/poses_demo_$b.bag" "$b" 2>&1 | tail -1)

@@ -2,7 +2,7 @@
 # Screenshot of rviz (particles, pose, map ellipsoids, debug image) while the nodelet replays the
 # synthetic bag, under Xvfb: for the README. Run scripts/demo_ros.sh first (it builds and writes
 # build-ros/demo/sim.bag). Usage: scripts/ros_rviz_screenshot.sh [OUTPUT.png] [SECONDS]
-# Another bag: BAG=... MAP=... PARAMS=... [OVERRIDES=...] (e.g. from make_7scenes_bag).
+# Another bag: BAG=... MAP=... PARAMS=... [OVERRIDES=...] (e.g. from gmm_mcl_make_7scenes_bag).
 set -euo pipefail
 source "$(dirname "$0")/common.sh"
 source "$(dirname "$0")/ros_common.sh"

@@ -111,7 +111,7 @@ def map_score(map_path, points):
 
 
 def hard_assignment_init(points, means, reg_covar):
-    """weights, precisions from assigning every point to its nearest mean (what gmm_fit
+    """weights, precisions from assigning every point to its nearest mean (what gmm_mcl_fit
     --init-means does, and what sklearn's _initialize does with one-hot responsibilities)."""
     from sklearn.mixture._gaussian_mixture import _estimate_gaussian_parameters
 

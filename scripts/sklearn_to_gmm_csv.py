@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""A scikit-learn GaussianMixture as the CSV that `gmm_fit --import` reads.
+"""A scikit-learn GaussianMixture as the CSV that `gmm_mcl_fit --import` reads.
 
 usage: scripts/sklearn_to_gmm_csv.py MODEL OUT.csv
 
@@ -7,7 +7,7 @@ MODEL: a pickled or joblib-saved sklearn.mixture.GaussianMixture (.pkl, .pickle,
 an .npz with arrays weights (M), means (M x 3) and covariances in any of scikit-learn's
 covariance types (full: M x 3 x 3, tied: 3 x 3, diag: M x 3, spherical: M), with the type in
 an array named covariance_type when it is not full. Means and covariances in metres, in the
-map frame. Then: gmm_fit --import OUT.csv -o MAP.gmm (validated there: positive weights summing
+map frame. Then: gmm_mcl_fit --import OUT.csv -o MAP.gmm (validated there: positive weights summing
 to 1, positive-definite covariances).
 """
 import sys

@@ -16,7 +16,7 @@ ensure_arm64_packages() {
   if ! dpkg --print-foreign-architectures | grep -qx arm64; then
     echo "== dpkg --add-architecture arm64"
     tx2_sudo dpkg --add-architecture arm64
-    tx2_sudo apt-get update -qq
+    apt_get update -qq
   fi
   ensure_packages "${TX2_CROSS_PACKAGES[@]}"
 }
@@ -46,7 +46,7 @@ ensure_nonfree() {
     echo "== added non-free to /etc/apt/sources.list"
     changed=1
   fi
-  if [ "$changed" -eq 1 ]; then tx2_sudo apt-get update -qq; fi
+  if [ "$changed" -eq 1 ]; then apt_get update -qq; fi
 }
 
 # Debian 12's CUDA 11.8 (nvidia-cuda-toolkit, non-free): the newest CUDA that still compiles for

@@ -35,7 +35,8 @@ ensure_arm64_packages
 BUILD="${GMM_MCL_AARCH64_BUILD_DIR:-$GMM_MCL_ROOT/build/aarch64}"
 TESTS=(test_gmm_map test_depth_frame test_projection test_membership test_likelihood
   test_depth_noise test_params test_resampling test_particle_filter test_localizer
-  test_pose_refinement test_lost_detector test_backend_threads test_input_validation
+  test_pose_refinement test_lost_detector test_backend_threads test_camera_input_validation
+  test_map_input_validation
   fuzz_replay_map_loader fuzz_replay_depth_frame fuzz_replay_compressed_depth)
 SLOW_CASES="LocalizerTest.ConvergesFromAUniformFourMetreCube:MembershipTest.FastTableEqualsBruteForceAtRandomPoses"
 SLOW_CASES+=":MembershipTest.ApproximateLikelihoodWithinOnePercentOfExact"

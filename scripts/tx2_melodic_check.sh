@@ -73,7 +73,7 @@ else
 fi
 
 # CMake 3.10.
-/usr/bin/python3 - CMakeLists.txt cmake/*.cmake docs/tx2.md docs/cuda_backend.md README.md <<'EOF' || bad "CMake newer than 3.10 (above)"
+/usr/bin/python3 - CMakeLists.txt cmake/*.cmake test/CMakeLists.txt docs/tx2.md docs/cuda_backend.md README.md <<'EOF' || bad "CMake newer than 3.10 (above)"
 import re, sys
 # (pattern, what, version)
 NEWER = [
@@ -151,7 +151,7 @@ for path in sys.argv[1:]:
                 bad = 1
 sys.exit(bad)
 EOF
-echo "== CMake 3.10: CMakeLists.txt, cmake/*.cmake and the docs' TX2 build commands checked"
+echo "== CMake 3.10: CMakeLists.txt, cmake/*.cmake, test/CMakeLists.txt and the docs' TX2 build commands checked"
 
 # Eigen 3.3.4.
 if git grep -nE 'Eigen::(seqN?|placeholders|all|last|lastN|indexing)\b|\.reshaped(<[^>]*>)?\(|Eigen::(Row)?Vector[234]?<|Eigen::(Matrix|Array)[234]X?<|\bsetUnit\(' \

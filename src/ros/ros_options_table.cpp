@@ -22,7 +22,7 @@ void addNodeOptions(ParamTable<R>* t) {
   const char* g = "node";
   add(t,
       paramSpec<R>("map", GMM_MCL_PARAM_FIELD(R, map_path), "", g, {}, kStartup,
-                   "The GMM map file (gmm_fit's format); required. ~reload_map loads another one "
+                   "The GMM map file (gmm_mcl_fit's format); required. ~reload_map loads another one "
                    "while running"));
   add(t, paramSpec<R>("map_frame", GMM_MCL_PARAM_FIELD(R, map_frame), "", g, {}, kStartup,
                       "Frame of the map, the pose and the published transform"));

@@ -45,8 +45,8 @@ std::string polyline(const std::vector<std::pair<double, double>>& pts, const st
 int run(int argc, char** argv) {
   std::string bag_path, pose_topic = "/gmm_mcl/pose", gt_topic = "/ground_truth", out_prefix;
   double skip_s = 2.0;
-  cli::CommandLine cl("evaluate_pose_bag",
-                      "usage: evaluate_pose_bag BAG [--pose-topic T] [--truth-topic T] "
+  cli::CommandLine cl("gmm_mcl_evaluate_pose_bag",
+                      "usage: gmm_mcl_evaluate_pose_bag BAG [--pose-topic T] [--truth-topic T] "
                       "[--skip S] [--out PREFIX]\n");
   cl.flags({{"bag", &bag_path}, {"pose-topic", &pose_topic}, {"truth-topic", &gt_topic},
             {"skip", &skip_s}, {"out", &out_prefix}});

@@ -2,7 +2,7 @@
 // and attitude inputs while a recorded bag plays (paper D2, voxblox cow_and_lady): noisy
 // nav_msgs/Odometry and tf odom -> base, IMU roll/pitch, per the DESIGN.md protocol
 // (OdometrySynthesizer, seeded; per-frame sigmas scaled to the stream's interval), the base
-// ground truth as PoseStamped for rostests and evaluate_pose_bag, and a TUM file of it.
+// ground truth as PoseStamped for rostests and gmm_mcl_evaluate_pose_bag, and a TUM file of it.
 //
 // Sources (~source): "topic" (geometry_msgs/TransformStamped on `ground_truth_transform`, e.g.
 // /kinect/vrpn_client/estimated_transform), "tf" (~truth_parent_frame -> ~truth_child_frame,

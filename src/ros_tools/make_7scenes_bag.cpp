@@ -20,9 +20,10 @@ int run(int argc, char** argv) {
   int frames = -1;
   ros_bag::SequenceBagOptions bo;
   cli::CommandLine cl(
-      "make_7scenes_bag",
-      "usage: make_7scenes_bag DATA_DIR --map WORLD_MAP.gmm --bag OUT.bag [--frames N] [--seed S]\n"
-      "                        [--init-half-extent M (2)] [--init-yaw-half-range RAD (pi/2)]\n"
+      "gmm_mcl_make_7scenes_bag",
+      "usage: gmm_mcl_make_7scenes_bag DATA_DIR --map WORLD_MAP.gmm --bag OUT.bag [--frames N]\n"
+      "                                [--seed S] [--init-half-extent M (2)]\n"
+      "                                [--init-yaw-half-range RAD (pi/2)]\n"
       "Writes OUT.bag, OUT.gmm (the map in the gravity-aligned frame) and OUT_init.yaml.\n"
       "Same as: gmm_mcl_make_bag --format 7scenes DATA_DIR OUT.bag --map WORLD_MAP.gmm\n");
   cl.flags({{"data-dir", &data_dir}, {"map", &map_in}, {"bag", &bag_path}, {"frames", &frames},
@@ -41,7 +42,7 @@ int run(int argc, char** argv) {
                 bag_path.c_str(), r.frames, r.duration_s + 1.0 / seq.frameRateHz(),
                 r.map_path.c_str(), map.size(), r.init_path.c_str());
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "make_7scenes_bag: %s\n", e.what());
+    std::fprintf(stderr, "gmm_mcl_make_7scenes_bag: %s\n", e.what());
     return 1;
   }
   return 0;

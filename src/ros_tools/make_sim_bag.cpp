@@ -32,10 +32,10 @@ namespace gmm_mcl {
 namespace {
 
 const char* kUsage =
-    "usage: make_sim_bag --bag FILE [--map FILE] [--params FILE] [--frames N] [--width PX]\n"
-    "                    [--seed S] [--encoding 16UC1|32FC1] [--start-time S]\n"
-    "                    [--init-half-extent M] [--init-yaw-half-range RAD] [--compressed] "
-    "[--cloud] [--quiet]\n"
+    "usage: gmm_mcl_make_sim_bag --bag FILE [--map FILE] [--params FILE] [--frames N]\n"
+    "                            [--width PX] [--seed S] [--encoding 16UC1|32FC1]\n"
+    "                            [--start-time S] [--init-half-extent M]\n"
+    "                            [--init-yaw-half-range RAD] [--compressed] [--cloud] [--quiet]\n"
     "Topics: /camera/depth/image_raw, /camera/depth/camera_info, /imu/data, /odom, /tf,\n"
     "/tf_static, /ground_truth (base pose in map); --compressed adds\n"
     "/camera/depth/image_raw/compressedDepth, --cloud /camera/depth/points (organized).\n"
@@ -53,7 +53,7 @@ struct Options {
 // The command line, checked: a usage error exits with status 2.
 Options parseOptions(int argc, char** argv) {
   Options o;
-  cli::CommandLine cl("make_sim_bag", kUsage);
+  cli::CommandLine cl("gmm_mcl_make_sim_bag", kUsage);
   // clang-format off
   cl.flags({{"bag", &o.bag_path}, {"map", &o.map_path}, {"params", &o.params_path},
             {"frames", &o.frames}, {"width", &o.width_px}, {"seed", &o.seed},
@@ -165,7 +165,7 @@ int run(int argc, char** argv) {
   const Particle start = poseToParticle(truth[0]);
   try {
     ros_bag::writeInitRegionYaml(
-        o.params_path, "Initial region around the true start of " + o.bag_path + " (make_sim_bag)",
+        o.params_path, "Initial region around the true start of " + o.bag_path + " (gmm_mcl_make_sim_bag)",
         start, o.init_half_extent_m, o.init_yaw_half_range_rad);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "%s\n", e.what());

@@ -1,4 +1,4 @@
-// gmm_fit: point cloud or mesh -> GMM map file (see docs/map_builder.md).
+// gmm_mcl_fit: point cloud or mesh -> GMM map file (see docs/map_builder.md).
 #include <omp.h>
 #include <unistd.h>
 
@@ -25,9 +25,9 @@ namespace gmm_mcl {
 namespace {
 
 const char* kUsage =
-    "usage: gmm_fit INPUT -o MAP [options]\n"
-    "       gmm_fit --7scenes DATA_DIR -o MAP [options]\n"
-    "       gmm_fit --import MAP.csv -o MAP          (a map made elsewhere, e.g. scikit-learn)\n"
+    "usage: gmm_mcl_fit INPUT -o MAP [options]\n"
+    "       gmm_mcl_fit --7scenes DATA_DIR -o MAP [options]\n"
+    "       gmm_mcl_fit --import MAP.csv -o MAP          (a map made elsewhere, e.g. scikit-learn)\n"
     "\n"
     "INPUT is a point cloud (.pcd ascii/binary/binary_compressed, .ply vertices, .xyz/.txt) or a\n"
     "PLY triangle mesh (faces present: points are sampled area-uniformly on its surface).\n"
@@ -58,7 +58,7 @@ const char* kUsage =
     "  --use-vertices           for a PLY mesh, fit its vertices instead of sampling faces\n"
     "import:\n"
     "  --import FILE.csv        a mixture as CSV, one component per row, header naming weight,\n"
-    "                           mean_x_m, mean_y_m, mean_z_m, cov_xx_m2 .. cov_zz_m2 (gmm_inspect\n"
+    "                           mean_x_m, mean_y_m, mean_z_m, cov_xx_m2 .. cov_zz_m2 (gmm_mcl_inspect\n"
     "                           --csv writes one; scripts/sklearn_to_gmm_csv.py converts a\n"
     "                           scikit-learn GaussianMixture); validated and written, no fitting\n"
     "7-Scenes (DESIGN.md accuracy protocol):\n"
@@ -67,7 +67,7 @@ const char* kUsage =
     "  --min-depth M --max-depth M    keep depth in (min, max] (0.1, 4.0); voxel default 0.02\n";
 
 [[noreturn]] void usageError(const std::string& what) {
-  std::cerr << "gmm_fit: " << what << "\n\n" << kUsage;
+  std::cerr << "gmm_mcl_fit: " << what << "\n\n" << kUsage;
   std::exit(2);
 }
 
@@ -95,7 +95,7 @@ Options parseOptions(int argc, char** argv) {
   std::string init = "kmeans";
   std::vector<double> crop_box, crop_range, range_centre;
   EmParams& em = o.em;
-  cli::CommandLine cl("gmm_fit", kUsage);
+  cli::CommandLine cl("gmm_mcl_fit", kUsage);
   // clang-format off
   cl.flags({{"input", &o.input}, {"import", &o.import_path}, {"output,o", &o.output},
             {"save-cloud", &o.save_cloud}, {"stats-json", &o.stats_json}, {"quiet,q", &o.quiet},
@@ -152,7 +152,7 @@ int importMap(const Options& o) {
     }
     return 0;
   } catch (const std::exception& e) {
-    std::cerr << "gmm_fit: " << e.what() << "\n";
+    std::cerr << "gmm_mcl_fit: " << e.what() << "\n";
     return 1;
   }
 }
@@ -307,7 +307,7 @@ int run(int argc, char** argv) {
     fitAndWrite(cloud, &o, tty);
   } catch (const std::exception& e) {
     if (tty && !o.quiet) std::cerr << "\n";
-    std::cerr << "gmm_fit: error: " << e.what() << "\n";
+    std::cerr << "gmm_mcl_fit: error: " << e.what() << "\n";
     return 1;
   }
   return 0;

@@ -1,4 +1,4 @@
-// gmm_inspect: summary of a map file and export of its k-sigma ellipsoids for viewing.
+// gmm_mcl_inspect: summary of a map file and export of its k-sigma ellipsoids for viewing.
 #include <cstdlib>
 #include <iostream>
 #include <string>
@@ -10,7 +10,7 @@
 namespace {
 
 const char* kUsage =
-    "usage: gmm_inspect MAP [--ply OUT.ply] [--csv OUT.csv] [--sigma S] [--rings R]\n"
+    "usage: gmm_mcl_inspect MAP [--ply OUT.ply] [--csv OUT.csv] [--sigma S] [--rings R]\n"
     "                       [--segments N]\n"
     "Prints count, bounds, weight, volume and shape statistics of a gmm_mcl map file and\n"
     "optionally exports its S-sigma ellipsoids (3) as a coloured PLY mesh or a CSV table.\n";
@@ -21,7 +21,7 @@ int main(int argc, char** argv) {
   using namespace gmm_mcl;
   std::string map_path, ply, csv;
   EllipsoidExportParams params;
-  cli::CommandLine cl("gmm_inspect", kUsage);
+  cli::CommandLine cl("gmm_mcl_inspect", kUsage);
   cl.flags({{"map", &map_path}, {"ply", &ply}, {"csv", &csv}, {"sigma", &params.sigma},
             {"rings", &params.rings}, {"segments", &params.segments}});
   cl.positional("map");
@@ -40,7 +40,7 @@ int main(int argc, char** argv) {
       std::cout << "wrote " << params.sigma << "-sigma ellipsoid table to " << csv << "\n";
     }
   } catch (const std::exception& e) {
-    std::cerr << "gmm_inspect: error: " << e.what() << "\n";
+    std::cerr << "gmm_mcl_inspect: error: " << e.what() << "\n";
     return 1;
   }
   return 0;

@@ -45,6 +45,14 @@ bool haveDevice(std::string* why) { return cudaDeviceCount(why) > 0; }
     if (!haveDevice(&why)) GTEST_SKIP() << why; \
   } while (0)
 
+// The synthetic world from T_map_cam with the sensor model's noise and 5 % dropout, to 6 m.
+DepthImage noisyImage(const Intrinsics& K, const Eigen::Isometry3d& T_map_cam, DepthEncoding enc,
+                      std::mt19937_64* rng) {
+  sim::DepthNoise noise;
+  noise.dropout = 0.05;
+  return sim::renderDepth(test::world().scene, K, T_map_cam, enc, 6.0, noise, rng);
+}
+
 std::vector<RigidTransformF> perturbedPoses(const Eigen::Isometry3d& T_true, int n, unsigned seed) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> um(-0.5, 0.5), ur(-0.3, 0.3);
@@ -148,9 +156,7 @@ TEST(CudaBackendTest, SyntheticSceneMatchesCpu) {
   cpu.setMap(w.map);
   gpu.setMap(w.map);
   for (int stride : {4, 1, 8}) {
-    FrameParams fp;
-    fp.pixel_stride = stride;
-    fp.max_range_m = 8.f;
+    FrameParams fp = test::frameParams(stride);
     const Eigen::Isometry3d T_map_base = test::referenceBasePose();
     const DepthFrame frame = test::renderFrame(T_map_base, test::vgaCamera(), fp);
     const auto poses = perturbedPoses(T_map_base * w.T_base_cam, 256, 10u + stride);
@@ -186,20 +192,14 @@ TEST(CudaBackendTest, RefinementSumsMatchHost) {
   const Particle truth = poseToParticle(T_map_base);
   const MeasurementParams mp;
   for (int stride : {8, 4}) {
-    FrameParams fp;
-    fp.pixel_stride = stride;
-    fp.max_range_m = 8.f;
+    FrameParams fp = test::frameParams(stride);
     const DepthFrame frame = test::renderFrame(T_map_base, test::vgaCamera(), fp);
     std::mt19937_64 rng(40 + stride);
     std::normal_distribution<double> n01(0.0, 1.0);
     double worst = 0.0, worst_yaw = 0.0, host_ms = 0.0, gpu_ms = 0.0;
     int host_iterations = 0, gpu_iterations = 0;
     for (int k = 0; k < 6; ++k) {
-      Particle start = truth;
-      start.x_m += 0.03 * n01(rng);
-      start.y_m += 0.03 * n01(rng);
-      start.z_m += 0.02 * n01(rng);
-      start.yaw_rad += 0.015 * n01(rng);
+      const Particle start = test::perturbed(truth, n01, rng);
       RefinementParams rp;
       rp.max_iterations = 1;  // one linearisation and one step: the sums themselves compared
       const RefinementResult h1 =
@@ -249,11 +249,9 @@ TEST(CudaBackendTest, RefinementOnTheDeviceFrameMatchesHost) {
   double roll, pitch, yaw;
   rpyFromRotation(T_map_base.linear(), &roll, &pitch, &yaw);
   const Particle truth = poseToParticle(T_map_base);
-  sim::DepthNoise noise;
-  noise.dropout = 0.05;
   std::mt19937_64 rng(11);
-  const DepthImage img = sim::renderDepth(w.scene, K, T_map_base * w.T_base_cam,
-                                          DepthEncoding::kMono16Millimetres, 6.0, noise, &rng);
+  const DepthImage img =
+      noisyImage(K, T_map_base * w.T_base_cam, DepthEncoding::kMono16Millimetres, &rng);
   FrameParams fp;
   fp.pixel_stride = 8;
   fp.max_range_m = 5.f;
@@ -307,9 +305,7 @@ TEST(CudaBackendTest, NormalEquationsMatchHost) {
   gpu.setMap(w.map);
   NormalEquationsEvaluator* dev = gpu.normalEquations();
   HostNormalEquations host;
-  FrameParams fp;
-  fp.pixel_stride = 4;
-  fp.max_range_m = 8.f;
+  FrameParams fp = test::frameParams(4);
   const Eigen::Isometry3d T_map_base = test::referenceBasePose();
   const DepthFrame frame = test::renderFrame(T_map_base, test::vgaCamera(), fp);
   std::vector<double> x(frame.size()), y(frame.size()), z(frame.size());
@@ -383,10 +379,8 @@ TEST(CudaBackendTest, GpuFramePreparationMatchesHost) {
   const Eigen::Isometry3d T_map_cam = test::referenceBasePose() * w.T_base_cam;
   const auto poses = perturbedPoses(T_map_cam, 64, 5);
   for (DepthEncoding enc : {DepthEncoding::kMono16Millimetres, DepthEncoding::kFloat32Metres}) {
-    sim::DepthNoise noise;
-    noise.dropout = 0.05;
     std::mt19937_64 rng(7);
-    const DepthImage img = sim::renderDepth(w.scene, K, T_map_cam, enc, 6.0, noise, &rng);
+    const DepthImage img = noisyImage(K, T_map_cam, enc, &rng);
     for (int stride : {1, 3, 4, 8}) {
       FrameParams fp;
       fp.pixel_stride = stride;

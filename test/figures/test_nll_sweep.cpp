@@ -26,9 +26,7 @@ class NllSweepTest : public ::testing::Test {
  protected:
   static void SetUpTestCase() {
     const auto& w = test::world();
-    FrameParams fp;
-    fp.pixel_stride = 8;
-    fp.max_range_m = 8.f;
+    FrameParams fp = test::frameParams(8);
     frame_ = new DepthFrame(test::renderFrame(test::referenceBasePose(), test::smallCamera(), fp));
     NllSweepParams p;
     p.half_range_m = 0.3;

@@ -345,13 +345,3 @@ TEST(CudaLocalizerTest, ABackendFailureFallsBackToTheCpuKeepingTheParticles) {
 
 }  // namespace
 }  // namespace gmm_mcl
-
-int main(int argc, char** argv) {
-  std::string why;
-  if (gmm_mcl::cudaDeviceCount(&why) == 0) {
-    std::printf("test_cuda_localizer: skipped: %s\n", why.c_str());
-    return 77;
-  }
-  ::testing::InitGoogleTest(&argc, argv);
-  return RUN_ALL_TESTS();
-}

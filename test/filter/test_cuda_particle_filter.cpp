@@ -580,16 +580,23 @@ TEST(CudaParticleFilterTest, SameSeedSameDrawsOtherSeedOtherDraws) {
 
 // ---- likelihood of device-resident particles ------------------------------------------------
 
+// The reference base pose seen by the small camera: its depth image (to 9 m) and its frame at
+// `stride`.
+struct ReferenceView {
+  explicit ReferenceView(int stride)
+      : fp(test::frameParams(stride)),
+        image(test::renderImage(T_map_base, K, fp.max_range_m + 1.0)),
+        frame(prepareFrame(image, K, fp)) {}
+  const Intrinsics K = test::smallCamera();
+  const Eigen::Isometry3d T_map_base = test::referenceBasePose();
+  const FrameParams fp;
+  const DepthImage image;
+  const DepthFrame frame;
+};
+
 TEST(CudaParticleFilterTest, LikelihoodOfDeviceParticlesMatchesTheHostPath) {
   const auto& w = test::world();
-  const Intrinsics K = test::smallCamera();
-  FrameParams fp;
-  fp.pixel_stride = 4;
-  fp.max_range_m = 8.f;
-  const Eigen::Isometry3d T_map_base = test::referenceBasePose();
-  const DepthImage image = sim::renderDepth(w.scene, K, T_map_base * w.T_base_cam,
-                                            DepthEncoding::kMono16Millimetres, 9.0);
-  const DepthFrame frame = prepareFrame(image, K, fp);
+  const ReferenceView view(4);
   const int n = 3000;
   const ParticleFilterParams p = filterParams(n);
   CpuBackend cpu;
@@ -598,13 +605,13 @@ TEST(CudaParticleFilterTest, LikelihoodOfDeviceParticlesMatchesTheHostPath) {
   gpu->setMap(w.map);
   MeasurementParams mp;
   MeasurementContext ctx;
-  ctx.frame = &frame;
+  ctx.frame = &view.frame;
   ctx.roll_rad = 0.02;
   ctx.pitch_rad = -0.03;
   ctx.T_base_cam = w.T_base_cam;
   ctx.params = &mp;
   // Particles around the reference pose.
-  const Particle ref = poseToParticle(T_map_base);
+  const Particle ref = poseToParticle(view.T_map_base);
   std::vector<Particle> particles(n);
   std::mt19937_64 rng(71);
   std::uniform_real_distribution<double> um(-0.5, 0.5), ua(-0.3, 0.3);
@@ -622,17 +629,17 @@ TEST(CudaParticleFilterTest, LikelihoodOfDeviceParticlesMatchesTheHostPath) {
   EvaluationStats hs;
   host.evaluateFrame(ctx, &hs);
   const std::vector<double> expected = host.frameLogLikelihoods();
-  const double floor_scale = static_cast<double>(frame.size());
+  const double floor_scale = static_cast<double>(view.frame.size());
   for (int source = 0; source < 2; ++source) {
     SCOPED_TRACE(source == 0 ? "frame prepared on the GPU" : "host frame uploaded");
     CudaParticleFilter device(p, gpu.get());
     device.setParticles(particles, std::vector<double>(n, 1.0));
     if (source == 0) {
       DeviceFrameSummary summary;
-      ASSERT_TRUE(device.prepareDeviceFrame(image, K, fp, &summary));
-      EXPECT_EQ(summary.pixels, static_cast<int>(frame.size()));
+      ASSERT_TRUE(device.prepareDeviceFrame(view.image, view.K, view.fp, &summary));
+      EXPECT_EQ(summary.pixels, static_cast<int>(view.frame.size()));
     } else {
-      gpu->uploadDeviceFrame(frame);
+      gpu->uploadDeviceFrame(view.frame);
     }
     ctx.backend = gpu.get();
     EvaluationStats ds;
@@ -644,9 +651,10 @@ TEST(CudaParticleFilterTest, LikelihoodOfDeviceParticlesMatchesTheHostPath) {
       worst = std::max(worst, relDiff(got[i], expected[i],
                                       std::max(std::abs(expected[i]), floor_scale)));
     }
-    std::printf("[ measured ] device-resident poses: max relative log-likelihood difference "
-                "%.2e (%d particles, %zu pixels), evaluations %lld vs %lld\n",
-                worst, n, frame.size(), ds.evaluations, hs.evaluations);
+    std::printf(
+        "[ measured ] device-resident poses: max relative log-likelihood difference "
+        "%.2e (%d particles, %zu pixels), evaluations %lld vs %lld\n",
+        worst, n, view.frame.size(), ds.evaluations, hs.evaluations);
     EXPECT_LT(worst, kLikelihoodRelTol);
     EXPECT_NEAR(static_cast<double>(ds.evaluations), static_cast<double>(hs.evaluations),
                 1e-3 * hs.evaluations);
@@ -655,8 +663,8 @@ TEST(CudaParticleFilterTest, LikelihoodOfDeviceParticlesMatchesTheHostPath) {
     host_w.setParticles(particles, std::vector<double>(n, 1.0));
     host_w.setFrameLogLikelihoods(got, std::vector<int>(n, 0));
     FrameScores a, b;
-    ASSERT_TRUE(device.weighFrame(static_cast<int>(frame.size()), &a));
-    ASSERT_TRUE(host_w.weighFrame(static_cast<int>(frame.size()), &b));
+    ASSERT_TRUE(device.weighFrame(static_cast<int>(view.frame.size()), &a));
+    ASSERT_TRUE(host_w.weighFrame(static_cast<int>(view.frame.size()), &b));
     EXPECT_EQ(a.best_loglik, b.best_loglik);
     EXPECT_NEAR(a.beta_fraction, b.beta_fraction, kBetaTol);
   }
@@ -664,14 +672,7 @@ TEST(CudaParticleFilterTest, LikelihoodOfDeviceParticlesMatchesTheHostPath) {
 
 TEST(CudaParticleFilterTest, ScreeningScoresTheDrawsAndKeepsTheBest) {
   const auto& w = test::world();
-  const Intrinsics K = test::smallCamera();
-  FrameParams fp;
-  fp.pixel_stride = 8;
-  fp.max_range_m = 8.f;
-  const Eigen::Isometry3d T_map_base = test::referenceBasePose();
-  const DepthImage image = sim::renderDepth(w.scene, K, T_map_base * w.T_base_cam,
-                                            DepthEncoding::kMono16Millimetres, 9.0);
-  const DepthFrame frame = prepareFrame(image, K, fp);
+  const ReferenceView view(8);
   const int n = 500, per = 8;
   std::unique_ptr<CudaBackend> gpu = makeCuda();
   gpu->setMap(w.map);
@@ -679,14 +680,14 @@ TEST(CudaParticleFilterTest, ScreeningScoresTheDrawsAndKeepsTheBest) {
   cpu.setMap(w.map);
   CudaParticleFilter device(filterParams(n), gpu.get());
   DeviceFrameSummary summary;
-  ASSERT_TRUE(device.prepareDeviceFrame(image, K, fp, &summary));
+  ASSERT_TRUE(device.prepareDeviceFrame(view.image, view.K, view.fp, &summary));
   MeasurementParams mp;
   MeasurementContext ctx;
   ctx.backend = gpu.get();
   ctx.T_base_cam = w.T_base_cam;
   ctx.params = &mp;
   InitRegion r;
-  const Particle ref = poseToParticle(T_map_base);
+  const Particle ref = poseToParticle(view.T_map_base);
   r.centre_m = Eigen::Vector3d(ref.x_m, ref.y_m, ref.z_m);
   r.half_extent_m = Eigen::Vector3d(1.0, 1.0, 0.3);
   r.yaw_centre_rad = ref.yaw_rad;
@@ -704,11 +705,12 @@ TEST(CudaParticleFilterTest, ScreeningScoresTheDrawsAndKeepsTheBest) {
     poses[i] = toRigidF(particleToPose(pool[i].second, 0.0, 0.0) * w.T_base_cam);
   }
   BackendOutput out;
-  cpu.evaluate(frame, poses, mp, &out);
+  cpu.evaluate(view.frame, poses, mp, &out);
   double worst = 0.0;
   for (size_t i = 0; i < pool.size(); ++i) {
-    worst = std::max(worst, relDiff(pool[i].first, out.log_likelihood[i],
-                                    std::max(std::abs(out.log_likelihood[i]), double(frame.size()))));
+    worst = std::max(worst,
+                     relDiff(pool[i].first, out.log_likelihood[i],
+                             std::max(std::abs(out.log_likelihood[i]), double(view.frame.size()))));
   }
   std::printf("[ measured ] screening: %zu candidates, max relative score difference %.2e\n",
               pool.size(), worst);
@@ -775,13 +777,3 @@ TEST(CudaParticleFilterTest, RecoveryCountsMatchTheHost) {
 
 }  // namespace
 }  // namespace gmm_mcl
-
-int main(int argc, char** argv) {
-  std::string why;
-  if (gmm_mcl::cudaDeviceCount(&why) == 0) {
-    std::printf("test_cuda_particle_filter: skipped: %s\n", why.c_str());
-    return 77;
-  }
-  ::testing::InitGoogleTest(&argc, argv);
-  return RUN_ALL_TESTS();
-}

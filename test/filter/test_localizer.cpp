@@ -25,6 +25,16 @@ LocalizerParams syntheticParams(const Eigen::Isometry3d& start) {
   return p;
 }
 
+// A small filter around `start` for the cases that compare belief: 200 particles in a 60 cm
+// cube, every 8th pixel.
+LocalizerParams smallFilterParams(const Eigen::Isometry3d& start) {
+  LocalizerParams p = syntheticParams(start);
+  p.filter.num_particles = 200;
+  p.frame.pixel_stride = 8;
+  p.init.half_extent_m.setConstant(0.3);
+  return p;
+}
+
 struct RunResult {
   double final_error_m;
   double final_yaw_error_rad;
@@ -291,10 +301,7 @@ void expectSameParticles(const Localizer& a, const Localizer& b) {
 // those extrinsics.
 TEST(LocalizerTest, PerFrameExtrinsicsEnterWithoutTouchingTheBelief) {
   const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(8);
-  LocalizerParams with = syntheticParams(truth[0]);
-  with.filter.num_particles = 200;
-  with.frame.pixel_stride = 8;
-  with.init.half_extent_m.setConstant(0.3);
+  LocalizerParams with = smallFilterParams(truth[0]);
   LocalizerParams without = with;
   without.T_base_cam = Eigen::Isometry3d::Identity();
   Localizer a(with, test::world().map), b(without, test::world().map);
@@ -337,10 +344,7 @@ TEST(LocalizerTest, PerFrameExtrinsicsEnterWithoutTouchingTheBelief) {
 // next frame; backend and seed are fixed; invalid values are refused and change nothing.
 TEST(LocalizerTest, SetParamsKeepsTheBelief) {
   const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(5);
-  LocalizerParams p = syntheticParams(truth[0]);
-  p.filter.num_particles = 200;
-  p.frame.pixel_stride = 8;
-  p.init.half_extent_m.setConstant(0.3);
+  LocalizerParams p = smallFilterParams(truth[0]);
   Localizer loc(p, test::world().map), reference(p, test::world().map);
   for (int f = 0; f < 4; ++f) {
     const DepthImage depth = syntheticDepth(truth[f] * p.T_base_cam);

@@ -63,5 +63,44 @@ TEST(LostDetectorTest, OffAndNonFiniteScores) {
   EXPECT_NE(bad.validate().find("reference_max_drop_nats"), std::string::npos);
 }
 
+TEST(LostDetectorTest, RestartBeginsTheGraceAgain) {
+  LostDetector d(params(), -1.0);
+  for (int f = 0; f < 20; ++f) EXPECT_FALSE(d.update(-5.0)) << f;
+  EXPECT_EQ(d.framesBelow(), 20);
+  // After a re-initialisation of the particles: the whole grace again, and the frames below
+  // counted anew, as from construction.
+  d.restart();
+  EXPECT_EQ(d.framesBelow(), 0);
+  int first = -1;
+  for (int f = 0; f < 100 && first < 0; ++f) {
+    if (d.update(-5.0)) first = f;
+  }
+  EXPECT_EQ(first, 30);
+  // Firing restarts it too: the next report comes a grace period later.
+  int next = -1;
+  for (int f = 0; f < 100 && next < 0; ++f) {
+    if (d.update(-5.0)) next = f;
+  }
+  EXPECT_EQ(next, 30);
+}
+
+TEST(LostDetectorTest, SetParamsRaisesTheReferenceOnlyToTheNewFloor) {
+  LostDetector d(params(), -1.0);
+  // A map predicting a higher level: the reference rises to its floor (2.0 - 0.5).
+  d.setParams(params(), 2.0);
+  EXPECT_DOUBLE_EQ(d.reference(), 1.5);
+  // A lower one keeps the learned reference; it may now sink to the new floor (-10.5).
+  d.setParams(params(), -10.0);
+  EXPECT_DOUBLE_EQ(d.reference(), 1.5);
+  for (int f = 0; f < 5000; ++f) d.update(-20.0);
+  EXPECT_DOUBLE_EQ(d.reference(), -10.5);
+  // Off through new parameters.
+  LostDetectionParams off = params();
+  off.margin_nats = 0.0;
+  d.setParams(off, -10.0);
+  EXPECT_FALSE(d.enabled());
+  EXPECT_FALSE(d.update(-50.0));
+}
+
 }  // namespace
 }  // namespace gmm_mcl

@@ -50,7 +50,9 @@ TEST(ParameterTableTest, NamesUniqueDefaultsValidAndDocumented) {
     EXPECT_EQ(p.help.find('|'), std::string::npos) << p.name << ": '|' breaks the Markdown table";
     EXPECT_EQ(p.check(p.defaultValue()), "") << p.name << " default " << p.defaultValue().toString();
     EXPECT_EQ(p.defaultValue().type, p.type) << p.name;
-    if (p.type == ParamType::kInt || p.type == ParamType::kDouble) EXPECT_LT(p.min, p.max) << p.name;
+    if (p.type == ParamType::kInt || p.type == ParamType::kDouble) {
+      EXPECT_LT(p.min, p.max) << p.name;
+    }
   }
   EXPECT_EQ(LocalizerParams().validate(), "");
 }
@@ -70,7 +72,9 @@ TEST(ParameterTableTest, EachEntryOwnsItsField) {
       EXPECT_EQ(p.get(s), v) << p.name;
     }
     for (const auto& q : table) {
-      if (q.name != p.name) EXPECT_EQ(q.get(s), q.defaultValue()) << "setting " << p.name << " changed " << q.name;
+      if (q.name != p.name) {
+        EXPECT_EQ(q.get(s), q.defaultValue()) << "setting " << p.name << " changed " << q.name;
+      }
     }
   }
 }

@@ -11,6 +11,21 @@ namespace {
 // Toy state against an analytic posterior: prior x ~ N(0, 1), likelihood N(z = 1; x, 0.5^2)
 // supplied as a log-likelihood over `pixels` pixels with temperature 1, so the tempered weight
 // is exactly the likelihood. Posterior: mean 0.8, variance 0.2.
+// n particles resampled as one group.
+ParticleFilterParams oneGroup(int n) {
+  ParticleFilterParams p;
+  p.num_particles = n;
+  p.resample_groups = 1;
+  return p;
+}
+
+// Log-likelihoods 0, -step, -2 step, ...: particle 0 the best.
+std::vector<double> descendingScores(int n, double step) {
+  std::vector<double> ll(n);
+  for (int i = 0; i < n; ++i) ll[i] = -step * i;
+  return ll;
+}
+
 TEST(ParticleFilterTest, TemperedWeightsGiveTheAnalyticPosterior) {
   ParticleFilterParams p;
   p.num_particles = 40000;
@@ -59,9 +74,7 @@ TEST(ParticleFilterTest, NeffFloorLimitsOneFramesCollapse) {
 }
 
 TEST(ParticleFilterTest, PaperWeightsFollowInverseNllAndGuardNegativeNll) {
-  ParticleFilterParams p;
-  p.num_particles = 3;
-  p.resample_groups = 1;
+  ParticleFilterParams p = oneGroup(3);
   p.weighting = WeightingMode::kPaper;
   ParticleFilter pf(p);
   // NLL 100, 200, 400 over 10 pixels: all above the 1 nat/pixel margin, plain 1/NLL.
@@ -78,9 +91,7 @@ TEST(ParticleFilterTest, PaperWeightsFollowInverseNllAndGuardNegativeNll) {
 }
 
 TEST(ParticleFilterTest, NonFiniteLikelihoodsKeepTheWeights) {
-  ParticleFilterParams p;
-  p.num_particles = 4;
-  p.resample_groups = 1;
+  ParticleFilterParams p = oneGroup(4);
   ParticleFilter pf(p);
   const std::vector<double> before = pf.weights();
   EXPECT_FALSE(pf.updateWeights(std::vector<double>(4, std::nan("")), 10));
@@ -91,9 +102,7 @@ TEST(ParticleFilterTest, NonFiniteLikelihoodsKeepTheWeights) {
 }
 
 TEST(ParticleFilterTest, PredictAppliesOdometryInEachParticlesYawFrame) {
-  ParticleFilterParams p;
-  p.num_particles = 2;
-  p.resample_groups = 1;
+  ParticleFilterParams p = oneGroup(2);
   p.sigma_translation_m = 0.0;
   p.sigma_yaw_rad = 0.0;
   ParticleFilter pf(p);
@@ -230,8 +239,7 @@ TEST(ParticleFilterTest, ReplaceWorstKeepsTheBestAndCanGrow) {
   p.num_particles = 10;
   ParticleFilter pf(p);
   pf.initialiseUniform(InitRegion());
-  std::vector<double> ll(10);
-  for (int i = 0; i < 10; ++i) ll[i] = -i;  // particle 0 best
+  std::vector<double> ll = descendingScores(10, 1.0);  // particle 0 best
   const Particle best0 = pf.particles()[0], best1 = pf.particles()[1];
   Particle fresh;
   fresh.x_m = 42.0;
@@ -256,8 +264,7 @@ TEST(ParticleFilterTest, SetParamsKeepsTheParticlesAndTheirWeights) {
   p.num_particles = 500;
   ParticleFilter pf(p);
   pf.initialiseUniform(InitRegion());
-  std::vector<double> ll(500);
-  for (int i = 0; i < 500; ++i) ll[i] = -0.01 * i;
+  std::vector<double> ll = descendingScores(500, 0.01);
   ASSERT_TRUE(pf.updateWeights(ll, 1));
   const std::vector<Particle> before = pf.particles();
   const std::vector<double> weights = pf.weights();

@@ -19,28 +19,26 @@ double distance(const Particle& a, const Particle& b) {
                    std::pow(a.z_m - b.z_m, 2));
 }
 
-TEST(PoseRefinementTest, ConvergesToTheTruePoseFromNearbyStarts) {
-  const auto& w = test::world();
+// The reference pose seen by the 7-Scenes camera at stride 8, and that pose's attitude.
+class PoseRefinementTest : public ::testing::Test {
+ protected:
+  void SetUp() override { rpyFromRotation(T_map_base.linear(), &roll, &pitch, &yaw); }
+
+  const test::SyntheticWorld& w = test::world();
   const Eigen::Isometry3d T_map_base = test::referenceBasePose();
-  FrameParams fp;
-  fp.pixel_stride = 8;
-  fp.max_range_m = 8.f;
-  const DepthFrame frame = test::renderFrame(T_map_base, test::vgaCamera(), fp);
-  double roll, pitch, yaw;
-  rpyFromRotation(T_map_base.linear(), &roll, &pitch, &yaw);
+  const DepthFrame frame = test::renderFrame(T_map_base, test::vgaCamera(), test::frameParams(8));
   const Particle truth = poseToParticle(T_map_base);
+  double roll = 0.0, pitch = 0.0, yaw = 0.0;
+};
+
+TEST_F(PoseRefinementTest, ConvergesToTheTruePoseFromNearbyStarts) {
   const MeasurementParams mp;
   const RefinementParams rp;
   std::mt19937_64 rng(21);
   std::normal_distribution<double> n01(0.0, 1.0);
   double worst_start = 0.0, worst_end = 0.0, worst_yaw_end = 0.0;
   for (int k = 0; k < 12; ++k) {
-    Particle start = truth;
-    // About the spread of a converged particle set (the filter's process noise is 2 cm).
-    start.x_m += 0.03 * n01(rng);
-    start.y_m += 0.03 * n01(rng);
-    start.z_m += 0.02 * n01(rng);
-    start.yaw_rad += 0.015 * n01(rng);
+    const Particle start = test::perturbed(truth, n01, rng);
     const RefinementResult r =
         refinePose(w.map.packed(), frame, start, roll, pitch, w.T_base_cam, mp, rp);
     ASSERT_TRUE(r.refined) << r.why;
@@ -58,18 +56,9 @@ TEST(PoseRefinementTest, ConvergesToTheTruePoseFromNearbyStarts) {
   EXPECT_LT(worst_yaw_end, 0.005);
 }
 
-TEST(PoseRefinementTest, CorrectsTheAttitudeInputsTilt) {
+TEST_F(PoseRefinementTest, CorrectsTheAttitudeInputsTilt) {
   // Roll and pitch given 0.5 deg off (an IMU's noise): the 6-DoF refinement finds the true
   // tilt and position; with roll and pitch held (prior sigma 0) the position absorbs the tilt.
-  const auto& w = test::world();
-  const Eigen::Isometry3d T_map_base = test::referenceBasePose();
-  FrameParams fp;
-  fp.pixel_stride = 8;
-  fp.max_range_m = 8.f;
-  const DepthFrame frame = test::renderFrame(T_map_base, test::vgaCamera(), fp);
-  double roll, pitch, yaw;
-  rpyFromRotation(T_map_base.linear(), &roll, &pitch, &yaw);
-  const Particle truth = poseToParticle(T_map_base);
   const double off = 0.5 * M_PI / 180.0;
   Particle start = truth;
   start.x_m += 0.02;
@@ -95,16 +84,8 @@ TEST(PoseRefinementTest, CorrectsTheAttitudeInputsTilt) {
   EXPECT_EQ(b.roll_rad, roll + off);  // held
 }
 
-TEST(PoseRefinementTest, RejectsACorrectionBeyondItsBound) {
-  const auto& w = test::world();
-  const Eigen::Isometry3d T_map_base = test::referenceBasePose();
-  FrameParams fp;
-  fp.pixel_stride = 8;
-  fp.max_range_m = 8.f;
-  const DepthFrame frame = test::renderFrame(T_map_base, test::vgaCamera(), fp);
-  double roll, pitch, yaw;
-  rpyFromRotation(T_map_base.linear(), &roll, &pitch, &yaw);
-  Particle start = poseToParticle(T_map_base);
+TEST_F(PoseRefinementTest, RejectsACorrectionBeyondItsBound) {
+  Particle start = truth;
   start.x_m += 0.08;
   RefinementParams rp;
   rp.max_correction_m = 0.03;

@@ -35,7 +35,21 @@ void feedFrames(UpdateBudget* b, int n, double period_s, double rate = 1.0, uint
   }
 }
 
-TEST(UpdateBudgetParams, DefaultsValidAndFaultsNamed) {
+// The budget's settings, and the parameters it gives the localizer configured with `configured`.
+void expectState(const UpdateBudget& b, int pixel_stride, int particle_cap, bool refine) {
+  EXPECT_EQ(b.state().pixel_stride, pixel_stride);
+  EXPECT_EQ(b.state().particle_cap, particle_cap);
+  EXPECT_EQ(b.state().refine, refine);
+}
+void expectApplied(const UpdateBudget& b, const LocalizerParams& configured, int pixel_stride,
+                   int num_particles, bool refine) {
+  const LocalizerParams p = b.apply(configured);
+  EXPECT_EQ(p.frame.pixel_stride, pixel_stride);
+  EXPECT_EQ(p.filter.num_particles, num_particles);
+  EXPECT_EQ(p.refinement.enabled, refine);
+}
+
+TEST(UpdateBudgetParamsTest, DefaultsValidAndFaultsNamed) {
   EXPECT_EQ(UpdateBudgetParams().validate(), "");
   UpdateBudgetParams p;
   p.max_update_ms = -1;
@@ -47,7 +61,7 @@ TEST(UpdateBudgetParams, DefaultsValidAndFaultsNamed) {
   EXPECT_NE(err.find("min_particles"), std::string::npos) << err;
 }
 
-TEST(UpdateBudget, BudgetFromStampsSeqGapsAndClockRate) {
+TEST(UpdateBudgetTest, BudgetFromStampsSeqGapsAndClockRate) {
   BudgetSetup s;
   UpdateBudget b = s.make();
   EXPECT_EQ(b.budgetMs(), 0.0);  // no frame yet: no budget, and no cut
@@ -73,7 +87,7 @@ TEST(UpdateBudget, BudgetFromStampsSeqGapsAndClockRate) {
   EXPECT_EQ(fixed.budgetMs(), 20.0);
 }
 
-TEST(UpdateBudget, CutsStrideFirstThenParticlesWithinBounds) {
+TEST(UpdateBudgetTest, CutsStrideFirstThenParticlesWithinBounds) {
   BudgetSetup s;
   UpdateBudget b = s.make();
   feedFrames(&b, 10, kPeriod30HzS);
@@ -94,24 +108,22 @@ TEST(UpdateBudget, CutsStrideFirstThenParticlesWithinBounds) {
     b.updateTook(1000.0, b.state().particle_cap, 10.0);
     EXPECT_GE(b.state().pixel_stride, prev_stride);
     EXPECT_LE(b.state().particle_cap, prev_cap);
-    if (!b.state().refine) EXPECT_EQ(b.state().pixel_stride, 12);
-    if (b.state().particle_cap < 1000) EXPECT_FALSE(b.state().refine);
+    if (!b.state().refine) {
+      EXPECT_EQ(b.state().pixel_stride, 12);
+    }
+    if (b.state().particle_cap < 1000) {
+      EXPECT_FALSE(b.state().refine);
+    }
     prev_stride = b.state().pixel_stride;
     prev_cap = b.state().particle_cap;
   }
-  EXPECT_EQ(b.state().pixel_stride, 12);
-  EXPECT_FALSE(b.state().refine);
-  EXPECT_EQ(b.state().particle_cap, 200);
+  expectState(b, 12, 200, false);
   EXPECT_FALSE(b.updateTook(1000.0, 200));
   EXPECT_TRUE(b.state().at_limit);
-
-  const LocalizerParams p = b.apply(s.configured);
-  EXPECT_EQ(p.frame.pixel_stride, 12);
-  EXPECT_EQ(p.filter.num_particles, 200);
-  EXPECT_FALSE(p.refinement.enabled);
+  expectApplied(b, s.configured, 12, 200, false);
 }
 
-TEST(UpdateBudget, StepsBackParticlesFirstOnlyAfterSustainedHeadroom) {
+TEST(UpdateBudgetTest, StepsBackParticlesFirstOnlyAfterSustainedHeadroom) {
   BudgetSetup s;
   s.budget.headroom_updates = 10;
   UpdateBudget b = s.make();
@@ -135,18 +147,13 @@ TEST(UpdateBudget, StepsBackParticlesFirstOnlyAfterSustainedHeadroom) {
     if (b.state().pixel_stride < 12 && !b.state().refine) out_of_order = true;
   }
   EXPECT_FALSE(out_of_order);
-  EXPECT_EQ(b.state().particle_cap, 1000);
-  EXPECT_TRUE(b.state().refine);
-  EXPECT_EQ(b.state().pixel_stride, 4);
-  const LocalizerParams p = b.apply(s.configured);
-  EXPECT_EQ(p.frame.pixel_stride, 4);
-  EXPECT_EQ(p.filter.num_particles, 1000);
-  EXPECT_TRUE(p.refinement.enabled);
+  expectState(b, 4, 1000, true);
+  expectApplied(b, s.configured, 4, 1000, true);
 }
 
 // A machine where an update costs a fixed part plus a part proportional to particles times
 // pixels: the budget settles under the period and stops changing (no oscillation).
-TEST(UpdateBudget, SettlesUnderTheBudgetWithoutOscillating) {
+TEST(UpdateBudgetTest, SettlesUnderTheBudgetWithoutOscillating) {
   BudgetSetup s;
   s.budget.max_pixel_stride = 16;
   s.budget.min_particles = 100;
@@ -173,7 +180,7 @@ TEST(UpdateBudget, SettlesUnderTheBudgetWithoutOscillating) {
   EXPECT_GE(b.state().cuts, 1);
 }
 
-TEST(UpdateBudget, DisabledChangesNothing) {
+TEST(UpdateBudgetTest, DisabledChangesNothing) {
   BudgetSetup s;
   s.budget.enabled = false;
   UpdateBudget b = s.make();
@@ -183,7 +190,7 @@ TEST(UpdateBudget, DisabledChangesNothing) {
   EXPECT_EQ(b.state().particle_cap, 1000);
 }
 
-TEST(UpdateBudget, ApplyKeepsAdaptiveRangesValidAndReconfigureClamps) {
+TEST(UpdateBudgetTest, ApplyKeepsAdaptiveRangesValidAndReconfigureClamps) {
   BudgetSetup s;
   s.configured.filter.num_particles = 3000;
   s.configured.filter.min_particles = 1068;

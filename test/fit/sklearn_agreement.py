@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""gmm_fit agrees with scikit-learn's GaussianMixture (the oracle) on the same data and the
+"""gmm_mcl_fit agrees with scikit-learn's GaussianMixture (the oracle) on the same data and the
 same initial parameters: final mean log-likelihood per point within 1 % on the training points
 and on held-out points.
 
@@ -8,7 +8,7 @@ noise, 20,000 training and 5,000 held-out points, M = 50. Initial means: 50 trai
 chosen by a fixed seed; both fitters then assign every point to its nearest mean to get the
 first weights and covariances (sklearn: weights_init, means_init and precisions_init computed
 that way). Same tol (1e-3), reg_covar (1e-6) and iteration cap (300) for both. Both maps are
-scored by sklearn's GaussianMixture.score; gmm_fit's map is read back from its float32 file.
+scored by sklearn's GaussianMixture.score; gmm_mcl_fit's map is read back from its float32 file.
 
 Exit codes: 0 pass, 1 fail, 77 skipped (numpy or sklearn missing), as ctest SKIP_RETURN_CODE.
 
@@ -64,10 +64,10 @@ def synthetic_room(n, rng):
     return pts[rng.permutation(len(pts))].astype(np.float32)
 
 
-def run_gmm_fit(gmm_fit, work, name, extra):
+def run_gmm_fit(gmm_mcl_fit, work, name, extra):
     out = os.path.join(work, name + ".gmm")
     stats = os.path.join(work, name + ".json")
-    cmd = [gmm_fit, os.path.join(work, "train.pcd"), "-o", out, "-m", str(M),
+    cmd = [gmm_mcl_fit, os.path.join(work, "train.pcd"), "-o", out, "-m", str(M),
            "--init-means", os.path.join(work, "means.xyz"), "--tol", repr(TOL),
            "--reg-covar", repr(REG), "--max-iter", str(MAX_ITER), "-q",
            "--stats-json", stats] + extra
@@ -82,7 +82,7 @@ def main():
     if len(sys.argv) != 3:
         print(__doc__)
         return 2
-    gmm_fit, work = sys.argv[1], sys.argv[2]
+    gmm_mcl_fit, work = sys.argv[1], sys.argv[2]
     os.makedirs(work, exist_ok=True)
     rng = np.random.default_rng(20180618)
     pts = synthetic_room(N_TRAIN + N_TEST, rng)
@@ -106,11 +106,11 @@ def main():
 
     ok = True
     for name, extra in [("pruned", []), ("exact", ["--prune-sigma", "0"])]:
-        out, st, wall = run_gmm_fit(gmm_fit, work, name, extra)
+        out, st, wall = run_gmm_fit(gmm_mcl_fit, work, name, extra)
         tr, te = sc.map_score(out, train64), sc.map_score(out, test64)
         rel_tr = abs(tr - sk_train) / abs(sk_train)
         rel_te = abs(te - sk_test) / abs(sk_test)
-        print("gmm_fit %-6s: %3d iterations, converged %s, %.2f s; mean LL train %.6f held-out "
+        print("gmm_mcl_fit %-6s: %3d iterations, converged %s, %.2f s; mean LL train %.6f held-out "
               "%.6f; relative difference train %.2e held-out %.2e"
               % (name, st["iterations"], st["converged"], wall, tr, te, rel_tr,
                  rel_te))

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
-"""scikit-learn GaussianMixture -> scripts/sklearn_to_gmm_csv.py -> gmm_fit --import -> map file:
+"""scikit-learn GaussianMixture -> scripts/sklearn_to_gmm_csv.py -> gmm_mcl_fit --import -> map file:
 for every covariance type, the map's weights, means and covariances (read back through
-gmm_inspect --csv) equal scikit-learn's to float32 precision, and the mixture's log-density at
+gmm_mcl_inspect --csv) equal scikit-learn's to float32 precision, and the mixture's log-density at
 held-out points agrees. usage: sklearn_import.py GMM_FIT GMM_INSPECT WORK_DIR (exit 77: no sklearn)
 """
 import csv
@@ -17,7 +17,7 @@ except ImportError as e:
     print("SKIP: %s" % e)
     sys.exit(77)
 
-gmm_fit, gmm_inspect, work = sys.argv[1:4]
+gmm_mcl_fit, gmm_mcl_inspect, work = sys.argv[1:4]
 os.makedirs(work, exist_ok=True)
 root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
 script = os.path.join(root, "scripts", "sklearn_to_gmm_csv.py")
@@ -39,8 +39,8 @@ for kind in ("full", "tied", "diag", "spherical"):
     gmm = os.path.join(work, "gm_%s.gmm" % kind)
     csv_out = os.path.join(work, "gm_%s_back.csv" % kind)
     subprocess.run([sys.executable, script, model, csv_in], check=True)
-    subprocess.run([gmm_fit, "--import", csv_in, "-o", gmm, "-q"], check=True)
-    subprocess.run([gmm_inspect, gmm, "--csv", csv_out], check=True, stdout=subprocess.DEVNULL)
+    subprocess.run([gmm_mcl_fit, "--import", csv_in, "-o", gmm, "-q"], check=True)
+    subprocess.run([gmm_mcl_inspect, gmm, "--csv", csv_out], check=True, stdout=subprocess.DEVNULL)
     rows = list(csv.DictReader(open(csv_out)))
     w = np.array([float(r["weight"]) for r in rows])
     mu = np.array([[float(r[k]) for k in ("mean_x_m", "mean_y_m", "mean_z_m")] for r in rows])
@@ -67,7 +67,7 @@ assert worst < 1e-3, worst
 bad = os.path.join(work, "bad.csv")
 open(bad, "w").write("weight,mean_x_m,mean_y_m,mean_z_m,cov_xx_m2,cov_xy_m2,cov_xz_m2,cov_yy_m2,"
                      "cov_yz_m2,cov_zz_m2\n1,0,0,0,1,0,0,-1,0,1\n")
-r = subprocess.run([gmm_fit, "--import", bad, "-o", os.path.join(work, "bad.gmm")],
+r = subprocess.run([gmm_mcl_fit, "--import", bad, "-o", os.path.join(work, "bad.gmm")],
                    capture_output=True, text=True)
 assert r.returncode != 0 and "positive-definite" in r.stderr, r.stderr
 print("OK")

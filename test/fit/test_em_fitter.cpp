@@ -46,7 +46,7 @@ void expectStorable(const EmResult& r, double reg) {
   EXPECT_NO_THROW(decodeMap(encodeMap(map), "<test>"));
 }
 
-TEST(EmParams, DefaultsAreValidAndFaultsNamed) {
+TEST(EmParamsTest, DefaultsAreValidAndFaultsNamed) {
   EXPECT_EQ(EmParams().validate(), "");
   EXPECT_EQ(EmParams().components, 1000);
   EXPECT_EQ(EmParams().reg_covar_m2, 1e-6);
@@ -61,7 +61,7 @@ TEST(EmParams, DefaultsAreValidAndFaultsNamed) {
   EXPECT_THROW(fitGmm(twoBlobs(100, 1), p), FitError);
 }
 
-TEST(EmFitter, RecoversTwoGaussians) {
+TEST(EmFitterTest, RecoversTwoGaussians) {
   const EmResult r = fitGmm(twoBlobs(20000, 1), smallParams(2));
   ASSERT_EQ(r.components.size(), 2u);
   EXPECT_TRUE(r.converged);
@@ -84,7 +84,7 @@ TEST(EmFitter, RecoversTwoGaussians) {
               1e-9);
 }
 
-TEST(EmFitter, DeterministicForSeedAndThreadCount) {
+TEST(EmFitterTest, DeterministicForSeedAndThreadCount) {
   const PointCloud pts = twoBlobs(5000, 2);
   EmParams p = smallParams(20);
   p.max_iterations = 15;
@@ -105,7 +105,7 @@ TEST(EmFitter, DeterministicForSeedAndThreadCount) {
   EXPECT_NE(other.components[0].mean_m, one.components[0].mean_m);
 }
 
-TEST(EmFitter, PrunedMatchesExact) {
+TEST(EmFitterTest, PrunedMatchesExact) {
   const PointCloud pts = twoBlobs(8000, 3);
   EmParams p = smallParams(30);
   p.max_iterations = 20;
@@ -117,7 +117,7 @@ TEST(EmFitter, PrunedMatchesExact) {
   EXPECT_LT(pruned.history.back().mean_candidates, 30.0);
 }
 
-TEST(EmFitter, GivenMeans) {
+TEST(EmFitterTest, GivenMeans) {
   EmParams p = smallParams(2);
   p.init = EmInit::kGivenMeans;
   p.initial_means_m = {Eigen::Vector3d(0.5, 1.5, 3), Eigen::Vector3d(-1.5, 0, 0)};
@@ -127,7 +127,7 @@ TEST(EmFitter, GivenMeans) {
   EXPECT_THROW(fitGmm(twoBlobs(4000, 4), p), FitError);
 }
 
-TEST(EmFitter, BadInputIsAClearError) {
+TEST(EmFitterTest, BadInputIsAClearError) {
   EXPECT_THROW(fitGmm(PointCloud(), smallParams(1)), FitError);
   try {
     fitGmm(twoBlobs(10, 1), smallParams(50));
@@ -145,7 +145,7 @@ TEST(EmFitter, BadInputIsAClearError) {
   }
 }
 
-TEST(EmFitter, DegenerateClustersGiveValidMaps) {
+TEST(EmFitterTest, DegenerateClustersGiveValidMaps) {
   PointCloud line, plane, same, dup;
   for (int i = 0; i < 2000; ++i) {
     line.emplace_back(0.001f * i, 0.f, 1.f);                      // collinear
@@ -165,7 +165,7 @@ TEST(EmFitter, DegenerateClustersGiveValidMaps) {
   }
 }
 
-TEST(EmFitter, StorableMapRepairsIllConditionedCovariance) {
+TEST(EmFitterTest, StorableMapRepairsIllConditionedCovariance) {
   GaussianComponent c;
   c.weight = 1.0;
   const Eigen::Vector3d u = Eigen::Vector3d(1, 2, 3).normalized();

@@ -23,7 +23,7 @@ GmmMap twoComponentMap() {
   return GmmMap({a, b});
 }
 
-TEST(MapInspect, Summary) {
+TEST(MapInspectTest, Summary) {
   const MapSummary s = summarizeMap(twoComponentMap());
   EXPECT_EQ(s.components, 2u);
   EXPECT_DOUBLE_EQ(s.weight.min, 0.25);
@@ -42,7 +42,7 @@ TEST(MapInspect, Summary) {
   EXPECT_NE(out.str().find("108 bytes"), std::string::npos);
 }
 
-TEST(MapInspect, EllipsoidPlyReadsBackOnTheEllipsoids) {
+TEST(MapInspectTest, EllipsoidPlyReadsBackOnTheEllipsoids) {
   const std::string path = ::testing::TempDir() + "ell_" + std::to_string(::getpid()) + ".ply";
   EllipsoidExportParams p;
   writeEllipsoidsPly(twoComponentMap(), path, p);
@@ -58,7 +58,7 @@ TEST(MapInspect, EllipsoidPlyReadsBackOnTheEllipsoids) {
   std::remove(path.c_str());
 }
 
-TEST(MapInspect, EllipsoidCsv) {
+TEST(MapInspectTest, EllipsoidCsv) {
   const std::string path = ::testing::TempDir() + "ell_" + std::to_string(::getpid()) + ".csv";
   writeEllipsoidsCsv(twoComponentMap(), path);
   std::ifstream in(path);

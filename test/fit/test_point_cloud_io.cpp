@@ -12,6 +12,7 @@
 #include "gmm_mcl/fit/cloud_filter.h"
 #include "gmm_mcl/fit/fit_error.h"
 #include "gmm_mcl/fit/point_cloud_io.h"
+#include "test_utils/synthetic_fixtures.h"
 
 namespace gmm_mcl {
 namespace {
@@ -20,9 +21,12 @@ std::string tempPath(const std::string& name) {
   return ::testing::TempDir() + "gmm_fit_io_" + std::to_string(::getpid()) + "_" + name;
 }
 
-void writeBytes(const std::string& path, const std::string& bytes) {
+// Writes `bytes` to a temporary file named after `name`; returns its path.
+std::string writeTemp(const std::string& name, const std::string& bytes) {
+  const std::string path = tempPath(name);
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  return path;
 }
 
 std::string floatBytes(std::initializer_list<float> v) {
@@ -31,7 +35,7 @@ std::string floatBytes(std::initializer_list<float> v) {
   return s;
 }
 
-TEST(PointCloudIo, PcdBinaryRoundTrip) {
+TEST(PointCloudIoTest, PcdBinaryRoundTrip) {
   const PointCloud pts = {{1.f, 2.f, 3.f}, {-4.5f, 0.25f, 1e-3f}};
   const std::string path = tempPath("rt.pcd");
   writePcd(pts, path);
@@ -42,11 +46,11 @@ TEST(PointCloudIo, PcdBinaryRoundTrip) {
   std::remove(path.c_str());
 }
 
-TEST(PointCloudIo, PcdAsciiWithExtraFieldsAndNan) {
-  const std::string path = tempPath("a.pcd");
-  writeBytes(path,
-             "VERSION .7\nFIELDS intensity x y z\nSIZE 4 4 4 4\nTYPE U F F F\nCOUNT 1 1 1 1\n"
-             "WIDTH 3\nHEIGHT 1\nPOINTS 3\nDATA ascii\n7 1 2 3\n8 nan 0 0\n9 -1 -2 -3.5\n");
+TEST(PointCloudIoTest, PcdAsciiWithExtraFieldsAndNan) {
+  const std::string path =
+      writeTemp("a.pcd",
+                "VERSION .7\nFIELDS intensity x y z\nSIZE 4 4 4 4\nTYPE U F F F\nCOUNT 1 1 1 1\n"
+                "WIDTH 3\nHEIGHT 1\nPOINTS 3\nDATA ascii\n7 1 2 3\n8 nan 0 0\n9 -1 -2 -3.5\n");
   const PointCloud p = readPcd(path);
   ASSERT_EQ(p.size(), 3u);
   EXPECT_EQ(p[0], Eigen::Vector3f(1, 2, 3));
@@ -55,7 +59,7 @@ TEST(PointCloudIo, PcdAsciiWithExtraFieldsAndNan) {
   std::remove(path.c_str());
 }
 
-TEST(PointCloudIo, PcdBinaryCompressedLzf) {
+TEST(PointCloudIoTest, PcdBinaryCompressedLzf) {
   // Two points, fields x y z stored field-major after LZF: x0 x1 y0 y1 z0 z1 (24 bytes).
   // Literal run of the first 12 bytes, then a 12-byte back-reference at distance 12 (the
   // y and z arrays repeat x: both points are (1,2)).
@@ -72,11 +76,11 @@ TEST(PointCloudIo, PcdBinaryCompressedLzf) {
   body.append(reinterpret_cast<const char*>(&csize), 4);
   body.append(reinterpret_cast<const char*>(&usize), 4);
   body += lzf;
-  const std::string path = tempPath("c.pcd");
-  writeBytes(path,
-             "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\n"
-             "HEIGHT 1\nPOINTS 2\nDATA binary_compressed\n" +
-                 body);
+  const std::string path =
+      writeTemp("c.pcd",
+                "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\n"
+                "HEIGHT 1\nPOINTS 2\nDATA binary_compressed\n" +
+                    body);
   const PointCloud p = readPcd(path);
   ASSERT_EQ(p.size(), 2u);
   EXPECT_EQ(p[0], Eigen::Vector3f(1, 1, 1));
@@ -84,13 +88,13 @@ TEST(PointCloudIo, PcdBinaryCompressedLzf) {
   std::remove(path.c_str());
 }
 
-TEST(PointCloudIo, PlyAsciiQuadIsTwoTriangles) {
-  const std::string path = tempPath("q.ply");
-  writeBytes(path,
-             "ply\nformat ascii 1.0\ncomment unit square\nelement vertex 4\nproperty float x\n"
-             "property float y\nproperty float z\nproperty uchar red\nelement face 1\n"
-             "property list uchar int vertex_indices\nend_header\n0 0 0 1\n1 0 0 2\n1 1 0 3\n"
-             "0 1 0 4\n4 0 1 2 3\n");
+TEST(PointCloudIoTest, PlyAsciiQuadIsTwoTriangles) {
+  const std::string path =
+      writeTemp("q.ply",
+                "ply\nformat ascii 1.0\ncomment unit square\nelement vertex 4\nproperty float x\n"
+                "property float y\nproperty float z\nproperty uchar red\nelement face 1\n"
+                "property list uchar int vertex_indices\nend_header\n0 0 0 1\n1 0 0 2\n1 1 0 3\n"
+                "0 1 0 4\n4 0 1 2 3\n");
   const CloudFile f = readCloudFile(path);
   ASSERT_EQ(f.points.size(), 4u);
   ASSERT_TRUE(f.hasFaces());
@@ -106,18 +110,18 @@ TEST(PointCloudIo, PlyAsciiQuadIsTwoTriangles) {
   std::remove(path.c_str());
 }
 
-TEST(PointCloudIo, PlyBinaryBigEndianVertices) {
+TEST(PointCloudIoTest, PlyBinaryBigEndianVertices) {
   std::string body;
   for (float v : {1.5f, -2.f, 3.25f}) {
     uint32_t bits;
     std::memcpy(&bits, &v, 4);
     for (int k = 3; k >= 0; --k) body += static_cast<char>((bits >> (8 * k)) & 0xFF);
   }
-  const std::string path = tempPath("be.ply");
-  writeBytes(path,
-             "ply\nformat binary_big_endian 1.0\nelement vertex 1\nproperty float x\n"
-             "property float y\nproperty float z\nend_header\n" +
-                 body);
+  const std::string path =
+      writeTemp("be.ply",
+                "ply\nformat binary_big_endian 1.0\nelement vertex 1\nproperty float x\n"
+                "property float y\nproperty float z\nend_header\n" +
+                    body);
   const CloudFile f = readCloudFile(path);
   ASSERT_EQ(f.points.size(), 1u);
   EXPECT_EQ(f.points[0], Eigen::Vector3f(1.5f, -2.f, 3.25f));
@@ -125,42 +129,38 @@ TEST(PointCloudIo, PlyBinaryBigEndianVertices) {
   std::remove(path.c_str());
 }
 
-TEST(PointCloudIo, BadFilesAreClearErrors) {
+TEST(PointCloudIoTest, BadFilesAreClearErrors) {
   EXPECT_THROW(readCloudFile(tempPath("missing.pcd")), FitError);
-  const std::string empty = tempPath("empty.pcd");
-  writeBytes(empty, "");
+  const std::string empty = writeTemp("empty.pcd", "");
   try {
     readCloudFile(empty);
     FAIL() << "empty file accepted";
   } catch (const FitError& e) {
     EXPECT_NE(std::string(e.what()).find(empty), std::string::npos) << e.what();
   }
-  const std::string trunc = tempPath("trunc.pcd");
-  writeBytes(trunc, "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 10\nHEIGHT 1\nDATA binary\n" +
-                        floatBytes({1, 2, 3}));
+  const std::string trunc = writeTemp(
+      "trunc.pcd", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 10\nHEIGHT 1\nDATA binary\n" +
+                       floatBytes({1, 2, 3}));
   EXPECT_THROW(readPcd(trunc), FitError);
-  const std::string badface = tempPath("badface.ply");
-  writeBytes(badface,
-             "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-             "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
-             "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
+  const std::string badface =
+      writeTemp("badface.ply",
+                "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+                "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
   EXPECT_THROW(readPly(badface), FitError);
   EXPECT_THROW(readCloudFile(tempPath("cloud.las")), FitError);
   for (const auto& p : {empty, trunc, badface}) std::remove(p.c_str());
 }
 
-TEST(PointCloudIo, ReplicaMeshWhenAvailable) {
-  const char* env = std::getenv("GMM_MCL_DATASETS");
-  const char* def = std::getenv("GMM_MCL_DATASETS_DEFAULT");
-  const std::string root = env ? env : (def ? def : GMM_MCL_TEST_DATASETS);
-  const std::string path = root + "/replica_office0/office0_mesh.ply";
+TEST(PointCloudIoTest, ReplicaMeshWhenAvailable) {
+  const std::string path = test::datasetsRoot() + "/replica_office0/office0_mesh.ply";
   if (!std::ifstream(path)) GTEST_SKIP() << "data set not found: " << path;
   const CloudFile f = readCloudFile(path);
   EXPECT_EQ(f.points.size(), 25149u);
   EXPECT_EQ(f.mesh.triangles.size(), 50000u);
 }
 
-TEST(CloudFilter, VoxelCentroidsAndCrops) {
+TEST(CloudFilterTest, VoxelCentroidsAndCrops) {
   const PointCloud pts = {{0.01f, 0.01f, 0.01f},
                           {0.03f, 0.03f, 0.03f},
                           {0.5f, 0.5f, 0.5f},
@@ -188,7 +188,7 @@ TEST(CloudFilter, VoxelCentroidsAndCrops) {
   EXPECT_TRUE(CloudFilterParams().validate().empty());
 }
 
-TEST(MeshSampling, AreaUniform) {
+TEST(MeshSamplingTest, AreaUniform) {
   TriangleMesh mesh;
   mesh.vertices_m = {
       {0, 0, 0},  {1, 0, 0},  {0, 1, 0},  {10, 0, 0}, {13, 0, 0},

@@ -16,17 +16,10 @@ namespace {
 using namespace gmm_mcl;
 
 std::string formatFrom(fuzz::Reader* in) {
-  const uint8_t sel = in->u8();
-  switch (sel % 8) {
-    case 0: return "16UC1; compressedDepth png";
-    case 1: return "32FC1; compressedDepth png";
-    case 2: return "16UC1; compressedDepth";
-    case 3: return "mono16; compressedDepth";
-    case 4: return "32FC1; compressedDepth rvl";
-    case 5: return "16UC1";
-    case 6: return "8UC1; compressedDepth png";
-    default: return in->str(40);
-  }
+  return in->nameOrString({"16UC1; compressedDepth png", "32FC1; compressedDepth png",
+                           "16UC1; compressedDepth", "mono16; compressedDepth",
+                           "32FC1; compressedDepth rvl", "16UC1", "8UC1; compressedDepth png"},
+                          40);
 }
 
 }  // namespace
@@ -34,24 +27,23 @@ std::string formatFrom(fuzz::Reader* in) {
 #ifdef GMM_MCL_LIBFUZZER
 // Mutated PNG chunks nearly always fail libpng's CRC check. After half of the mutations, repair
 // the CRC of every complete chunk (big-endian length, type, data, CRC over type and data).
-extern "C" size_t LLVMFuzzerMutate(uint8_t* data, size_t size, size_t max_size);
-
 extern "C" size_t LLVMFuzzerCustomMutator(uint8_t* data, size_t size, size_t max_size,
                                           unsigned int seed) {
-  size = LLVMFuzzerMutate(data, size, max_size);
-  if ((seed & 1u) == 0) return size;
-  fuzz::Reader in(data, size);
-  formatFrom(&in);
-  size_t pos = static_cast<size_t>(in.rest() - data) + 12 + 8;  // header, PNG signature
-  while (pos + 12 <= size) {
-    const uint32_t len = (uint32_t{data[pos]} << 24) | (uint32_t{data[pos + 1]} << 16) |
-                         (uint32_t{data[pos + 2]} << 8) | uint32_t{data[pos + 3]};
-    if (len > size - pos - 12) break;
-    const uint32_t crc = gmm_mcl::crc32(data + pos + 4, 4 + len);
-    for (int k = 0; k < 4; ++k) data[pos + 8 + len + k] = static_cast<uint8_t>(crc >> (24 - 8 * k));
-    pos += 12 + len;
-  }
-  return size;
+  return fuzz::mutateAndRepair(data, size, max_size, seed, [](uint8_t* data, size_t size) {
+    fuzz::Reader in(data, size);
+    formatFrom(&in);
+    size_t pos = static_cast<size_t>(in.rest() - data) + 12 + 8;  // header, PNG signature
+    while (pos + 12 <= size) {
+      const uint32_t len = (uint32_t{data[pos]} << 24) | (uint32_t{data[pos + 1]} << 16) |
+                           (uint32_t{data[pos + 2]} << 8) | uint32_t{data[pos + 3]};
+      if (len > size - pos - 12) break;
+      const uint32_t crc = gmm_mcl::crc32(data + pos + 4, 4 + len);
+      for (int k = 0; k < 4; ++k) {
+        data[pos + 8 + len + k] = static_cast<uint8_t>(crc >> (24 - 8 * k));
+      }
+      pos += 12 + len;
+    }
+  });
 }
 #endif
 

@@ -21,16 +21,7 @@ using namespace gmm_mcl;
 constexpr float kFiniteRangeLimitM = 1e20f;
 
 std::string encodingFrom(fuzz::Reader* in) {
-  const uint8_t sel = in->u8();
-  switch (sel % 8) {
-    case 0: return "16UC1";
-    case 1: return "mono16";
-    case 2: return "32FC1";
-    case 3: return "8UC1";
-    case 4: return "";
-    case 5: return "32FC1 ";
-    default: return in->str(32);
-  }
+  return in->nameOrString({"16UC1", "mono16", "32FC1", "8UC1", "", "32FC1 "}, 32);
 }
 
 FrameParams frameParamsFrom(fuzz::Reader* in) {

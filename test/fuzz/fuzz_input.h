@@ -8,10 +8,14 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <initializer_list>
 #include <limits>
 #include <string>
 #include <vector>
 
+#ifdef GMM_MCL_LIBFUZZER
+extern "C" size_t LLVMFuzzerMutate(uint8_t* data, size_t size, size_t max_size);
+#endif
 // The libFuzzer entry point each target defines; replay_main.cpp calls it without libFuzzer.
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size);
 
@@ -85,6 +89,12 @@ class Reader {
     return sel < kSpecialCount ? specialDouble(sel) : f64();
   }
   // A length byte (at most max_len), then the characters.
+  // One of `names` chosen by a selector byte (modulo 8), else (selectors past the names) a
+  // string of the input: the encodings and formats a harness tries.
+  std::string nameOrString(std::initializer_list<const char*> names, size_t max_len) {
+    const size_t sel = u8() % 8;
+    return sel < names.size() ? std::string(names.begin()[sel]) : str(max_len);
+  }
   std::string str(size_t max_len) {
     const size_t n = std::min<size_t>(u8(), max_len);
     std::string s(n, '\0');
@@ -137,6 +147,18 @@ class Writer {
 
   std::vector<uint8_t> bytes;
 };
+
+#ifdef GMM_MCL_LIBFUZZER
+// libFuzzer's own mutation of the input, then after every other one (odd seeds) `repair` on the
+// mutated bytes (data, size): checksums recomputed, so that half of the inputs get past them.
+template <typename Repair>
+size_t mutateAndRepair(uint8_t* data, size_t size, size_t max_size, unsigned int seed,
+                       Repair repair) {
+  size = LLVMFuzzerMutate(data, size, max_size);
+  if ((seed & 1u) != 0) repair(data, size);
+  return size;
+}
+#endif
 
 }  // namespace fuzz
 }  // namespace gmm_mcl

@@ -31,16 +31,13 @@ bool loadsFromStream(const uint8_t* data, size_t size, std::string* error) {
 // libFuzzer's own mutations almost never keep the CRC-32 right, so nearly every input would
 // stop at the checksum. After half of the mutations, recompute it (the inputs stay plain map
 // files; the other half still exercises the checksum path).
-extern "C" size_t LLVMFuzzerMutate(uint8_t* data, size_t size, size_t max_size);
-
 extern "C" size_t LLVMFuzzerCustomMutator(uint8_t* data, size_t size, size_t max_size,
                                           unsigned int seed) {
-  size = LLVMFuzzerMutate(data, size, max_size);
-  if ((seed & 1u) != 0 && size >= 4) {
+  return gmm_mcl::fuzz::mutateAndRepair(data, size, max_size, seed, [](uint8_t* data, size_t size) {
+    if (size < 4) return;
     const uint32_t crc = gmm_mcl::crc32(data, size - 4);
     for (int k = 0; k < 4; ++k) data[size - 4 + k] = static_cast<uint8_t>(crc >> (8 * k));
-  }
-  return size;
+  });
 }
 #endif
 

@@ -121,15 +121,27 @@ void mapCorpus() {
 }
 
 // ---- depth frames -------------------------------------------------------------------------
-struct ImageCase {
+// What closes every depth_frame input: the frame parameters, then the image or cloud data.
+struct FrameTail {
+  int32_t stride = 1, patch = 4;
+  double min_range = 0.1, max_range = 4.0;
+  Bytes data;
+};
+
+void writeTail(const FrameTail& c, fuzz::Writer* w) {
+  w->i32(c.stride);
+  w->i32(c.patch);
+  w->number(c.min_range);
+  w->number(c.max_range);
+  w->raw(c.data);
+}
+
+struct ImageCase : FrameTail {
   std::string encoding = "16UC1";
   uint32_t width = 8, height = 6, step = 16;
   bool big_endian = false;
   double K[9] = {6.0, 0.0, 3.5, 0.0, 6.0, 2.5, 0.0, 0.0, 1.0};
   uint32_t info_width = 8, info_height = 6;
-  int32_t stride = 1, patch = 4;
-  double min_range = 0.1, max_range = 4.0;
-  Bytes data;
 };
 
 Bytes imageInput(const ImageCase& c) {
@@ -144,11 +156,7 @@ Bytes imageInput(const ImageCase& c) {
   for (double k : c.K) w.number(k);
   w.u32(c.info_width);
   w.u32(c.info_height);
-  w.i32(c.stride);
-  w.i32(c.patch);
-  w.number(c.min_range);
-  w.number(c.max_range);
-  w.raw(c.data);
+  writeTail(c, &w);
   return w.bytes;
 }
 
@@ -176,13 +184,11 @@ Bytes metres(uint32_t w, uint32_t h, bool big_endian) {
   return d;
 }
 
-struct CloudCase {
+struct CloudCase : FrameTail {
+  CloudCase() { stride = 2; }
   uint32_t width = 8, height = 6, point_step = 16, row_step = 128;
   bool big_endian = false;
   int32_t x = 0, y = 4, z = 8;
-  int32_t stride = 2, patch = 4;
-  double min_range = 0.1, max_range = 4.0;
-  Bytes data;
 };
 
 Bytes cloudInput(const CloudCase& c) {
@@ -196,11 +202,7 @@ Bytes cloudInput(const CloudCase& c) {
   w.i32(c.x);
   w.i32(c.y);
   w.i32(c.z);
-  w.i32(c.stride);
-  w.i32(c.patch);
-  w.number(c.min_range);
-  w.number(c.max_range);
-  w.raw(c.data);
+  writeTail(c, &w);
   return w.bytes;
 }
 
@@ -223,6 +225,12 @@ void depthFrameCorpus() {
   ImageCase c;
   c.data = millimetres(8, 6, 16, false);
   write("corpus", t, "image_16uc1.bin", imageInput(c));
+  // c with one fault, written as folder/depth_frame/name.
+  const auto image = [&](const char* folder, const char* name, void (*fault)(ImageCase&)) {
+    ImageCase bad = c;
+    fault(bad);
+    write(folder, t, name, imageInput(bad));
+  };
   ImageCase m = c;
   m.encoding = "mono16";
   m.step = 20;
@@ -240,76 +248,57 @@ void depthFrameCorpus() {
   f.data = metres(8, 6, true);
   f.patch = 32;
   write("corpus", t, "image_32fc1_big_endian.bin", imageInput(f));
-  ImageCase bad = c;
-  bad.encoding = "rgb8";
-  write("corpus", t, "image_bad_encoding.bin", imageInput(bad));
-  bad = c;
-  bad.step = 15;
-  write("corpus", t, "image_short_step.bin", imageInput(bad));
-  bad = c;
-  bad.data.resize(50);
-  write("corpus", t, "image_short_data.bin", imageInput(bad));
-  bad = c;
-  bad.info_width = 16;
-  write("corpus", t, "image_size_mismatch.bin", imageInput(bad));
-  bad = c;
-  for (double& k : bad.K) k = 0.0;
-  write("corpus", t, "camera_uncalibrated.bin", imageInput(bad));
-  bad = c;
-  bad.K[0] = std::numeric_limits<double>::quiet_NaN();
-  write("corpus", t, "camera_nan.bin", imageInput(bad));
-  bad = c;
-  bad.stride = 0;
-  bad.min_range = 5.0;
-  write("corpus", t, "params_bad.bin", imageInput(bad));
+  image("corpus", "image_bad_encoding.bin", [](ImageCase& bad) { bad.encoding = "rgb8"; });
+  image("corpus", "image_short_step.bin", [](ImageCase& bad) { bad.step = 15; });
+  image("corpus", "image_short_data.bin", [](ImageCase& bad) { bad.data.resize(50); });
+  image("corpus", "image_size_mismatch.bin", [](ImageCase& bad) { bad.info_width = 16; });
+  image("corpus", "camera_uncalibrated.bin", [](ImageCase& bad) {
+    for (double& k : bad.K) k = 0.0;
+  });
+  image("corpus", "camera_nan.bin",
+        [](ImageCase& bad) { bad.K[0] = std::numeric_limits<double>::quiet_NaN(); });
+  image("corpus", "params_bad.bin", [](ImageCase& bad) {
+    bad.stride = 0;
+    bad.min_range = 5.0;
+  });
 
   // Bugs: K values a float cannot hold were accepted (fx = 1e300 became an infinite focal
   // length, fy = 1e-300 passed the positivity check and became 0, cx = 3e38 gave infinite
   // points); patch sizes and strides near INT_MAX overflowed int in prepareFrame (UB).
-  bad = c;
-  bad.K[0] = 1e300;
-  write("regressions", t, "camera_fx_1e300.bin", imageInput(bad));
-  bad = c;
-  bad.K[4] = 1e-300;
-  write("regressions", t, "camera_fy_1e-300.bin", imageInput(bad));
-  bad = c;
-  bad.K[2] = -1e300;
-  write("regressions", t, "camera_cx_-1e300.bin", imageInput(bad));
-  bad = c;
-  bad.K[2] = 3e38;
-  write("regressions", t, "camera_cx_3e38_infinite_points.bin", imageInput(bad));
-  bad = c;
-  bad.patch = std::numeric_limits<int32_t>::max();
-  write("regressions", t, "params_patch_int_max.bin", imageInput(bad));
-  bad = c;
-  bad.stride = std::numeric_limits<int32_t>::max();
-  bad.patch = 3;
-  write("regressions", t, "params_stride_int_max.bin", imageInput(bad));
+  image("regressions", "camera_fx_1e300.bin", [](ImageCase& bad) { bad.K[0] = 1e300; });
+  image("regressions", "camera_fy_1e-300.bin", [](ImageCase& bad) { bad.K[4] = 1e-300; });
+  image("regressions", "camera_cx_-1e300.bin", [](ImageCase& bad) { bad.K[2] = -1e300; });
+  image("regressions", "camera_cx_3e38_infinite_points.bin",
+        [](ImageCase& bad) { bad.K[2] = 3e38; });
+  image("regressions", "params_patch_int_max.bin",
+        [](ImageCase& bad) { bad.patch = std::numeric_limits<int32_t>::max(); });
+  image("regressions", "params_stride_int_max.bin", [](ImageCase& bad) {
+    bad.stride = std::numeric_limits<int32_t>::max();
+    bad.patch = 3;
+  });
 
   CloudCase cl;
   cl.data = cloudPoints(8, 6, 16, 128);
   write("corpus", t, "cloud_8x6.bin", cloudInput(cl));
-  CloudCase b2 = cl;
-  b2.height = 1;
-  write("corpus", t, "cloud_unorganized.bin", cloudInput(b2));
-  b2 = cl;
-  b2.z = -1;
-  write("corpus", t, "cloud_no_z.bin", cloudInput(b2));
-  b2 = cl;
-  b2.data.resize(100);
-  write("corpus", t, "cloud_short_data.bin", cloudInput(b2));
+  // cl with one fault, written as folder/depth_frame/name.
+  const auto cloud = [&](const char* folder, const char* name, void (*fault)(CloudCase&)) {
+    CloudCase bad = cl;
+    fault(bad);
+    write(folder, t, name, cloudInput(bad));
+  };
+  cloud("corpus", "cloud_unorganized.bin", [](CloudCase& bad) { bad.height = 1; });
+  cloud("corpus", "cloud_no_z.bin", [](CloudCase& bad) { bad.z = -1; });
+  cloud("corpus", "cloud_short_data.bin", [](CloudCase& bad) { bad.data.resize(100); });
   // Bugs: a field offset beyond the point read past the data (heap overflow), and
   // width x point_step wrapped around 32 bits, so a short row passed the layout check.
-  b2 = cl;
-  b2.z = 100;
-  write("regressions", t, "cloud_field_offset_beyond_point.bin", cloudInput(b2));
-  b2 = cl;
-  b2.width = 1u << 28;
-  b2.point_step = 16;  // 2^32: wraps to 0 in uint32
-  b2.row_step = 16;
-  b2.height = 2;
-  b2.data.resize(64);
-  write("regressions", t, "cloud_row_step_wraps_32_bits.bin", cloudInput(b2));
+  cloud("regressions", "cloud_field_offset_beyond_point.bin", [](CloudCase& bad) { bad.z = 100; });
+  cloud("regressions", "cloud_row_step_wraps_32_bits.bin", [](CloudCase& bad) {
+    bad.width = 1u << 28;
+    bad.point_step = 16;  // 2^32: wraps to 0 in uint32
+    bad.row_step = 16;
+    bad.height = 2;
+    bad.data.resize(64);
+  });
 }
 
 // ---- compressedDepth ------------------------------------------------------------------------

@@ -17,37 +17,36 @@ namespace {
 // The paper's approximation vs the exact sum over all components (DESIGN.md, Fig. 2).
 constexpr double kApproxRelTol = 0.01;
 
-// The reference pose's frame at pixel stride 4, depths up to 8 m.
-DepthFrame strideFourFrame(const Intrinsics& K) {
-  FrameParams fp;
-  fp.pixel_stride = 4;
-  fp.max_range_m = 8.f;
-  return test::renderFrame(test::referenceBasePose(), K, fp);
-}
+struct MembershipTables {
+  PatchMembership fast, brute;
+};
 
-MeasurementParams noiseOff() {
-  MeasurementParams mp;
-  mp.depth_noise.a_m = mp.depth_noise.b_per_m = 0.f;
-  return mp;
+// The (patch, component) table of computeMembership and the brute-force one for the synthetic
+// world seen from the base pose T_map_base.
+MembershipTables membershipTables(const Eigen::Isometry3d& T_map_base, const Intrinsics& K,
+                                  const PatchGrid& grid) {
+  const auto& w = test::world();
+  const RigidTransformF T_cam_map = toRigidF((T_map_base * w.T_base_cam).inverse());
+  MembershipTables t;
+  std::vector<ProjectedComponent> proj;
+  std::vector<char> valid;
+  computeMembership(w.map.packed(), T_cam_map, K, grid, MeasurementParams(), &proj, &valid,
+                    &t.fast);
+  computeMembershipBruteForce(w.map.packed(), T_cam_map, K, grid, MeasurementParams(), &t.brute);
+  return t;
 }
 
 TEST(MembershipTest, FastTableEqualsBruteForce) {
-  const auto& w = test::world();
   FrameParams fp;
   for (const Intrinsics& K : {test::smallCamera(), test::vgaCamera()}) {
     const PatchGrid grid = PatchGrid::forImage(K.width_px, K.height_px, fp.patch_size_px);
     for (double yaw : {-0.6, 0.4, 2.0, 3.0}) {
       Eigen::Isometry3d T = test::referenceBasePose();
       T.linear() = rotationFromRpy(0.02, -0.03, yaw);
-      const RigidTransformF T_cam_map = toRigidF((T * w.T_base_cam).inverse());
-      PatchMembership fast, brute;
-      std::vector<ProjectedComponent> proj;
-      std::vector<char> valid;
-      computeMembership(w.map.packed(), T_cam_map, K, grid, MeasurementParams(), &proj, &valid, &fast);
-      computeMembershipBruteForce(w.map.packed(), T_cam_map, K, grid, MeasurementParams(), &brute);
-      EXPECT_EQ(fast.begin, brute.begin);
-      EXPECT_EQ(fast.comps, brute.comps);
-      EXPECT_GT(fast.comps.size(), 0u);
+      const MembershipTables m = membershipTables(T, K, grid);
+      EXPECT_EQ(m.fast.begin, m.brute.begin);
+      EXPECT_EQ(m.fast.comps, m.brute.comps);
+      EXPECT_GT(m.fast.comps.size(), 0u);
     }
   }
 }
@@ -56,7 +55,6 @@ TEST(MembershipTest, FastTableEqualsBruteForce) {
 // float rounding of an ellipse or a box edge: computeMembership's vectorised projection then
 // defers to projectComponent, and the table must still be the brute-force one exactly.
 TEST(MembershipTest, FastTableEqualsBruteForceAtRandomPoses) {
-  const auto& w = test::world();
   FrameParams fp;
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> pos(-1.0, 1.0), ang(-3.14159, 3.14159);
@@ -67,15 +65,10 @@ TEST(MembershipTest, FastTableEqualsBruteForceAtRandomPoses) {
     Eigen::Isometry3d T = test::referenceBasePose();
     T.linear() = rotationFromRpy(0.3 * ang(rng), 0.3 * ang(rng), ang(rng));
     T.translation() += Eigen::Vector3d(pos(rng), pos(rng), 0.3 * pos(rng));
-    const RigidTransformF T_cam_map = toRigidF((T * w.T_base_cam).inverse());
-    PatchMembership fast, brute;
-    std::vector<ProjectedComponent> proj;
-    std::vector<char> valid;
-    computeMembership(w.map.packed(), T_cam_map, K, grid, MeasurementParams(), &proj, &valid, &fast);
-    computeMembershipBruteForce(w.map.packed(), T_cam_map, K, grid, MeasurementParams(), &brute);
-    ASSERT_EQ(fast.begin, brute.begin) << k;
-    ASSERT_EQ(fast.comps, brute.comps) << k;
-    pairs += fast.comps.size();
+    const MembershipTables m = membershipTables(T, K, grid);
+    ASSERT_EQ(m.fast.begin, m.brute.begin) << k;
+    ASSERT_EQ(m.fast.comps, m.brute.comps) << k;
+    pairs += m.fast.comps.size();
   }
   std::printf("[ measured ] 100 random poses: %zu (patch, component) pairs, all as brute force\n",
               pairs);
@@ -141,14 +134,17 @@ TEST(MembershipTest, ViewCullKeepsEveryContributingComponent) {
 // whole map through poseLogLikelihood, with the depth-noise model on and off.
 TEST(MembershipTest, BackendOnCulledListEqualsWholeMap) {
   const auto& w = test::world();
-  const DepthFrame frame = strideFourFrame(test::vgaCamera());
+  const DepthFrame frame =
+      test::renderFrame(test::referenceBasePose(), test::vgaCamera(), test::frameParams(4));
   std::vector<RigidTransformF> T_map_cam;
   for (const RigidTransformF& T : spreadCameraPoses(24, false, 9)) {
     T_map_cam.push_back(invertRigid(T));
   }
   CpuBackend backend(2);
   backend.setMap(w.map);
-  for (const MeasurementParams& mp : {noiseOff(), MeasurementParams()}) {
+  MeasurementParams noise_off;
+  noise_off.depth_noise.a_m = noise_off.depth_noise.b_per_m = 0.f;
+  for (const MeasurementParams& mp : {noise_off, MeasurementParams()}) {
     BackendOutput out;
     backend.evaluate(frame, T_map_cam, mp, &out);
     EXPECT_GT(out.visible_components, 0);
@@ -189,10 +185,13 @@ TEST(MembershipTest, ApproximateLikelihoodWithinOnePercentOfExact) {
   // With and without the depth-noise model: the approximation (membership + float kernel) against
   // the double-precision sum over every component of the same model.
   const auto& w = test::world();
-  for (const MeasurementParams& mp : {noiseOff(), MeasurementParams()}) {
+  FrameParams fp = test::frameParams(4);
+  MeasurementParams noise_off;
+  noise_off.depth_noise.a_m = noise_off.depth_noise.b_per_m = 0.f;
+  for (const MeasurementParams& mp : {noise_off, MeasurementParams()}) {
     for (const Intrinsics& K : {test::smallCamera(), test::vgaCamera()}) {
       const Eigen::Isometry3d T_map_base = test::referenceBasePose();
-      const DepthFrame frame = strideFourFrame(K);
+      const DepthFrame frame = test::renderFrame(T_map_base, K, fp);
       const Eigen::Isometry3d T_map_cam = T_map_base * w.T_base_cam;
       LikelihoodScratch scratch;
       const FrameLikelihood approx =

@@ -10,7 +10,7 @@
 #include "gmm_mcl/replay/replay.h"
 #include "gmm_mcl/datasets/sequence_writer.h"
 #include "gmm_mcl/datasets/sim_sequence.h"
-#include "temp_dir.h"
+#include "test_utils/temp_dir.h"
 
 namespace gmm_mcl {
 namespace {

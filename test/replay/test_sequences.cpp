@@ -3,6 +3,8 @@
 #include <cmath>
 #include <functional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -11,7 +13,7 @@
 #include "gmm_mcl/datasets/sim_sequence.h"
 #include "gmm_mcl/datasets/stanford_sequence.h"
 #include "gmm_mcl/datasets/tum_sequence.h"
-#include "temp_dir.h"
+#include "test_utils/temp_dir.h"
 #include "test_utils/synthetic_fixtures.h"
 
 namespace gmm_mcl {
@@ -281,21 +283,27 @@ TEST(StanfordSequenceTest, BadInputNamesTheFileAndTheFault) {
 
   replaceInFile(log, "1 1 2\n", "1 2\n");
   expectError(open, {"trajectory.log:6", "expected a header 'id id frame_index'"});
-  writeText(log, good);
-  writeText(log, good.substr(0, good.rfind('\n', good.size() - 2) + 1));
-  expectError(open, {"trajectory.log", "ends inside the matrix of frame 3"});
-  writeText(log, good + "3 3 4\n1 0 0 0\n0 1 0 0\n0 0 1\n0 0 0 1\n");
-  expectError(open, {"trajectory.log:19", "matrix row of 4 numbers"});
-  writeText(log, good + "3 3 4\n2 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n");
-  expectError(open, {"trajectory.log:20", "not a rotation"});
-  writeText(log, good + "3 3 4\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 1 1\n");
-  expectError(open, {"trajectory.log:20", "last matrix row"});
-  writeText(log, good + "3 3 4\n1 0 0 0\n0 1 0 x\n0 0 1 0\n0 0 0 1\n");
-  expectError(open, {"trajectory.log:18", "'x' is not a finite number"});
-  writeText(log, good + "3 3 2\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n");
-  expectError(open, {"trajectory.log:16", "frame index 2 not increasing"});
-  writeText(log, good + "3 3 7\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n");
-  expectError(open, {"trajectory.log", "frame index 7 has no depth image"});
+  // Each faulty trajectory file and what its error names.
+  const std::vector<std::pair<std::string, std::vector<std::string>>> faults = {
+      {good.substr(0, good.rfind('\n', good.size() - 2) + 1),
+       {"trajectory.log", "ends inside the matrix of frame 3"}},
+      {good + "3 3 4\n1 0 0 0\n0 1 0 0\n0 0 1\n0 0 0 1\n",
+       {"trajectory.log:19", "matrix row of 4 numbers"}},
+      {good + "3 3 4\n2 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n",
+       {"trajectory.log:20", "not a rotation"}},
+      {good + "3 3 4\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 1 1\n",
+       {"trajectory.log:20", "last matrix row"}},
+      {good + "3 3 4\n1 0 0 0\n0 1 0 x\n0 0 1 0\n0 0 0 1\n",
+       {"trajectory.log:18", "'x' is not a finite number"}},
+      {good + "3 3 2\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n",
+       {"trajectory.log:16", "frame index 2 not increasing"}},
+      {good + "3 3 7\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n",
+       {"trajectory.log", "frame index 7 has no depth image"}},
+  };
+  for (const auto& fault : faults) {
+    writeText(log, fault.first);
+    expectError(open, fault.second);
+  }
   writeText(log, good);
   writeText(dir / "other.log", good);
   expectError(open, {dir.path(), "more than one *.log"});

@@ -2,11 +2,11 @@
 # The package as deployed from an install space: installs a built tree into a temporary prefix
 # and runs it from there in a fresh environment that sources only that prefix's setup.bash (the
 # source tree and the build folder are nowhere on the paths):
-#  - the tools and the core library resolve (gmm_fit, gmm_inspect, gmm_mcl_replay, gmm_mcl_bench,
-#    make_sim_bag: each prints its usage; no missing shared library);
+#  - every tool and the core library resolve (each tool prints its usage; no missing shared
+#    library), and the nodes are installed;
 #  - localization.launch loads the nodelet from the install space into a manager, and its
 #    services and messages answer from Python (rosservice call, rostopic type, rosmsg);
-#  - replay.launch plays a bag written by the installed make_sim_bag, and removes
+#  - replay.launch plays a bag written by the installed gmm_mcl_make_sim_bag, and removes
 #    /use_sim_time from the master when it ends.
 #   install_space_test.sh BUILD_DIR MAP.gmm
 set -euo pipefail
@@ -59,10 +59,17 @@ run 'test "$(rospack find gmm_mcl)" = "$PREFIX/share/gmm_mcl"' ||
 for lib in "$PREFIX"/lib/libgmm_mcl_*.so; do
   if run "ldd '$lib'" | grep -q "not found"; then fail "$lib: $(run "ldd '$lib'" | grep 'not found')"; fi
 done
-for tool in gmm_fit gmm_inspect gmm_mcl_replay gmm_mcl_bench make_sim_bag gmm_mcl_params; do
+TOOLS=(gmm_mcl_fit gmm_mcl_inspect gmm_mcl_replay gmm_mcl_score gmm_mcl_bench gmm_mcl_kidnap
+  gmm_mcl_render gmm_mcl_sim_demo gmm_mcl_figures gmm_mcl_params gmm_mcl_make_bag
+  gmm_mcl_make_sim_bag gmm_mcl_make_7scenes_bag gmm_mcl_replay_bag gmm_mcl_evaluate_pose_bag)
+for tool in "${TOOLS[@]}"; do
   run "rosrun gmm_mcl $tool --help" > "$TMP/$tool.log" 2>&1 || fail "rosrun gmm_mcl $tool --help"
 done
-echo "tools: gmm_fit gmm_inspect gmm_mcl_replay gmm_mcl_bench make_sim_bag gmm_mcl_params run"
+# The nodes (they wait for a master): installed and executable.
+for node in gmm_mcl_node gmm_mcl_ground_truth_odometry gmm_mcl_soak_publisher; do
+  [ -x "$PREFIX/lib/gmm_mcl/$node" ] || fail "$node is not in the install space"
+done
+echo "tools: ${TOOLS[*]} run"
 
 start "$TMP/roscore.log" 'roscore -p "${ROS_MASTER_URI##*:}"'
 for _ in $(seq 1 120); do run 'rosparam get /run_id' > /dev/null 2>&1 && break; sleep 0.5; done
@@ -81,9 +88,9 @@ echo "localization.launch: the nodelet loaded from $PREFIX/lib and answered ~glo
 kill -TERM "$LAUNCH"
 wait "$LAUNCH" || true
 
-# replay.launch with a bag from the installed make_sim_bag; /use_sim_time is gone afterwards.
-run 'rosrun gmm_mcl make_sim_bag --bag "$TMP/short.bag" --map "$TMP/short.gmm" --frames 30 --width 160 --quiet' \
-  > "$TMP/make_sim_bag.log" 2>&1 || fail "make_sim_bag"
+# replay.launch with a bag from the installed gmm_mcl_make_sim_bag; /use_sim_time is gone afterwards.
+run 'rosrun gmm_mcl gmm_mcl_make_sim_bag --bag "$TMP/short.bag" --map "$TMP/short.gmm" --frames 30 --width 160 --quiet' \
+  > "$TMP/gmm_mcl_make_sim_bag.log" 2>&1 || fail "gmm_mcl_make_sim_bag"
 run 'timeout 240 roslaunch gmm_mcl replay.launch bag:="$TMP/short.bag" map:="$TMP/short.gmm" \
        overrides:="$PREFIX/share/gmm_mcl/config/sim_test.yaml" params:="$TMP/short_init.yaml" \
        rate:=2 delay:=1 record:="$TMP/poses.bag"' > "$TMP/replay.log" 2>&1 || fail "replay.launch"

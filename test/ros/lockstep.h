@@ -15,6 +15,7 @@
 #include <vector>
 
 #include <diagnostic_msgs/DiagnosticArray.h>
+#include <gtest/gtest.h>
 #include <geometry_msgs/PoseArray.h>
 #include <geometry_msgs/PoseWithCovarianceStamped.h>
 #include <rosbag/bag.h>
@@ -314,6 +315,20 @@ class BagPlayer {
   size_t next_ = 0;
   bool rewound_ = false;
 };
+
+// main() of a test node whose launch file picks its cases with the private parameter ~mode:
+// gtest and ROS initialised, the cases filterForMode(mode) names run.
+inline int runTestNode(int argc, char** argv, const std::string& node,
+                       const std::string& default_mode,
+                       const std::function<std::string(const std::string&)>& filterForMode) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, node);
+  ros::NodeHandle nh;
+  std::string mode;
+  ros::param::param<std::string>("~mode", mode, default_mode);
+  testing::GTEST_FLAG(filter) = filterForMode(mode);
+  return RUN_ALL_TESTS();
+}
 
 }  // namespace lockstep
 }  // namespace gmm_mcl

@@ -33,8 +33,6 @@ namespace {
 
 using namespace gmm_mcl::lockstep;
 
-bool spinUntil(const std::function<bool()>& done, double wall_timeout_s) { return waitFor(done, wall_timeout_s); }
-
 struct ConfigDiag {
   int level;
   std::string message;
@@ -45,7 +43,7 @@ struct ConfigDiag {
 // Bad inputs one after another, each awaited (its ~status, or the drop counted on
 // /diagnostics, whose period the test's clock steps over): the node stays up, says what is
 // wrong, and uses good data again afterwards.
-TEST(BadInputs, NodeSaysWhatIsWrongAndRecovers) {
+TEST(BadInputsTest, NodeSaysWhatIsWrongAndRecovers) {
   ros::NodeHandle nh;
   Clock clock(nh);
   Observer obs(nh);
@@ -159,14 +157,14 @@ TEST(BadInputs, NodeSaysWhatIsWrongAndRecovers) {
                                       last.dropped_camera_info + last.dropped_extrinsics + last.frames_waiting);
 }
 
-TEST(BadConfig, ReportedAndNothingSubscribed) {
+TEST(BadConfigTest, ReportedAndNothingSubscribed) {
   ros::NodeHandle nh;
   std::vector<ConfigDiag> diags;
   ros::Subscriber sub = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
       "/diagnostics", 10, [&](const diagnostic_msgs::DiagnosticArrayConstPtr& m) {
         for (const auto& s : m->status) diags.push_back(ConfigDiag{s.level, s.message});
       });
-  ASSERT_TRUE(spinUntil([&] { return diags.size() >= 2; }, 30.0)) << "no diagnostics from the node";
+  ASSERT_TRUE(waitFor([&] { return diags.size() >= 2; }, 30.0)) << "no diagnostics from the node";
   const ConfigDiag d = diags.back();
   std::printf("[ diag ] level %d: %s\n", d.level, d.message.c_str());
   EXPECT_EQ(d.level, diagnostic_msgs::DiagnosticStatus::ERROR);
@@ -175,7 +173,7 @@ TEST(BadConfig, ReportedAndNothingSubscribed) {
   EXPECT_NE(d.message.find("weighting 'bogus'"), std::string::npos);
   // Still up: diagnostics keep coming.
   const size_t n = diags.size();
-  EXPECT_TRUE(spinUntil([&] { return diags.size() > n; }, 10.0));
+  EXPECT_TRUE(waitFor([&] { return diags.size() > n; }, 10.0));
   // No subscriptions: nobody listens to the depth topic.
   XmlRpc::XmlRpcValue args, result, payload;
   args[0] = ros::this_node::getName();
@@ -188,11 +186,7 @@ TEST(BadConfig, ReportedAndNothingSubscribed) {
 }
 
 int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "rostest_bad_inputs");
-  ros::NodeHandle nh;
-  std::string mode;
-  ros::param::param<std::string>("~mode", mode, "inputs");
-  testing::GTEST_FLAG(filter) = mode == "config" ? "BadConfig.*" : "BadInputs.*";
-  return RUN_ALL_TESTS();
+  return runTestNode(argc, argv, "rostest_bad_inputs", "inputs", [](const std::string& mode) {
+    return std::string(mode == "config" ? "BadConfigTest.*" : "BadInputsTest.*");
+  });
 }

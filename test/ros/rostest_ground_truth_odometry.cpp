@@ -80,7 +80,7 @@ double errorOf(const Recorder& rec, const Stamped& p) {
 
 }  // namespace
 
-TEST(GroundTruthOdometry, LocalizerConvergesOnACowAndLadyLayoutBag) {
+TEST(GroundTruthOdometryTest, LocalizerConvergesOnACowAndLadyLayoutBag) {
   ros::NodeHandle nh;
   Recorder rec(nh);
   lockstep::Clock clock(nh);

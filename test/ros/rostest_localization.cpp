@@ -69,7 +69,7 @@ std::string bagPath() {
 
 }  // namespace
 
-TEST(LocalizationBag, TracksResetsAndPublishesTf) {
+TEST(LocalizationBagTest, TracksResetsAndPublishesTf) {
   ros::NodeHandle nh;
   Observer obs(nh);
   Truth truth(nh);
@@ -151,7 +151,9 @@ TEST(LocalizationBag, TracksResetsAndPublishesTf) {
   for (const auto& p : poses) stamps.insert(p.header.stamp.toNSec());
   int dated = 0;
   for (size_t i = 0; i < obs.tf_stamps.size(); ++i) {
-    if (i > 0) EXPECT_GT(obs.tf_stamps[i], obs.tf_stamps[i - 1]) << "tf " << i << " not monotonic";
+    if (i > 0) {
+      EXPECT_GT(obs.tf_stamps[i], obs.tf_stamps[i - 1]) << "tf " << i << " not monotonic";
+    }
     const uint64_t frame = (obs.tf_stamps[i] - ros::Duration(kTransformTolerance)).toNSec();
     bool match = false;
     for (uint64_t s : {frame - 1, frame, frame + 1}) match = match || stamps.count(s);
@@ -178,7 +180,7 @@ TEST(LocalizationBag, TracksResetsAndPublishesTf) {
   }
 }
 
-TEST(LocalizationBag, LoopedBagResets) {
+TEST(LocalizationBagTest, LoopedBagResets) {
   ros::NodeHandle nh;
   Observer obs(nh);
   Truth truth(nh);
@@ -223,11 +225,8 @@ TEST(LocalizationBag, LoopedBagResets) {
 }
 
 int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "rostest_localization");
-  ros::NodeHandle nh;
-  std::string mode;
-  ros::param::param<std::string>("~mode", mode, "track");
-  testing::GTEST_FLAG(filter) = mode == "looped" ? "LocalizationBag.Looped*" : "LocalizationBag.Tracks*";
-  return RUN_ALL_TESTS();
+  return runTestNode(argc, argv, "rostest_localization", "track", [](const std::string& mode) {
+    return std::string(mode == "looped" ? "LocalizationBagTest.Looped*"
+                                        : "LocalizationBagTest.Tracks*");
+  });
 }

@@ -157,7 +157,7 @@ bool diagUntil(const std::function<bool(const Diag&)>& ok, Diag* out = nullptr, 
 
 }  // namespace
 
-TEST(Nodelet, FirstFrameWaitsForTf) {
+TEST(NodeletTest, FirstFrameWaitsForTf) {
   ASSERT_TRUE(w->robot.waitForNodelet({"/gmm_mcl", "/gmm_mcl_start"}));
   // The first frame, before any tf (neither the static extrinsics nor odometry).
   SyntheticRobot::Frame no_tf;
@@ -174,7 +174,7 @@ TEST(Nodelet, FirstFrameWaitsForTf) {
   EXPECT_EQ(s->dropped_extrinsics, 0);
 }
 
-TEST(Nodelet, DiagnosticsNamedAndOnTime) {
+TEST(NodeletTest, DiagnosticsNamedAndOnTime) {
   Diag d;
   ASSERT_TRUE(w->obs.tickDiagnostics(&w->clock, kDiagPeriodS, &d));
   EXPECT_EQ(d.name, "gmm_mcl: localization") << "named after the manager, not the nodelet";
@@ -188,7 +188,7 @@ TEST(Nodelet, DiagnosticsNamedAndOnTime) {
   w->clock.set(w->robot.stamp(w->step));
 }
 
-TEST(Nodelet, MissingCameraInfoIsNamed) {
+TEST(NodeletTest, MissingCameraInfoIsNamed) {
   ASSERT_TRUE(ensureTracking());
   SyntheticRobot::Frame no_info;
   no_info.camera_info = false;
@@ -204,7 +204,7 @@ TEST(Nodelet, MissingCameraInfoIsNamed) {
   EXPECT_TRUE(ensureTracking()) << "tracking does not resume with CameraInfo";
 }
 
-TEST(Nodelet, MovingExtrinsicsKeepBelief) {
+TEST(NodeletTest, MovingExtrinsicsKeepBelief) {
   ASSERT_TRUE(ensureTracking());
   ASSERT_TRUE(w->obs.subscribeParticles());
   // No process noise or recovery: a held robot's particles only get resampled (copies).
@@ -242,7 +242,7 @@ TEST(Nodelet, MovingExtrinsicsKeepBelief) {
   EXPECT_LT(worst, 0.1);
 }
 
-TEST(Nodelet, ImuBufferedDuringAnUpdate) {
+TEST(NodeletTest, ImuBufferedDuringAnUpdate) {
   ASSERT_TRUE(ensureTracking());
   const int k = ++w->k;
   // Frame k, then at once (while it is being processed) 200 IMU messages at 600 Hz with a roll
@@ -277,7 +277,7 @@ TEST(Nodelet, ImuBufferedDuringAnUpdate) {
   EXPECT_NEAR(r, roll + 0.020, 1e-6) << "the frame did not get the attitude of its own stamp";
 }
 
-TEST(Nodelet, ReconfigureKeepsParticles) {
+TEST(NodeletTest, ReconfigureKeepsParticles) {
   ASSERT_TRUE(ensureTracking());
   ASSERT_TRUE(w->obs.subscribeParticles());
   ros::Time t0, t1, t2;
@@ -307,7 +307,7 @@ TEST(Nodelet, ReconfigureKeepsParticles) {
 
 // The frame-rate budget made deterministic by a budget that no update can meet (0.001 ms): one
 // update over it (budget_over_updates 1) per cut. ~status shows the choice the frame ran with.
-TEST(Nodelet, UpdateBudgetCutsAndKeepsBelief) {
+TEST(NodeletTest, UpdateBudgetCutsAndKeepsBelief) {
   ASSERT_TRUE(ensureTracking());
   ASSERT_TRUE(reconfigure({{"max_update_ms", 0.001}},
                           {{"budget_max_pixel_stride", 12}, {"budget_min_particles", 150}, {"budget_over_updates", 1}},
@@ -342,7 +342,7 @@ TEST(Nodelet, UpdateBudgetCutsAndKeepsBelief) {
   restoreDefaults();
 }
 
-TEST(Nodelet, RequestedPoses) {
+TEST(NodeletTest, RequestedPoses) {
   ASSERT_TRUE(ensureTracking());
   ASSERT_TRUE(waitFor([&] { return w->initialpose.getNumSubscribers() > 0; }));
   // rviz's 2D Pose Estimate: z = 0, yaw only, x/y variance 0.25, yaw 0.0685.
@@ -381,7 +381,7 @@ TEST(Nodelet, RequestedPoses) {
   EXPECT_LT(err, 0.2) << "a pose in another frame was used as if in the map frame";
 }
 
-TEST(Nodelet, DiagnosticsWarn) {
+TEST(NodeletTest, DiagnosticsWarn) {
   ASSERT_TRUE(ensureTracking());
   // Global localization: the estimate is metres wide, not "OK".
   std_srvs::Empty srv;
@@ -401,7 +401,7 @@ TEST(Nodelet, DiagnosticsWarn) {
   restoreDefaults();
 }
 
-TEST(Nodelet, MarkersAgainAfterAJumpBack) {
+TEST(NodeletTest, MarkersAgainAfterAJumpBack) {
   ASSERT_TRUE(w->obs.subscribeMarkers());
   ASSERT_TRUE(waitFor([&] { return w->obs.marker_messages >= 1; })) << "the latched markers never came";
   ASSERT_TRUE(ensureTracking());
@@ -423,7 +423,7 @@ TEST(Nodelet, MarkersAgainAfterAJumpBack) {
 
 // A looped bag's first frame taken before the nodelet has the clock's jump back (/clock comes on
 // another connection): a jump back as well, not a frame whose tf came late.
-TEST(Nodelet, JumpBackBeforeTheClock) {
+TEST(NodeletTest, JumpBackBeforeTheClock) {
   ASSERT_TRUE(ensureTracking());
   const ros::Time back = w->robot.stamp(w->step - 1) - ros::Duration(10.0);
   w->robot.send(back, w->robot.truth(w->k));  // the clock stays where it is
@@ -433,7 +433,7 @@ TEST(Nodelet, JumpBackBeforeTheClock) {
   ASSERT_TRUE(ensureTracking());
 }
 
-TEST(Nodelet, MotionGating) {
+TEST(NodeletTest, MotionGating) {
   ASSERT_TRUE(ensureTracking());
   ASSERT_TRUE(reconfigure({{"update_min_d", 0.3}, {"update_min_a", 0.3}}));
   // Hovering: the first frame after the change updates (the gate starts from it), then none.
@@ -459,7 +459,7 @@ TEST(Nodelet, MotionGating) {
   restoreDefaults();
 }
 
-TEST(Nodelet, TfBroadcastOff) {
+TEST(NodeletTest, TfBroadcastOff) {
   ASSERT_TRUE(ensureTracking());
   ASSERT_TRUE(reconfigure({}, {}, {{"tf_broadcast", false}}));
   ros::Time t;
@@ -474,7 +474,7 @@ TEST(Nodelet, TfBroadcastOff) {
   EXPECT_TRUE(waitFor([&] { return w->obs.tf_stamps.size() > n; }));
 }
 
-TEST(Nodelet, SavePose) {
+TEST(NodeletTest, SavePose) {
   ASSERT_TRUE(ensureTracking());
   ros::Time t;
   for (int i = 0; i < 70; ++i) ASSERT_NE(sendFrame(++w->k, SyntheticRobot::Frame(), &t), nullptr);  // > 2 s
@@ -495,7 +495,7 @@ TEST(Nodelet, SavePose) {
   EXPECT_GT(cov_xx, 0.0);
 }
 
-TEST(Nodelet, ReloadMap) {
+TEST(NodeletTest, ReloadMap) {
   ASSERT_TRUE(ensureTracking());
   LoadMap srv;
   srv.request.path = "/nonexistent/map.gmm";
@@ -513,7 +513,7 @@ TEST(Nodelet, ReloadMap) {
   EXPECT_LT(errorOfFrame(t, w->k), kTrackedM) << "the particles were not kept across the reload";
 }
 
-TEST(Nodelet, RefinedPoseAndDebugImage) {
+TEST(NodeletTest, RefinedPoseAndDebugImage) {
   ASSERT_TRUE(ensureTracking());
   std::vector<geometry_msgs::PoseWithCovarianceStamped> refined;
   std::vector<sensor_msgs::Image> debug;
@@ -543,7 +543,7 @@ TEST(Nodelet, RefinedPoseAndDebugImage) {
 // A second nodelet in the same manager starts from ~initial_pose_* (far from its initial
 // region) and asks for the CUDA backend: without CUDA in the build or a usable device the CPU
 // runs, and says so; with both (scripts/gpu_ros_check.sh on a GPU machine) CUDA runs, silently.
-TEST(Nodelet, SinglePoseStartAndCpuFallback) {
+TEST(NodeletTest, SinglePoseStartAndCpuFallback) {
   const FilterStatus* first = nullptr;
   ASSERT_TRUE(waitFor([&] { return !w->start_obs.statuses.empty(); })) << "the second nodelet never updated";
   first = &w->start_obs.statuses.front();

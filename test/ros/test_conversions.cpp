@@ -37,7 +37,7 @@ sensor_msgs::CameraInfo infoMsg(int w, int h) {
 
 }  // namespace
 
-TEST(RosConversions, BothEncodingsGiveTheSameDepths) {
+TEST(RosConversionsTest, BothEncodingsGiveTheSameDepths) {
   std::vector<uint16_t> mm = {0, 1000, 2500, 65535, 1234, 4000};
   std::vector<float> m = {std::numeric_limits<float>::quiet_NaN(), 1.0f, 2.5f,
                           std::numeric_limits<float>::quiet_NaN(), 1.234f, 4.0f};
@@ -48,13 +48,15 @@ TEST(RosConversions, BothEncodingsGiveTheSameDepths) {
   for (int v = 0; v < 2; ++v) {
     for (int u = 0; u < 3; ++u) {
       const float za = a.depthMetres(u, v), zb = b.depthMetres(u, v);
-      if (std::isnan(zb)) EXPECT_TRUE(std::isnan(za)) << u << "," << v;
+      if (std::isnan(zb)) {
+        EXPECT_TRUE(std::isnan(za)) << u << "," << v;
+      }
       else EXPECT_NEAR(za, zb, 1e-6) << u << "," << v;
     }
   }
 }
 
-TEST(RosConversions, BigEndianSamplesAreSwapped) {
+TEST(RosConversionsTest, BigEndianSamplesAreSwapped) {
   DepthImage d = DepthImage::fromMillimetres(2, 1, {1000, 2000});
   sensor_msgs::Image msg = imageMsg(d, "16UC1");
   msg.is_bigendian = 1;
@@ -66,7 +68,7 @@ TEST(RosConversions, BigEndianSamplesAreSwapped) {
   EXPECT_NEAR(out.depthMetres(1, 0), 2.0f, 1e-6);
 }
 
-TEST(RosConversions, BadImagesSayWhy) {
+TEST(RosConversionsTest, BadImagesSayWhy) {
   DepthImage d = DepthImage::fromMillimetres(4, 3, std::vector<uint16_t>(12, 1000));
   DepthImage out;
   std::string why;
@@ -85,7 +87,7 @@ TEST(RosConversions, BadImagesSayWhy) {
   EXPECT_FALSE(ros_conv::depthImageFromMsg(empty, &out, &why));
 }
 
-TEST(RosConversions, CameraInfo) {
+TEST(RosConversionsTest, CameraInfo) {
   Intrinsics K;
   std::string why;
   ASSERT_TRUE(ros_conv::intrinsicsFromCameraInfo(infoMsg(64, 48), 64, 48, &K, &why)) << why;
@@ -106,7 +108,7 @@ TEST(RosConversions, CameraInfo) {
 
 // P (the rectified image's projection) before K, binning and the region of interest as
 // image_geometry applies them, distortion without P refused.
-TEST(RosConversions, CameraInfoProjectionBinningRoiAndDistortion) {
+TEST(RosConversionsTest, CameraInfoProjectionBinningRoiAndDistortion) {
   sensor_msgs::CameraInfo info = infoMsg(640, 480);
   info.P = {500, 0, 320, 0, 0, 505, 240, 0, 0, 0, 1, 0};
   Intrinsics K;
@@ -144,7 +146,7 @@ TEST(RosConversions, CameraInfoProjectionBinningRoiAndDistortion) {
   EXPECT_NE(why.find("distortion"), std::string::npos) << why;
 }
 
-TEST(RosConversions, OrganizedCloudGivesDepthAndIntrinsics) {
+TEST(RosConversionsTest, OrganizedCloudGivesDepthAndIntrinsics) {
   Intrinsics K;
   K.width_px = 80;
   K.height_px = 60;
@@ -187,7 +189,9 @@ TEST(RosConversions, OrganizedCloudGivesDepthAndIntrinsics) {
   for (int v = 0; v < K.height_px; v += 7) {
     for (int u = 0; u < K.width_px; u += 5) {
       const float a = depth.depthMetres(u, v), b = out.depthMetres(u, v);
-      if (std::isfinite(a)) EXPECT_NEAR(a, b, 1e-6);
+      if (std::isfinite(a)) {
+        EXPECT_NEAR(a, b, 1e-6);
+      }
       else EXPECT_TRUE(std::isnan(b));
     }
   }
@@ -198,7 +202,7 @@ TEST(RosConversions, OrganizedCloudGivesDepthAndIntrinsics) {
   EXPECT_NE(why.find("not organized"), std::string::npos) << why;
 }
 
-TEST(RosConversions, ImuAttitude) {
+TEST(RosConversionsTest, ImuAttitude) {
   sensor_msgs::Imu imu;
   const Eigen::Quaterniond q(rotationFromRpy(0.1, -0.2, 2.0));
   imu.orientation.w = q.w();
@@ -216,7 +220,7 @@ TEST(RosConversions, ImuAttitude) {
   EXPECT_FALSE(ros_conv::attitudeFromImu(zero, &roll, &pitch));
 }
 
-TEST(RosConversions, PoseRoundTripAndEstimate) {
+TEST(RosConversionsTest, PoseRoundTripAndEstimate) {
   Eigen::Isometry3d T = particleToPose(Particle{1.0, -2.0, 0.5, 2.5}, 0.05, -0.1);
   const Eigen::Isometry3d back = ros_conv::isometryFromPose(ros_conv::poseFromIsometry(T));
   EXPECT_TRUE(back.isApprox(T, 1e-12));
@@ -240,7 +244,7 @@ TEST(RosConversions, PoseRoundTripAndEstimate) {
   EXPECT_TRUE(ros_conv::isometryFromPose(unset).isApprox(Eigen::Isometry3d::Identity(), 0.0));
 }
 
-TEST(RosConversions, ParticlesAndMarkers) {
+TEST(RosConversionsTest, ParticlesAndMarkers) {
   std::vector<Particle> particles = {{0, 0, 0, 0}, {1, 2, 3, 1.0}};
   geometry_msgs::PoseArray arr;
   ros_conv::poseArrayFromParticles(particles, 0.0, 0.0, &arr);
@@ -266,7 +270,7 @@ TEST(RosConversions, ParticlesAndMarkers) {
 }
 
 #ifdef GMM_MCL_HAVE_PNG
-TEST(RosConversions, CompressedDepthRoundTrip) {
+TEST(RosConversionsTest, CompressedDepthRoundTrip) {
   std::vector<uint16_t> mm = {0, 1000, 2500, 65534, 1234, 4000};
   sensor_msgs::CompressedImage msg;
   std::string why;
@@ -305,7 +309,7 @@ TEST(RosConversions, CompressedDepthRoundTrip) {
 
 // A requested pose in another frame goes through tf (covariance rotated); a planar tool's pose
 // is marked planar before the transform (rviz sends z = 0 in its fixed frame).
-TEST(RosConversions, PoseResetRequestThroughTf) {
+TEST(RosConversionsTest, PoseResetRequestThroughTf) {
   tf2::BufferCore tf;
   Eigen::Isometry3d T_map_odom = Eigen::Isometry3d::Identity();
   T_map_odom.translation() = Eigen::Vector3d(1.5, -1.0, 0.2);

@@ -2,13 +2,6 @@
 // from the synthetic scene, on the shared 7-Scenes data (skipped without), the cow_and_lady
 // layout; message counts, content against the sequence, the protocol's noise, seeding; and
 // gmm_mcl_replay_bag on converted bags.
-#include <cmath>
-#include <cstdlib>
-#include <fstream>
-#include <map>
-#include <sstream>
-#include <string>
-
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <gtest/gtest.h>
@@ -21,6 +14,13 @@
 #include <sensor_msgs/PointCloud2.h>
 #include <tf2_msgs/TFMessage.h>
 
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/replay/replay.h"
 #include "gmm_mcl/datasets/sequence_writer.h"
@@ -28,8 +28,8 @@
 #include "gmm_mcl/ros/bag_writer.h"
 #include "gmm_mcl/ros/conversions.h"
 #include "gmm_mcl/ros/sequence_bag.h"
-#include "temp_dir.h"
 #include "test_utils/synthetic_fixtures.h"
+#include "test_utils/temp_dir.h"
 
 namespace gmm_mcl {
 namespace {
@@ -104,7 +104,9 @@ void checkImageLayout(const BagContents& c, const Sequence& seq, int n) {
     EXPECT_EQ(img.header.frame_id, "camera_depth_optical_frame");
     EXPECT_NEAR((img.header.stamp - c.images[0].header.stamp).toSec(),
                 seq.stampS(f) - seq.stampS(0), 2e-6);
-    if (f % 5 == 0) EXPECT_EQ(img.data, seq.loadDepth(f).data) << "frame " << f;
+    if (f % 5 == 0) {
+      EXPECT_EQ(img.data, seq.loadDepth(f).data) << "frame " << f;
+    }
     EXPECT_FLOAT_EQ(c.infos[f].K[0], seq.intrinsics().fx_px);
     EXPECT_FLOAT_EQ(c.infos[f].K[5], seq.intrinsics().cy_px);
     EXPECT_EQ(c.truth[f].header.stamp, img.header.stamp);

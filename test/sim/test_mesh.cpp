@@ -74,7 +74,7 @@ void expectTestMesh(const Mesh& m) {
   EXPECT_NEAR(m.area_m2(), 1.0 + 1.0, 1e-6);
 }
 
-TEST(PlyMesh, AsciiAndBothBinaryByteOrdersAgree) {
+TEST(PlyMeshTest, AsciiAndBothBinaryByteOrdersAgree) {
   expectTestMesh(loadPlyMesh(write("ascii.ply", std::string(kAsciiHeader) + kAsciiBody)));
   expectTestMesh(loadPlyMesh(write("le.ply", binaryPly(false))));
   expectTestMesh(loadPlyMesh(write("be.ply", binaryPly(true))));
@@ -99,7 +99,7 @@ void expectFault(const std::string& name, const std::string& content, const std:
   }
 }
 
-TEST(PlyMesh, EachFaultIsAClearError) {
+TEST(PlyMeshTest, EachFaultIsAClearError) {
   const std::string h = kAsciiHeader, b = kAsciiBody;
   try {
     loadPlyMesh(tempPath("does_not_exist.ply"));
@@ -127,18 +127,18 @@ TEST(PlyMesh, EachFaultIsAClearError) {
   expectFault("trunc_le.ply", binaryPly(false, 3), "truncated");
   expectFault("trunc_faces.ply", binaryPly(false).substr(0, binaryPly(false).size() - 15),
               "truncated binary data");
-  expectFault("index.ply", h + "0 0 0 1\n1 0 0 2\n1 1 0 3\n0 1 0 4\n0 0 2 5\n4 0 1 2 3\n3 0 1 5\n",
-              "face 1 has vertex index 5");
-  expectFault("negindex.ply", h + "0 0 0 1\n1 0 0 2\n1 1 0 3\n0 1 0 4\n0 0 2 5\n4 0 1 2 3\n3 0 -1 4\n",
-              "vertex index -1");
-  expectFault("twovert.ply", h + "0 0 0 1\n1 0 0 2\n1 1 0 3\n0 1 0 4\n0 0 2 5\n2 0 1\n3 0 1 4\n",
-              "face 0 has 2 vertices");
-  expectFault("nan.ply", h + "0 0 0 1\n1 nan 0 2\n1 1 0 3\n0 1 0 4\n0 0 2 5\n4 0 1 2 3\n3 0 1 4\n",
-              "vertex 1 has a non-finite");
-  expectFault("word.ply", h + "0 0 0 1\n1 abc 0 2\n1 1 0 3\n0 1 0 4\n0 0 2 5\n4 0 1 2 3\n3 0 1 4\n",
-              "bad number 'abc'");
-  expectFault("floatindex.ply", h + "0 0 0 1\n1 0 0 2\n1 1 0 3\n0 1 0 4\n0 0 2 5\n4 0 1 2 3\n3 0 1.5 4\n",
-              "non-integer");
+  // The good file with one line of its body replaced.
+  const auto edited = [&](const std::string& line, const std::string& by) {
+    std::string body = b;
+    body.replace(body.find(line), line.size(), by);
+    return h + body;
+  };
+  expectFault("index.ply", edited("3 0 1 4\n", "3 0 1 5\n"), "face 1 has vertex index 5");
+  expectFault("negindex.ply", edited("3 0 1 4\n", "3 0 -1 4\n"), "vertex index -1");
+  expectFault("twovert.ply", edited("4 0 1 2 3\n", "2 0 1\n"), "face 0 has 2 vertices");
+  expectFault("nan.ply", edited("1 0 0 2\n", "1 nan 0 2\n"), "vertex 1 has a non-finite");
+  expectFault("word.ply", edited("1 0 0 2\n", "1 abc 0 2\n"), "bad number 'abc'");
+  expectFault("floatindex.ply", edited("3 0 1 4\n", "3 0 1.5 4\n"), "non-integer");
   expectFault("points.ply",
               "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
               "property float z\nend_header\n0 0 0\n",
@@ -155,7 +155,7 @@ TEST(PlyMesh, EachFaultIsAClearError) {
               "face element comes before the vertex element");
 }
 
-TEST(PlyMesh, RoundTripOfTheSceneMeshIsExact) {
+TEST(PlyMeshTest, RoundTripOfTheSceneMeshIsExact) {
   const Mesh m = meshFromScene(makeDefaultPrimitiveScene());
   const std::string p = tempPath("scene.ply");
   savePlyMesh(m, p);
@@ -166,7 +166,7 @@ TEST(PlyMesh, RoundTripOfTheSceneMeshIsExact) {
   for (size_t i = 0; i < m.triangles.size(); ++i) EXPECT_EQ(r.triangles[i], m.triangles[i]);
 }
 
-TEST(PlyMesh, InvalidMeshIsRefusedByWriterAndBvh) {
+TEST(PlyMeshTest, InvalidMeshIsRefusedByWriterAndBvh) {
   Mesh m;
   m.vertices_m = {Eigen::Vector3f(0, 0, 0), Eigen::Vector3f(1, 0, 0)};
   m.triangles = {{0, 1, 2}};

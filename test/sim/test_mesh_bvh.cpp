@@ -48,7 +48,7 @@ bool bruteForce(const Mesh& m, const Eigen::Vector3d& o, const Eigen::Vector3d& 
   return found;
 }
 
-TEST(MeshBvh, MatchesBruteForceOnATriangleSoup) {
+TEST(MeshBvhTest, MatchesBruteForceOnATriangleSoup) {
   std::mt19937_64 rng(7);
   std::uniform_real_distribution<float> pos(-2.f, 2.f), off(-0.3f, 0.3f);
   Mesh m;
@@ -87,7 +87,7 @@ TEST(MeshBvh, MatchesBruteForceOnATriangleSoup) {
   EXPECT_LE(mismatches, kMaxMismatchFraction * rays) << mismatches << " of " << rays;
 }
 
-TEST(MeshRenderer, PlaneInFrontGivesExactZDepthAndIncidence) {
+TEST(MeshRendererTest, PlaneInFrontGivesExactZDepthAndIncidence) {
   // A large square at z = 2 m in the camera frame, camera at the origin looking along +z.
   Mesh m;
   m.vertices_m = {{-10, -10, 2}, {10, -10, 2}, {10, 10, 2}, {-10, 10, 2}};
@@ -108,7 +108,7 @@ TEST(MeshRenderer, PlaneInFrontGivesExactZDepthAndIncidence) {
   for (float z : near_only.z_m) EXPECT_TRUE(std::isnan(z));
 }
 
-TEST(MeshRenderer, AgreesWithTheAnalyticBoxScene) {
+TEST(MeshRendererTest, AgreesWithTheAnalyticBoxScene) {
   const BoxScene boxes = makeDefaultScene();
   PrimitiveScene scene;
   scene.room = boxes.room;
@@ -140,7 +140,7 @@ TEST(MeshRenderer, AgreesWithTheAnalyticBoxScene) {
   EXPECT_LT(max_err, 1e-4);
 }
 
-TEST(MeshScene, DefaultSceneHasCylindersAndAValidMap) {
+TEST(MeshSceneTest, DefaultSceneHasCylindersAndAValidMap) {
   const MeshScene s = makeDefaultMeshScene();
   EXPECT_GE(s.primitives.cylinders.size(), 5u);
   EXPECT_TRUE(s.mesh.check().empty());

@@ -55,7 +55,7 @@ Comparison compare(const DepthImage& ref, double units_per_m, const IdealDepth& 
   return c;
 }
 
-TEST(ReplicaRender, MatchesTheReferenceDepthFrames) {
+TEST(ReplicaRenderTest, MatchesTheReferenceDepthFrames) {
 #ifndef GMM_MCL_HAVE_PNG
   GTEST_SKIP() << "built without libpng: cannot read the reference frames";
 #else

@@ -26,7 +26,7 @@ Mesh quad(const Eigen::Vector3f& a, const Eigen::Vector3f& b, const Eigen::Vecto
 
 Mesh wallAt(float z) { return quad({-20, -20, z}, {20, -20, z}, {20, 20, z}, {-20, 20, z}); }
 
-TEST(SensorNoise, DefaultsAreValidAndNumbersMatchTheSource) {
+TEST(SensorNoiseTest, DefaultsAreValidAndNumbersMatchTheSource) {
   const SensorNoiseParams p;
   EXPECT_EQ(p.validate(), "");
   EXPECT_EQ(SensorNoiseParams::noiseFree().validate(), "");
@@ -56,7 +56,7 @@ TEST(SensorNoise, DefaultsAreValidAndNumbersMatchTheSource) {
                std::invalid_argument);
 }
 
-TEST(SensorNoise, AxialNoiseHasTheModelSigmaAndQuantisationSnapsToDisparitySteps) {
+TEST(SensorNoiseTest, AxialNoiseHasTheModelSigmaAndQuantisationSnapsToDisparitySteps) {
   const MeshBvh bvh(wallAt(2.f));
   const Intrinsics K = test::smallCamera();
   const IdealDepth ideal = renderIdealDepth(bvh, K, Eigen::Isometry3d::Identity(), 10.0);
@@ -93,7 +93,7 @@ TEST(SensorNoise, AxialNoiseHasTheModelSigmaAndQuantisationSnapsToDisparitySteps
   }
 }
 
-TEST(SensorNoise, GrazingIncidenceIsMissing) {
+TEST(SensorNoiseTest, GrazingIncidenceIsMissing) {
   // A floor 1 m below a camera looking forward: incidence grows towards the horizon.
   const MeshBvh bvh(quad({-50, 1, 0}, {50, 1, 0}, {50, 1, 100}, {-50, 1, 100}));
   const Intrinsics K = test::smallCamera();
@@ -120,7 +120,7 @@ TEST(SensorNoise, GrazingIncidenceIsMissing) {
   EXPECT_EQ(beyond_kept, 0);
 }
 
-TEST(SensorNoise, ProjectorShadowLiesLeftOfAForegroundPlateWithTheExpectedWidth) {
+TEST(SensorNoiseTest, ProjectorShadowLiesLeftOfAForegroundPlateWithTheExpectedWidth) {
   Mesh m = wallAt(3.f);
   m.append(quad({-0.2f, -0.2f, 1.5f}, {0.2f, -0.2f, 1.5f}, {0.2f, 0.2f, 1.5f}, {-0.2f, 0.2f, 1.5f}));
   const MeshBvh bvh(m);
@@ -153,7 +153,7 @@ TEST(SensorNoise, ProjectorShadowLiesLeftOfAForegroundPlateWithTheExpectedWidth)
   EXPECT_TRUE(std::isfinite(z[row + plate_right - 3]));
 }
 
-TEST(SensorNoise, RangeWindowDropoutAndDeterminism) {
+TEST(SensorNoiseTest, RangeWindowDropoutAndDeterminism) {
   const MeshBvh bvh(wallAt(2.f));
   const Intrinsics K = test::smallCamera();
   SensorNoiseParams p;  // defaults

@@ -37,12 +37,32 @@ Eigen::Isometry3d referenceBasePose() {
   return T;
 }
 
+FrameParams frameParams(int pixel_stride) {
+  FrameParams fp;
+  fp.pixel_stride = pixel_stride;
+  fp.max_range_m = 8.f;
+  return fp;
+}
+
+Particle perturbed(const Particle& truth, std::normal_distribution<double>& n01,
+                   std::mt19937_64& rng) {
+  Particle p = truth;
+  p.x_m += 0.03 * n01(rng);
+  p.y_m += 0.03 * n01(rng);
+  p.z_m += 0.02 * n01(rng);
+  p.yaw_rad += 0.015 * n01(rng);
+  return p;
+}
+
+DepthImage renderImage(const Eigen::Isometry3d& T_map_base, const Intrinsics& K, double max_range_m,
+                       DepthEncoding encoding) {
+  const SyntheticWorld& w = world();
+  return sim::renderDepth(w.scene, K, T_map_base * w.T_base_cam, encoding, max_range_m);
+}
+
 DepthFrame renderFrame(const Eigen::Isometry3d& T_map_base, const Intrinsics& K,
                        const FrameParams& params, DepthEncoding encoding) {
-  const SyntheticWorld& w = world();
-  const DepthImage img =
-      sim::renderDepth(w.scene, K, T_map_base * w.T_base_cam, encoding, params.max_range_m + 1.0);
-  return prepareFrame(img, K, params);
+  return prepareFrame(renderImage(T_map_base, K, params.max_range_m + 1.0, encoding), K, params);
 }
 
 std::string datasetsRoot() {

@@ -1,6 +1,7 @@
 // Shared synthetic fixtures for the core tests: the box scene, its tiled GMM, a camera, frames.
 #pragma once
 
+#include <random>
 #include <string>
 
 #include "gmm_mcl/camera/depth_frame.h"
@@ -26,9 +27,23 @@ const SyntheticWorld& world();
 // A base pose inside the room looking at furniture (x forward, z up).
 Eigen::Isometry3d referenceBasePose();
 
+// Frame parameters of the tests on the synthetic scene: every pixel_stride-th pixel, ranges up
+// to 8 m (the room's far walls), the rest default.
+FrameParams frameParams(int pixel_stride);
+
+// The synthetic world's depth image from the base pose T_map_base, ranges up to max_range_m.
+DepthImage renderImage(const Eigen::Isometry3d& T_map_base, const Intrinsics& K, double max_range_m,
+                       DepthEncoding encoding = DepthEncoding::kMono16Millimetres);
+// Its frame (rendered 1 m beyond params.max_range_m, then prepared with params).
 DepthFrame renderFrame(const Eigen::Isometry3d& T_map_base, const Intrinsics& K,
                        const FrameParams& params,
                        DepthEncoding encoding = DepthEncoding::kMono16Millimetres);
+
+// `truth` moved about as far as a converged particle set spreads (the filter's process noise is
+// 2 cm): Gaussian offsets of 3 cm in x and y, 2 cm in z and 0.015 rad in yaw, drawn from n01 in
+// that order.
+Particle perturbed(const Particle& truth, std::normal_distribution<double>& n01,
+                   std::mt19937_64& rng);
 
 // Root of ../shared/datasets ($GMM_MCL_DATASETS overrides); empty when absent.
 std::string datasetsRoot();

@@ -1,8 +1,8 @@
 // Writing sensor bags for the nodelet: one place for the message layout that replay.launch
 // plays (depth 16UC1 + CameraInfo, organized PointCloud2, IMU attitude, odometry as
 // nav_msgs/Odometry and tf, the latched static base -> camera tf, ground truth) and the
-// parameter file with the initial region. Used by gmm_mcl_make_bag and make_7scenes_bag;
-// make_sim_bag writes the same layout by hand and can adopt it.
+// parameter file with the initial region. Used by gmm_mcl_make_bag and gmm_mcl_make_7scenes_bag;
+// gmm_mcl_make_sim_bag writes the same layout by hand and can adopt it.
 #pragma once
 
 #include <string>
@@ -19,7 +19,7 @@
 namespace gmm_mcl {
 namespace ros_bag {
 
-// Topic and frame names; the defaults are replay.launch's (and make_sim_bag's).
+// Topic and frame names; the defaults are replay.launch's (and gmm_mcl_make_sim_bag's).
 struct BagLayout {
   std::string depth_topic = "/camera/depth/image_raw";
   std::string camera_info_topic = "/camera/depth/camera_info";

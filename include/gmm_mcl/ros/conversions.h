@@ -41,7 +41,7 @@ bool depthImageFromMsg(const sensor_msgs::Image& msg, DepthImage* out, std::stri
 // Decoded once at the boundary, without the transport plugin (Debian does not package it).
 bool depthImageFromCompressedDepth(const sensor_msgs::CompressedImage& msg, DepthImage* out,
                                    std::string* error);
-// The inverse: encodes a depth image in that format (tests, make_sim_bag --compressed).
+// The inverse: encodes a depth image in that format (tests, gmm_mcl_make_sim_bag --compressed).
 bool compressedDepthFromImage(const DepthImage& image, sensor_msgs::CompressedImage* out,
                               std::string* error);
 

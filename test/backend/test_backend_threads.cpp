@@ -17,9 +17,7 @@ namespace {
 TEST(BackendThreadsTest, SameLikelihoodsForEveryThreadCount) {
   const auto& w = test::world();
   const Intrinsics K = test::smallCamera();
-  FrameParams fp;
-  fp.pixel_stride = 8;
-  fp.max_range_m = 8.f;
+  FrameParams fp = test::frameParams(8);
   const Eigen::Isometry3d T_map_base = test::referenceBasePose();
   const DepthFrame frame = test::renderFrame(T_map_base, K, fp);
   ASSERT_FALSE(frame.empty());

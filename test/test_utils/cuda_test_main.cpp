@@ -1,0 +1,20 @@
+// main() of the CUDA test programs: exit status 77 (a skip for ctest) with the reason when this
+// machine has no CUDA device, else every case.
+#include <cstdio>
+#include <cstring>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "gmm_mcl/backend/cuda_backend.h"
+
+int main(int argc, char** argv) {
+  std::string why;
+  if (gmm_mcl::cudaDeviceCount(&why) == 0) {
+    const char* slash = std::strrchr(argv[0], '/');
+    std::printf("%s: skipped: %s\n", slash ? slash + 1 : argv[0], why.c_str());
+    return 77;
+  }
+  ::testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}
