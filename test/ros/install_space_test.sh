@@ -88,12 +88,22 @@ echo "localization.launch: the nodelet loaded from $PREFIX/lib and answered ~glo
 kill -TERM "$LAUNCH"
 wait "$LAUNCH" || true
 
-# replay.launch with a bag from the installed gmm_mcl_make_sim_bag; /use_sim_time is gone afterwards.
+# replay.launch with a bag from the installed gmm_mcl_make_sim_bag, looped until the nodelet's
+# poses reach the recorder (the test waits for them, not for a time: on a loaded machine the
+# nodelet may start after a short bag has ended); /use_sim_time is gone after the launch ends.
 run 'rosrun gmm_mcl gmm_mcl_make_sim_bag --bag "$TMP/short.bag" --map "$TMP/short.gmm" --frames 30 --width 160 --quiet' \
   > "$TMP/gmm_mcl_make_sim_bag.log" 2>&1 || fail "gmm_mcl_make_sim_bag"
-run 'timeout 240 roslaunch gmm_mcl replay.launch bag:="$TMP/short.bag" map:="$TMP/short.gmm" \
+start "$TMP/replay.log" 'roslaunch gmm_mcl replay.launch bag:="$TMP/short.bag" map:="$TMP/short.gmm" \
        overrides:="$PREFIX/share/gmm_mcl/config/sim_test.yaml" params:="$TMP/short_init.yaml" \
-       rate:=2 delay:=1 record:="$TMP/poses.bag"' > "$TMP/replay.log" 2>&1 || fail "replay.launch"
+       loop:=true delay:=1 record:="$TMP/poses.bag"'
+REPLAY=${PIDS[-1]}
+# Poses published after the recorder has subscribed are in its bag.
+run 'for _ in $(seq 1 480); do rostopic info /gmm_mcl/pose 2> /dev/null | grep -q "/recorder" && exit 0
+     sleep 0.5; done; exit 1' || fail "the recorder of replay.launch never subscribed to /gmm_mcl/pose"
+run 'timeout 300 rostopic echo -n 5 /gmm_mcl/pose' > "$TMP/poses.log" 2>&1 ||
+  fail "replay.launch's nodelet published no pose"
+kill -INT "$REPLAY"
+wait "$REPLAY" || true
 run 'rosbag info "$TMP/poses.bag"' | grep -q "/gmm_mcl/pose" || fail "no pose recorded by replay.launch"
 if run 'rosparam get /use_sim_time' > /dev/null 2>&1; then
   fail "/use_sim_time is still set after replay.launch ended: $(run 'rosparam get /use_sim_time')"
