@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Every test: installs what is missing (apt), builds the core, the backends, the tools, the ROS
-# nodelet and all tests, and runs them with ctest (gtest suites, rostests, the package installed
+# nodelet and all tests, and runs them with ctest (gtest suites, rostests, the sources' clang-format check, the package installed
 # into a temporary prefix and run from there, fuzz corpus replays);
 # then compiles the CUDA backend with nvcc (its tests skip without a GPU); then the Jetson TX2
 # proxies (docs/tx2.md); then builds the core's unit tests with ASan and UBSan in their own
@@ -9,7 +9,8 @@
 set -euo pipefail
 source "$(dirname "$0")/common.sh"
 source "$(dirname "$0")/ros_common.sh"
-ensure_packages "${CORE_PACKAGES[@]}" "${ROS_PACKAGES[@]}" python3 python3-numpy python3-sklearn
+ensure_packages "${CORE_PACKAGES[@]}" "${ROS_PACKAGES[@]}" python3 python3-numpy python3-sklearn \
+  clang-format
 
 BUILD="${GMM_MCL_BUILD_DIR:-$GMM_MCL_ROOT/build/test}"
 mkdir -p "$BUILD"

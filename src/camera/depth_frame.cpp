@@ -16,8 +16,7 @@ std::string FrameParams::validate() const {
     err << "min_range_m must be a positive number (got " << min_range_m << "); ";
   }
   if (!(max_range_m > min_range_m) || !std::isfinite(max_range_m)) {
-    err << "max_range_m must be finite and greater than min_range_m (got " << max_range_m
-        << "); ";
+    err << "max_range_m must be finite and greater than min_range_m (got " << max_range_m << "); ";
   }
   return err.str();
 }

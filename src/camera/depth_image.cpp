@@ -79,8 +79,8 @@ std::string DepthImage::checkLayout() const {
     err << "row step " << row_bytes << " bytes is shorter than " << width_px << " pixels of "
         << depthEncodingName(encoding);
   } else if (data.size() < row_bytes * static_cast<size_t>(height_px)) {
-    err << "data holds " << data.size() << " bytes, expected " << row_bytes * height_px
-        << " for " << height_px << " rows of " << row_bytes << " bytes";
+    err << "data holds " << data.size() << " bytes, expected " << row_bytes * height_px << " for "
+        << height_px << " rows of " << row_bytes << " bytes";
   }
   return err.str();
 }
@@ -222,8 +222,7 @@ bool depthImageFromCloudBuffer(const CloudLayout& layout, const uint8_t* data, s
     return false;
   }
   // 64-bit products: width x point_step can exceed 32 bits.
-  if (layout.point_step < 12 ||
-      layout.row_step < uint64_t{layout.width} * layout.point_step ||
+  if (layout.point_step < 12 || layout.row_step < uint64_t{layout.width} * layout.point_step ||
       size < uint64_t{layout.row_step} * layout.height) {
     *error = "point cloud data is shorter than its declared layout";
     return false;
@@ -232,8 +231,9 @@ bool depthImageFromCloudBuffer(const CloudLayout& layout, const uint8_t* data, s
   for (int k = 0; k < 3; ++k) {
     if (static_cast<uint64_t>(offsets[k]) + 4 > layout.point_step) {
       std::ostringstream s;
-      s << "point cloud field " << "xyz"[k] << " at byte " << offsets[k] << " does not fit the "
-        << layout.point_step << "-byte point";
+      s << "point cloud field "
+        << "xyz"[k] << " at byte " << offsets[k] << " does not fit the " << layout.point_step
+        << "-byte point";
       *error = s.str();
       return false;
     }
@@ -258,8 +258,16 @@ bool depthImageFromCloudBuffer(const CloudLayout& layout, const uint8_t* data, s
       if (!(std::isfinite(x) && std::isfinite(y) && std::isfinite(z)) || z <= 0.f) continue;
       depth[static_cast<size_t>(v) * w + u] = z;
       const double a = x / z, b = y / z;
-      su[0] += 1; su[1] += a; su[2] += a * a; su[3] += u; su[4] += a * u;
-      sv[0] += 1; sv[1] += b; sv[2] += b * b; sv[3] += v; sv[4] += b * v;
+      su[0] += 1;
+      su[1] += a;
+      su[2] += a * a;
+      su[3] += u;
+      su[4] += a * u;
+      sv[0] += 1;
+      sv[1] += b;
+      sv[2] += b * b;
+      sv[3] += v;
+      sv[4] += b * v;
     }
   }
   auto fit = [](const double* s, double* f, double* c) {

@@ -135,9 +135,8 @@ void decodePng16(const uint8_t* data, size_t size, int* width, int* height,
 void encodePng16(int width, int height, const std::vector<uint16_t>& values,
                  std::vector<uint8_t>* out) {
   if (width <= 0 || height <= 0 || values.size() != static_cast<size_t>(width) * height) {
-    throw std::runtime_error("encodePng16: " + std::to_string(values.size()) +
-                             " values for a " + std::to_string(width) + "x" +
-                             std::to_string(height) + " image");
+    throw std::runtime_error("encodePng16: " + std::to_string(values.size()) + " values for a " +
+                             std::to_string(width) + "x" + std::to_string(height) + " image");
   }
   png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, errorFn, warningFn);
   png_infop info = png_create_info_struct(png);
@@ -169,8 +168,8 @@ bool decodeCompressedDepth(const std::string& format, const uint8_t* data, size_
   const bool is16 = f.compare(0, 5, "16UC1") == 0 || f.compare(0, 6, "mono16") == 0;
   const bool is32 = f.compare(0, 5, "32FC1") == 0;
   if ((!is16 && !is32) || f.find("compressedDepth") == std::string::npos) {
-    *error = "unsupported compressed depth format '" + f +
-             "' (expected 16UC1 or 32FC1 compressedDepth)";
+    *error =
+        "unsupported compressed depth format '" + f + "' (expected 16UC1 or 32FC1 compressedDepth)";
     return false;
   }
   if (f.find("rvl") != std::string::npos) {
@@ -186,8 +185,7 @@ bool decodeCompressedDepth(const std::string& format, const uint8_t* data, size_
   int w = 0, h = 0;
   std::vector<uint16_t> v;
   try {
-    decodePng16(data + kCompressedDepthHeaderBytes, size - kCompressedDepthHeaderBytes, &w, &h,
-                &v);
+    decodePng16(data + kCompressedDepthHeaderBytes, size - kCompressedDepthHeaderBytes, &w, &h, &v);
   } catch (const std::exception& e) {
     *error = std::string("compressedDepth: ") + e.what();
     return false;
@@ -208,8 +206,8 @@ bool decodeCompressedDepth(const std::string& format, const uint8_t* data, size_
   return true;
 }
 
-bool encodeCompressedDepth(const DepthImage& image, std::string* format,
-                           std::vector<uint8_t>* data, std::string* error) {
+bool encodeCompressedDepth(const DepthImage& image, std::string* format, std::vector<uint8_t>* data,
+                           std::string* error) {
   const std::string layout = image.checkLayout();
   if (!layout.empty()) {
     *error = layout;
@@ -231,7 +229,8 @@ bool encodeCompressedDepth(const DepthImage& image, std::string* format,
         // 16UC1 samples are millimetres already: 65.534 m at most.
         q = static_cast<uint16_t>(std::lround(z * 1000.f));
       } else {
-        q = static_cast<uint16_t>(std::min(65535.f, std::max(1.f, std::round(quant_a / z + quant_b))));
+        q = static_cast<uint16_t>(
+            std::min(65535.f, std::max(1.f, std::round(quant_a / z + quant_b))));
       }
     }
   }

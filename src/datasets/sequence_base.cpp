@@ -9,13 +9,12 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "gmm_mcl/common/number_list.h"
 #include "gmm_mcl/datasets/seven_scenes_sequence.h"
 #include "gmm_mcl/datasets/stanford_sequence.h"
 #include "gmm_mcl/datasets/tum_sequence.h"
-#include "sequence_io.h"
-
-#include "gmm_mcl/common/number_list.h"
 #include "gmm_mcl/filter/pose.h"
+#include "sequence_io.h"
 
 #if defined(GMM_MCL_HAVE_PNG)
 #include "gmm_mcl/camera/png_io.h"
@@ -204,8 +203,8 @@ Eigen::Matrix3d resolveGravity(const std::string& option, const std::string& dir
       std::string why;
       if (!seqio::readNumberFile(gpath, &g, &why)) seqio::fail(gpath, why);
       if (g.size() != 3) {
-        seqio::fail(gpath, "expected 3 numbers (the down direction), found " +
-                               std::to_string(g.size()));
+        seqio::fail(gpath,
+                    "expected 3 numbers (the down direction), found " + std::to_string(g.size()));
       }
       const Eigen::Vector3d down(g[0], g[1], g[2]);
       if (down.norm() < 1e-9) seqio::fail(gpath, "zero gravity vector");
@@ -215,8 +214,9 @@ Eigen::Matrix3d resolveGravity(const std::string& option, const std::string& dir
     mode = format_default;
     if (mode != "none") {
       // Said, not silent: a wrong up axis turns yaw into a tilt and the 4-DoF search fails.
-      *source = mode + " (assumed: no gravity-direction.txt in " + dir +
-                "; choose with --gravity x-up|y-up|z-up|x-down|y-down|z-down|first-camera|gx,gy,gz)";
+      *source =
+          mode + " (assumed: no gravity-direction.txt in " + dir +
+          "; choose with --gravity x-up|y-up|z-up|x-down|y-down|z-down|first-camera|gx,gy,gz)";
     }
   }
   const std::string assumed = source->empty() ? "" : *source;

@@ -1,10 +1,9 @@
 // Text and file helpers shared by the sequence readers (private to src/datasets).
 #pragma once
 
+#include <Eigen/Geometry>
 #include <string>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "gmm_mcl/camera/depth_image.h"
 

@@ -1,9 +1,8 @@
 #include "gmm_mcl/datasets/sequence_writer.h"
 
-#include <algorithm>
-
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>

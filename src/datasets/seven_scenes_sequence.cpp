@@ -26,7 +26,8 @@ SevenScenesSequence::SevenScenesSequence(const std::string& data_dir, int max_fr
   if (options.intrinsics.empty()) {
     if (!seqio::readNumberFile(kpath, &v, &why)) seqio::fail(kpath, why);
     if (v.size() != 9) {
-      seqio::fail(kpath, "expected 9 numbers (3x3 camera matrix), found " + std::to_string(v.size()));
+      seqio::fail(kpath,
+                  "expected 9 numbers (3x3 camera matrix), found " + std::to_string(v.size()));
     }
     try {
       intrinsics_ = makeIntrinsics(v.data(), 640, 480);

@@ -11,9 +11,7 @@
 namespace gmm_mcl {
 namespace {
 
-std::string where(const std::string& path, int line) {
-  return path + ":" + std::to_string(line);
-}
+std::string where(const std::string& path, int line) { return path + ":" + std::to_string(line); }
 
 // Reads the next non-blank line's numbers; false at the end of the file.
 bool nextNumbers(std::ifstream& in, const std::string& path, int* line_no,
@@ -42,8 +40,9 @@ std::vector<LogEntry> readLogTrajectory(const std::string& path) {
   int line_no = 0;
   while (nextNumbers(in, path, &line_no, &v)) {
     if (v.size() != 3 || v[2] != std::floor(v[2])) {
-      seqio::fail(where(path, line_no), "expected a header 'id id frame_index' (3 integers), found " +
-                                            std::to_string(v.size()) + " numbers");
+      seqio::fail(where(path, line_no),
+                  "expected a header 'id id frame_index' (3 integers), found " +
+                      std::to_string(v.size()) + " numbers");
     }
     LogEntry e;
     e.frame_index = static_cast<long>(v[2]);
@@ -53,8 +52,8 @@ std::vector<LogEntry> readLogTrajectory(const std::string& path) {
         seqio::fail(path, "ends inside the matrix of frame " + std::to_string(e.frame_index));
       }
       if (v.size() != 4) {
-        seqio::fail(where(path, line_no), "expected a matrix row of 4 numbers, found " +
-                                              std::to_string(v.size()));
+        seqio::fail(where(path, line_no),
+                    "expected a matrix row of 4 numbers, found " + std::to_string(v.size()));
       }
       for (int c = 0; c < 4; ++c) M(r, c) = v[c];
     }
@@ -64,8 +63,8 @@ std::vector<LogEntry> readLogTrajectory(const std::string& path) {
     e.T.linear() = seqio::orthonormalise(M.topLeftCorner<3, 3>(), where(path, line_no));
     e.T.translation() = M.topRightCorner<3, 1>();
     if (!entries.empty() && e.frame_index <= entries.back().frame_index) {
-      seqio::fail(where(path, line_no - 4), "frame index " + std::to_string(e.frame_index) +
-                                                " not increasing");
+      seqio::fail(where(path, line_no - 4),
+                  "frame index " + std::to_string(e.frame_index) + " not increasing");
     }
     entries.push_back(e);
   }
@@ -119,8 +118,8 @@ StanfordSequence::StanfordSequence(const std::string& dir, const SequenceOptions
   if (spec.empty() && seqio::fileExists(dir + "/intrinsics.txt")) spec = dir + "/intrinsics.txt";
   if (spec.empty()) spec = "kinect";
   intrinsics_ = parseIntrinsicsOption(spec, first.width_px, first.height_px, dir);
-  R_aligned_world_ = resolveGravity(options.gravity, dir, "first-camera", T_world_cam_.front(),
-                                    &gravity_source_);
+  R_aligned_world_ =
+      resolveGravity(options.gravity, dir, "first-camera", T_world_cam_.front(), &gravity_source_);
 }
 
 }  // namespace gmm_mcl

@@ -11,9 +11,7 @@
 namespace gmm_mcl {
 namespace {
 
-std::string where(const std::string& path, int line) {
-  return path + ":" + std::to_string(line);
-}
+std::string where(const std::string& path, int line) { return path + ":" + std::to_string(line); }
 
 // The tokens of a non-comment line; false for blank and '#' lines.
 bool tokens(const std::string& line, std::vector<std::string>* out) {
@@ -49,8 +47,8 @@ std::vector<StampedPose> readTumTrajectory(const std::string& path) {
     double v[8];
     for (int k = 0; k < 8; ++k) {
       if (!toDouble(tok[k], &v[k])) {
-        seqio::fail(where(path, n), "field " + std::to_string(k + 1) + " '" + tok[k] +
-                                        "' is not a finite number");
+        seqio::fail(where(path, n),
+                    "field " + std::to_string(k + 1) + " '" + tok[k] + "' is not a finite number");
       }
     }
     const Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);
@@ -71,9 +69,8 @@ std::vector<StampedPose> readTumTrajectory(const std::string& path) {
 }
 
 int nearestPose(const std::vector<StampedPose>& poses, double t_s, double tolerance_s) {
-  const auto it = std::lower_bound(
-      poses.begin(), poses.end(), t_s,
-      [](const StampedPose& p, double t) { return p.stamp_s < t; });
+  const auto it = std::lower_bound(poses.begin(), poses.end(), t_s,
+                                   [](const StampedPose& p, double t) { return p.stamp_s < t; });
   int best = -1;
   double best_dt = tolerance_s;
   for (auto c : {it, it == poses.begin() ? poses.end() : it - 1}) {
@@ -96,7 +93,8 @@ TumSequence::TumSequence(const std::string& dir, const SequenceOptions& options)
   const std::string list = dir + "/depth.txt";
   const std::string gt_path = dir + "/groundtruth.txt";
   if (!seqio::fileExists(list)) seqio::fail(list, "missing: not a TUM RGB-D folder");
-  if (!seqio::fileExists(gt_path)) seqio::fail(gt_path, "missing: no ground truth to replay against");
+  if (!seqio::fileExists(gt_path))
+    seqio::fail(gt_path, "missing: no ground truth to replay against");
   const std::vector<StampedPose> gt = readTumTrajectory(gt_path);
 
   std::ifstream in(list);
@@ -106,8 +104,8 @@ TumSequence::TumSequence(const std::string& dir, const SequenceOptions& options)
   for (int n = 1; std::getline(in, line); ++n) {
     if (!tokens(line, &tok)) continue;
     if (tok.size() != 2) {
-      seqio::fail(where(list, n), "expected 'timestamp filename', found " +
-                                      std::to_string(tok.size()) + " fields");
+      seqio::fail(where(list, n),
+                  "expected 'timestamp filename', found " + std::to_string(tok.size()) + " fields");
     }
     double t;
     if (!toDouble(tok[0], &t)) seqio::fail(where(list, n), "'" + tok[0] + "' is not a timestamp");
@@ -128,8 +126,8 @@ TumSequence::TumSequence(const std::string& dir, const SequenceOptions& options)
     msg.setf(std::ios::fixed);
     msg.precision(3);
     msg << "no depth frame has a ground-truth pose within " << options.association_tolerance_s
-        << " s (" << unassociated_ << " frames listed; ground truth "
-        << gt.front().stamp_s << " .. " << gt.back().stamp_s << " s)";
+        << " s (" << unassociated_ << " frames listed; ground truth " << gt.front().stamp_s
+        << " .. " << gt.back().stamp_s << " s)";
     seqio::fail(list, msg.str());
   }
   // Image size from the first frame.
@@ -143,8 +141,9 @@ TumSequence::TumSequence(const std::string& dir, const SequenceOptions& options)
     }
   }
   if (spec.empty()) {
-    seqio::fail(dir, "no intrinsics: no intrinsics.txt and not a freiburgN folder; give "
-                      "fr1|fr2|fr3|icl|kinect, fx,fy,cx,cy or a file");
+    seqio::fail(dir,
+                "no intrinsics: no intrinsics.txt and not a freiburgN folder; give "
+                "fr1|fr2|fr3|icl|kinect, fx,fy,cx,cy or a file");
   }
   intrinsics_ = parseIntrinsicsOption(spec, w, h, dir);
   intrinsics_source_ = spec;

@@ -1,9 +1,8 @@
 #include "gmm_mcl/figures/gaussian_kl.h"
 
+#include <Eigen/Cholesky>
 #include <cmath>
 #include <limits>
-
-#include <Eigen/Cholesky>
 
 #include "gmm_mcl/filter/pose.h"
 

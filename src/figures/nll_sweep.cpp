@@ -14,10 +14,14 @@ namespace figures {
 
 const char* sweepAxisName(SweepAxis axis) {
   switch (axis) {
-    case SweepAxis::kX: return "x";
-    case SweepAxis::kY: return "y";
-    case SweepAxis::kZ: return "z";
-    case SweepAxis::kYaw: return "yaw";
+    case SweepAxis::kX:
+      return "x";
+    case SweepAxis::kY:
+      return "y";
+    case SweepAxis::kZ:
+      return "z";
+    case SweepAxis::kYaw:
+      return "yaw";
   }
   return "?";
 }
@@ -93,8 +97,7 @@ std::vector<NllSweepRow> nllSweep(const GmmMap& map, const DepthFrame& frame,
       continue;
     }
     // Parallel over pixels inside.
-    const FrameLikelihood e =
-        exactFrameLogLikelihood(map, frame, poses[i], params.measurement);
+    const FrameLikelihood e = exactFrameLogLikelihood(map, frame, poses[i], params.measurement);
     rows[i].exact_nll = -e.log_likelihood;
     rows[i].exact_floor_hits = e.floor_hits;
     rows[i].exact_evaluations = e.evaluations;

@@ -6,9 +6,9 @@
 #include <random>
 #include <stdexcept>
 
+#include "gmm_mcl/datasets/seven_scenes_sequence.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/replay/replay.h"
-#include "gmm_mcl/datasets/seven_scenes_sequence.h"
 #include "gmm_mcl/sim/box_scene.h"
 #include "gmm_mcl/sim/mesh_scene.h"
 
@@ -38,8 +38,8 @@ Scenario sevenScenesScenario(const std::string& data_dir, int first_frame, int f
   std::string shortname = data_dir;
   while (shortname.size() > 1 && shortname.back() == '/') shortname.pop_back();
   const size_t last = shortname.rfind('/');
-  const size_t prev = last == std::string::npos || last == 0 ? std::string::npos
-                                                             : shortname.rfind('/', last - 1);
+  const size_t prev =
+      last == std::string::npos || last == 0 ? std::string::npos : shortname.rfind('/', last - 1);
   if (prev != std::string::npos) shortname = shortname.substr(prev + 1);
   s.name = "7-Scenes " + shortname + " frames " + std::to_string(first_frame) + "-" +
            std::to_string(first_frame + frames - 1);
@@ -117,10 +117,9 @@ SensorInputs synthesiseInputs(const Scenario& scenario, const SensorNoise& noise
     if (f > 0) {
       Eigen::Isometry3d delta = scenario.T_map_base[f - 1].inverse() * T;
       delta.translation() += noise.odom_sigma_m * Eigen::Vector3d(g(rng), g(rng), g(rng));
-      delta.linear() = delta.linear() *
-                       Eigen::AngleAxisd(noise.odom_sigma_yaw_rad * g(rng),
-                                         Eigen::Vector3d::UnitZ())
-                           .toRotationMatrix();
+      delta.linear() = delta.linear() * Eigen::AngleAxisd(noise.odom_sigma_yaw_rad * g(rng),
+                                                          Eigen::Vector3d::UnitZ())
+                                            .toRotationMatrix();
       odom = odom * delta;
     }
     in.T_odom_base.push_back(odom);

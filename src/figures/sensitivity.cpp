@@ -24,9 +24,7 @@ bool parseInitMode(const std::string& name, InitMode* out) {
   return true;
 }
 
-const char* initModeName(InitMode mode) {
-  return mode == InitMode::kLocal ? "local" : "global";
-}
+const char* initModeName(InitMode mode) { return mode == InitMode::kLocal ? "local" : "global"; }
 
 RunTrace runFilter(const Scenario& scenario, const SensorInputs& inputs, const GmmMap& map,
                    const FilterRunParams& params, uint64_t filter_seed) {
@@ -74,9 +72,9 @@ RunTrace runFilter(const Scenario& scenario, const SensorInputs& inputs, const G
   return trace;
 }
 
-void collectKl(const RunTrace& reference, const RunTrace& run, const std::string& sweep,
-               int value, int run_index, uint64_t seed, int eval_from_frame,
-               double regularisation, std::vector<KlSample>* out) {
+void collectKl(const RunTrace& reference, const RunTrace& run, const std::string& sweep, int value,
+               int run_index, uint64_t seed, int eval_from_frame, double regularisation,
+               std::vector<KlSample>* out) {
   const int n = static_cast<int>(std::min(reference.posterior.size(), run.posterior.size()));
   for (int f = std::max(0, eval_from_frame); f < n; ++f) {
     KlSample s;
@@ -221,8 +219,8 @@ std::vector<KlSummary> componentSweep(const Scenario& scenario, const SensorInpu
     s.mean_step_ms = sweep.runs > 0 ? ms / sweep.runs : 0.0;
     out.push_back(s);
   }
-  out.push_back(referenceRow("components", static_cast<int>(reference_map.size()), reference,
-                             sweep));
+  out.push_back(
+      referenceRow("components", static_cast<int>(reference_map.size()), reference, sweep));
   return out;
 }
 
@@ -248,8 +246,8 @@ void writeKlSummaryCsv(const std::vector<KlSummary>& rows, const std::string& pa
     const bool has_kl = r.runs > 1 && r.variance_kl > 0.0;
     out << r.sweep << ',' << r.value << ',' << r.runs << ',' << r.frames << ',';
     if (has_kl) {
-      out << r.variance_kl << ',' << std::log10(r.variance_kl) << ',' << r.pooled_variance_kl
-          << ',' << r.mean_kl << ',' << r.median_kl;
+      out << r.variance_kl << ',' << std::log10(r.variance_kl) << ',' << r.pooled_variance_kl << ','
+          << r.mean_kl << ',' << r.median_kl;
     } else {
       out << ",,,,";  // the reference row, or a single run: no variance
     }
@@ -266,12 +264,14 @@ std::string klSummaryMarkdown(const std::vector<KlSummary>& rows) {
   for (const KlSummary& r : rows) {
     const bool has_kl = r.runs > 1 && r.variance_kl > 0.0;
     if (has_kl) {
-      std::snprintf(line, sizeof(line), "| %s | %d | %d | %.3g | %.2f | %.3g | %.3g | %.2f | %.0f |\n",
-                    r.sweep.c_str(), r.value, r.runs, r.variance_kl, std::log10(r.variance_kl),
-                    r.mean_kl, r.median_kl, 100.0 * r.mean_error_m, r.mean_step_ms);
+      std::snprintf(line, sizeof(line),
+                    "| %s | %d | %d | %.3g | %.2f | %.3g | %.3g | %.2f | %.0f |\n", r.sweep.c_str(),
+                    r.value, r.runs, r.variance_kl, std::log10(r.variance_kl), r.mean_kl,
+                    r.median_kl, 100.0 * r.mean_error_m, r.mean_step_ms);
     } else {
-      std::snprintf(line, sizeof(line), "| %s | %d (reference) | %d | - | - | - | - | %.2f | %.0f |\n",
-                    r.sweep.c_str(), r.value, r.runs, 100.0 * r.mean_error_m, r.mean_step_ms);
+      std::snprintf(line, sizeof(line),
+                    "| %s | %d (reference) | %d | - | - | - | - | %.2f | %.0f |\n", r.sweep.c_str(),
+                    r.value, r.runs, 100.0 * r.mean_error_m, r.mean_step_ms);
     }
     md += line;
   }

@@ -1,11 +1,11 @@
 #include "gmm_mcl/filter/localizer.h"
 
 #include <algorithm>
-#include <limits>
-#include <utility>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
 
 #include "gmm_mcl/common/timing.h"
 
@@ -22,13 +22,20 @@ const LocalizerParams& validated(const LocalizerParams& p) {
 
 const char* stepStatusName(StepStatus status) {
   switch (status) {
-    case StepStatus::kOk: return "ok";
-    case StepStatus::kPredictOnly: return "predict_only";
-    case StepStatus::kNoValidPixels: return "no_valid_pixels";
-    case StepStatus::kBadFrame: return "bad_frame";
-    case StepStatus::kDegenerateWeights: return "degenerate_weights";
-    case StepStatus::kBackendError: return "backend_error";
-    case StepStatus::kTimeJumpBack: return "time_jump_back";
+    case StepStatus::kOk:
+      return "ok";
+    case StepStatus::kPredictOnly:
+      return "predict_only";
+    case StepStatus::kNoValidPixels:
+      return "no_valid_pixels";
+    case StepStatus::kBadFrame:
+      return "bad_frame";
+    case StepStatus::kDegenerateWeights:
+      return "degenerate_weights";
+    case StepStatus::kBackendError:
+      return "backend_error";
+    case StepStatus::kTimeJumpBack:
+      return "time_jump_back";
   }
   return "unknown";
 }
@@ -71,12 +78,12 @@ void Localizer::setParams(const LocalizerParams& params) {
   }
   const MeasurementParams& m = params.measurement;
   const MeasurementParams& m0 = params_.measurement;
-  const bool map_terms = m.floor_log_density != m0.floor_log_density ||
-                         m.depth_noise.a_m != m0.depth_noise.a_m ||
-                         m.depth_noise.b_per_m != m0.depth_noise.b_per_m ||
-                         m.depth_noise.z0_m != m0.depth_noise.z0_m ||
-                         params.lost.redraw_blur_m != params_.lost.redraw_blur_m ||
-                         params.lost.local_candidate_fraction != params_.lost.local_candidate_fraction;
+  const bool map_terms =
+      m.floor_log_density != m0.floor_log_density || m.depth_noise.a_m != m0.depth_noise.a_m ||
+      m.depth_noise.b_per_m != m0.depth_noise.b_per_m ||
+      m.depth_noise.z0_m != m0.depth_noise.z0_m ||
+      params.lost.redraw_blur_m != params_.lost.redraw_blur_m ||
+      params.lost.local_candidate_fraction != params_.lost.local_candidate_fraction;
   filter_->setParams(params.filter);
   params_ = params;
   if (map_terms) prepareMap();
@@ -156,8 +163,7 @@ void Localizer::screenCandidates(const MeasurementContext& ctx, int count, bool 
     // Blurred scores only chose the centres; the redraw is chosen by the map's own scores.
     filter_->selectCandidateCentres(elites, blur);
     for (int done = 0; done < local; done += batch) {
-      filter_->drawCandidatesAroundCentres(params_.lost.local_sigma_m,
-                                           params_.lost.local_sigma_rad,
+      filter_->drawCandidatesAroundCentres(params_.lost.local_sigma_m, params_.lost.local_sigma_rad,
                                            std::min(batch, local - done));
       filter_->scoreCandidates(ctx);
     }
@@ -212,8 +218,8 @@ void Localizer::backendFailed(const std::string& what, StepResult* res) {
     const std::string failed = backend_->name();
     backend_ = makeBackend("cpu", nullptr);
     backend_->setMap(map_);
-    backend_warning_ = "the " + failed + " backend failed (" + what +
-                       "): fell back to the CPU backend, " + kept;
+    backend_warning_ =
+        "the " + failed + " backend failed (" + what + "): fell back to the CPU backend, " + kept;
     res->backend_fallback = true;
     res->message += "; fell back to the CPU backend (" + kept + ")";
   }

@@ -1,16 +1,14 @@
 #include "gmm_mcl/filter/lost_detector.h"
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <random>
 
-#include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
-
 namespace gmm_mcl {
 
-double mapSelfLogDensity(const GmmMap& map, float floor_log_density, int samples,
-                         uint64_t seed) {
+double mapSelfLogDensity(const GmmMap& map, float floor_log_density, int samples, uint64_t seed) {
   DepthNoiseModel off;
   off.a_m = off.b_per_m = 0.f;
   return mapSelfLogDensity(map, floor_log_density, off, samples, seed);

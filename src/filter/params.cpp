@@ -130,7 +130,8 @@ std::string LocalizerParams::validate() const {
                     measurement.validate() + refinement.validate() + init.validate();
   if (!T_base_cam.matrix().allFinite()) err += "T_base_cam must be finite; ";
   if (!(max_odometry_step_m > 0.0)) err += "max_odometry_step_m must be positive; ";
-  if (backend != "cpu" && backend != "cuda") err += "backend must be 'cpu' or 'cuda' (got '" + backend + "'); ";
+  if (backend != "cpu" && backend != "cuda")
+    err += "backend must be 'cpu' or 'cuda' (got '" + backend + "'); ";
   return err;
 }
 

@@ -11,7 +11,9 @@
 namespace gmm_mcl {
 
 ParticleFilter::ParticleFilter(const ParticleFilterParams& params)
-    : params_(params), rng_(params.seed), augmented_(params.alpha_slow, params.alpha_fast, params.recovery_threshold) {
+    : params_(params),
+      rng_(params.seed),
+      augmented_(params.alpha_slow, params.alpha_fast, params.recovery_threshold) {
   const std::string err = params.validate();
   if (!err.empty()) throw std::invalid_argument("particle filter parameters: " + err);
   particles_.resize(params.num_particles);
@@ -29,7 +31,8 @@ void ParticleFilter::setParams(const ParticleFilterParams& params) {
                     ? std::max(params_.min_particles, std::min(params_.num_particles, size()))
                     : params_.num_particles;
   if (n == size()) return;
-  stratifiedLowVarianceResample(weights_, std::min(params_.resample_groups, n), n, &rng_, &indices_);
+  stratifiedLowVarianceResample(weights_, std::min(params_.resample_groups, n), n, &rng_,
+                                &indices_);
   swap_.resize(n);
   for (int i = 0; i < n; ++i) swap_[i] = particles_[indices_[i]];
   particles_.swap(swap_);
@@ -283,8 +286,7 @@ PoseEstimate ParticleFilter::estimate() const {
   // 4x4 covariance of (x, y, z, yaw) with yaw differences wrapped, placed in ROS order.
   Eigen::Matrix4d c = Eigen::Matrix4d::Zero();
   for (int i = 0; i < size(); ++i) {
-    const Eigen::Vector4d d(particles_[i].x_m - sx, particles_[i].y_m - sy,
-                            particles_[i].z_m - sz,
+    const Eigen::Vector4d d(particles_[i].x_m - sx, particles_[i].y_m - sy, particles_[i].z_m - sz,
                             wrapAngle(particles_[i].yaw_rad - e.mean.yaw_rad));
     c += weights_[i] * d * d.transpose();
   }
@@ -327,12 +329,14 @@ void ParticleFilter::setParticles(const std::vector<Particle>& particles,
 void ParticleFilter::evaluatePoses(const MeasurementContext& ctx,
                                    const std::vector<Particle>& particles, BackendOutput* out) {
   if (ctx.backend == nullptr || ctx.frame == nullptr || ctx.params == nullptr) {
-    throw std::invalid_argument("host particle filter: a backend, a host frame and parameters "
-                                "are needed to score particles");
+    throw std::invalid_argument(
+        "host particle filter: a backend, a host frame and parameters "
+        "are needed to score particles");
   }
   poses_.resize(particles.size());
   for (size_t i = 0; i < particles.size(); ++i) {
-    poses_[i] = toRigidF(particleToPose(particles[i], ctx.roll_rad, ctx.pitch_rad) * ctx.T_base_cam);
+    poses_[i] =
+        toRigidF(particleToPose(particles[i], ctx.roll_rad, ctx.pitch_rad) * ctx.T_base_cam);
   }
   ctx.backend->evaluate(*ctx.frame, poses_, *ctx.params, out);
 }

@@ -39,7 +39,10 @@ class Objective {
   Objective(const std::vector<ComponentF>& components, const RefinementFrame& frame,
             const Eigen::Isometry3d& T_base_cam, const MeasurementParams& params,
             NormalEquationsEvaluator* sums)
-      : components_(components), frame_(frame), T_base_cam_(T_base_cam), params_(params),
+      : components_(components),
+        frame_(frame),
+        T_base_cam_(T_base_cam),
+        params_(params),
         sums_(sums) {
     makeEvalComponents(components_, &base_eval_);
     if (frame.points == nullptr) {  // on the evaluator's device already
@@ -149,8 +152,9 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
     return r;
   }
   if (frame.points == nullptr && (sums == nullptr || !sums->hasBackendFrame())) {
-    throw std::invalid_argument("refinePose: the frame's points are neither on the host nor on "
-                                "the backend's device");
+    throw std::invalid_argument(
+        "refinePose: the frame's points are neither on the host nor on "
+        "the backend's device");
   }
   HostNormalEquations host_sums;
   Objective objective(components, frame, T_base_cam, params, sums ? sums : &host_sums);

@@ -1,11 +1,11 @@
 #include "gmm_mcl/filter/update_budget.h"
 
-#include "gmm_mcl/filter/localizer.h"
-
 #include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <vector>
+
+#include "gmm_mcl/filter/localizer.h"
 
 namespace gmm_mcl {
 namespace {
@@ -156,8 +156,9 @@ bool UpdateBudget::updateTook(double update_ms, int particles, double refine_ms)
   bool next_refine = refine;
   double predicted_ms = update_ms;
   if (cap < configured_particles_) {
-    next_cap = std::min(configured_particles_,
-                        std::max(cap + 1, static_cast<int>(std::ceil(cap * kRestoreParticleFactor))));
+    next_cap =
+        std::min(configured_particles_,
+                 std::max(cap + 1, static_cast<int>(std::ceil(cap * kRestoreParticleFactor))));
     predicted_ms = update_ms * next_cap / std::max(1, std::min(cap, particles));
   } else if (!refine && configured_refine_) {
     next_refine = true;

@@ -1,11 +1,10 @@
 #include "gmm_mcl/map/gmm_map.h"
 
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
 #include <cmath>
 #include <limits>
 #include <sstream>
-
-#include <Eigen/Cholesky>
-#include <Eigen/LU>
 
 namespace gmm_mcl {
 namespace {
@@ -95,7 +94,8 @@ double GmmMap::logDensity(const Eigen::Vector3d& p_map) const {
     const GaussianComponent& c = components_[i];
     const Eigen::Vector3d d = p_map - c.mean_m;
     const double q = d.dot(c.cov_m2.ldlt().solve(d));
-    terms[i] = std::log(c.weight) - 1.5 * kLog2Pi - 0.5 * std::log(c.cov_m2.determinant()) - 0.5 * q;
+    terms[i] =
+        std::log(c.weight) - 1.5 * kLog2Pi - 0.5 * std::log(c.cov_m2.determinant()) - 0.5 * q;
     max_term = std::max(max_term, terms[i]);
   }
   double sum = 0.0;

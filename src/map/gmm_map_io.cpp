@@ -1,5 +1,6 @@
 #include "gmm_mcl/map/gmm_map_io.h"
 
+#include <Eigen/LU>
 #include <array>
 #include <cerrno>
 #include <cmath>
@@ -8,8 +9,6 @@
 #include <iterator>
 #include <limits>
 #include <sstream>
-
-#include <Eigen/LU>
 
 namespace gmm_mcl {
 namespace {
@@ -117,8 +116,8 @@ GmmMap decodeMap(const std::vector<uint8_t>& bytes, const std::string& source) {
   const uint32_t actual_crc = crc32(bytes.data(), bytes.size() - 4);
   if (stored_crc != actual_crc) {
     std::ostringstream msg;
-    msg << std::hex << "checksum mismatch: stored 0x" << stored_crc << ", computed 0x"
-        << actual_crc << " (file corrupted)";
+    msg << std::hex << "checksum mismatch: stored 0x" << stored_crc << ", computed 0x" << actual_crc
+        << " (file corrupted)";
     fail(source, msg.str());
   }
   std::vector<GaussianComponent> comps(count);
@@ -151,7 +150,8 @@ GmmMap decodeMap(const std::vector<uint8_t>& bytes, const std::string& source) {
 }
 
 GmmMap readMap(std::istream& in, const std::string& source) {
-  std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                             std::istreambuf_iterator<char>());
   if (in.bad()) fail(source, "read error");
   return decodeMap(bytes, source);
 }
@@ -160,7 +160,8 @@ void saveMap(const GmmMap& map, const std::string& path) {
   const std::vector<uint8_t> bytes = encodeMap(map);
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   if (!out) fail(path, std::string("cannot open for writing: ") + std::strerror(errno));
-  out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  out.write(reinterpret_cast<const char*>(bytes.data()),
+            static_cast<std::streamsize>(bytes.size()));
   if (!out) fail(path, "write failed");
 }
 

@@ -1,14 +1,13 @@
 #include "gmm_mcl/measurement/likelihood.h"
 
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <limits>
 
-#include <Eigen/LU>
-
+#include "gmm_mcl/internal/cpu_simd.h"
 #include "gmm_mcl/internal/fast_math.h"
 #include "gmm_mcl/measurement/depth_noise.h"
-#include "gmm_mcl/internal/cpu_simd.h"
 
 // 32-byte vector locals (cpu_simd.h): without AVX, GCC warns about an ABI change that does not
 // concern these file-local functions.
@@ -220,11 +219,9 @@ FrameLikelihood poseLogLikelihood(const std::vector<ComponentF>& components,
   computeMembership(components, T_cam_map, frame.intrinsics, frame.grid, params,
                     &scratch->projected, &scratch->valid, &scratch->membership);
   makeEvalComponents(components, &scratch->eval);
-  const EvalComponentF* eval =
-      noisyEvalComponents(components, scratch->eval, scratch->valid, T_cam_map,
-                          params.depth_noise, &scratch->noisy);
-  return frameLogLikelihood(eval, frame, T_map_cam, scratch->membership,
-                            params.floor_log_density);
+  const EvalComponentF* eval = noisyEvalComponents(components, scratch->eval, scratch->valid,
+                                                   T_cam_map, params.depth_noise, &scratch->noisy);
+  return frameLogLikelihood(eval, frame, T_map_cam, scratch->membership, params.floor_log_density);
 }
 
 FrameLikelihood exactFrameLogLikelihood(const GmmMap& map, const DepthFrame& frame,

@@ -160,12 +160,12 @@ __attribute__((noinline)) void projectAll(const float* __restrict in, int m,
     const int near_y0 = (!(std::fabs(y0 - rintf(y0)) > tol_v)) & (y0 >= -2.f) & (y0 <= row_hi);
     const int near_y1 = (!(std::fabs(y1 - rintf(y1)) > tol_v)) & (y1 >= -2.f) & (y1 <= row_hi);
     const int near_z = !(std::fabs(z_raw - min_depth_m) > 1e-4f);
-    const int finite = (std::fabs(u) < 1e30f) & (std::fabs(v) < 1e30f) & (hw < 1e30f) &
-                       (hh < 1e30f);  // 0 for NaN
+    const int finite =
+        (std::fabs(u) < 1e30f) & (std::fabs(v) < 1e30f) & (hw < 1e30f) & (hh < 1e30f);  // 0 for NaN
     const int round = !(rad > 1e-20f);
-    oexact[i] = (static_cast<int>(ok) & (near_x0 | near_x1 | near_y0 | near_y1 | round |
-                                          (finite ^ 1))) |
-                near_z;
+    oexact[i] =
+        (static_cast<int>(ok) & (near_x0 | near_x1 | near_y0 | near_y1 | round | (finite ^ 1))) |
+        near_z;
     // |form - projectComponent's form| <= few ulp * (q_uu + q_vv)(du^2 + dv^2) for every patch
     // centre of the box (|du| <= hw + ps, |dv| <= hh + ps).
     const float ew = hw + ps, eh = hh + ps;
@@ -226,8 +226,8 @@ inline bool testBox(const PatchGrid& grid, int col0, int col1, int row0, int row
 // the per-bit path): one store of 8 patch indices at hp[hits] and one masked add to count
 // (hp needs 8 entries of slack past the box's cells, count 8 past the last patch).
 inline bool testBoxVec(const PatchGrid& grid, int col0, int col1, int row0, int row1, float pu,
-                       float pv, float quu, float quv, float qvv, float margin,
-                       int* __restrict hp, size_t* hits_io, int* __restrict count) {
+                       float pv, float quu, float quv, float qvv, float margin, int* __restrict hp,
+                       size_t* hits_io, int* __restrict count) {
   const float ps = static_cast<float>(grid.patch_size_px);
   const __m256 lane = _mm256_setr_ps(0.f, 1.f, 2.f, 3.f, 4.f, 5.f, 6.f, 7.f);
   const __m256i lane_i = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
@@ -264,8 +264,8 @@ inline bool testBoxVec(const PatchGrid& grid, int col0, int col1, int row0, int 
         _mm256_storeu_si256(reinterpret_cast<__m256i*>(hp + hits),
                             _mm256_add_epi32(_mm256_set1_epi32(patch0), lane_i));
         __m256i* cp = reinterpret_cast<__m256i*>(count + patch0);
-        const __m256i add = _mm256_srli_epi32(
-            _mm256_cmpgt_epi32(_mm256_set1_epi32(len), lane_i), 31);  // 1 in the first len lanes
+        const __m256i add = _mm256_srli_epi32(_mm256_cmpgt_epi32(_mm256_set1_epi32(len), lane_i),
+                                              31);  // 1 in the first len lanes
         _mm256_storeu_si256(cp, _mm256_add_epi32(_mm256_loadu_si256(cp), add));
         hits += static_cast<size_t>(len);
       } else {
@@ -319,8 +319,7 @@ __attribute__((noinline)) void mayTouchGridAll(const float* __restrict in, int m
     const float z = R[6] * mx[j] + R[7] * my[j] + R[8] * mz[j] + t[2];
     const float iz = 1.f / z;
     const float iz2 = iz * iz;
-    const float jf2 =
-        fx * fx * iz2 * (1.f + x * x * iz2) + fy * fy * iz2 * (1.f + y * y * iz2);
+    const float jf2 = fx * fx * iz2 * (1.f + x * x * iz2) + fy * fy * iz2 * (1.f + y * y * iz2);
     const float r = (sigma_bound * sqrtVec(jf2 * tr[j]) + inflate_px) * 1.01f + 1.f;
     const float u = cx + fx * x * iz;
     const float v = cy + fy * y * iz;
@@ -388,10 +387,9 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
   }
   float* f = soa_f.data();
   int* n = soa_i.data();
-  const ProjectedSoA P = {f,           f + ms,      f + 2 * ms, f + 3 * ms, f + 4 * ms,
-                          f + 5 * ms,  f + 6 * ms,  f + 7 * ms, f + 8 * ms, f + 9 * ms,
-                          f + 10 * ms, f + 11 * ms, n,          n + ms,     n + 2 * ms,
-                          n + 3 * ms,  n + 4 * ms,  n + 5 * ms};
+  const ProjectedSoA P = {f,          f + ms,     f + 2 * ms, f + 3 * ms, f + 4 * ms,  f + 5 * ms,
+                          f + 6 * ms, f + 7 * ms, f + 8 * ms, f + 9 * ms, f + 10 * ms, f + 11 * ms,
+                          n,          n + ms,     n + 2 * ms, n + 3 * ms, n + 4 * ms,  n + 5 * ms};
   projectAll(in, m, T_cam_map, K, grid, params.min_component_depth_m, params.sigma_bound, inflate,
              P);
   // Pass 1: per component (ascending), the patches whose centre lies in its inflated ellipse,
@@ -414,8 +412,8 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
       const size_t cells = static_cast<size_t>(row1 - row0 + 1) * (col1 - col0 + 1) + 8;
       if (hit_patch.size() < hits + cells) hit_patch.resize(2 * (hits + cells));
 #if defined(__AVX2__) && defined(__FMA__)
-      redo = testBoxVec(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i], P.quv[i],
-                        P.qvv[i], P.margin[i], hit_patch.data(), &hits, count);
+      redo = testBoxVec(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i], P.quv[i], P.qvv[i],
+                        P.margin[i], hit_patch.data(), &hits, count);
 #else
       redo = testBox(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i], P.quv[i], P.qvv[i],
                      P.margin[i], hit_patch.data(), &hits, count);
@@ -431,14 +429,12 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
                             params.sigma_bound, inflate, &p)) {
         continue;
       }
-      const int e_col0 =
-          std::max(0, static_cast<int>(std::ceil((p.u_px - p.half_w_px - c0) / ps)));
-      const int e_col1 = std::min(grid.cols - 1,
-                                  static_cast<int>(std::floor((p.u_px + p.half_w_px - c0) / ps)));
-      const int e_row0 =
-          std::max(0, static_cast<int>(std::ceil((p.v_px - p.half_h_px - c0) / ps)));
-      const int e_row1 = std::min(grid.rows - 1,
-                                  static_cast<int>(std::floor((p.v_px + p.half_h_px - c0) / ps)));
+      const int e_col0 = std::max(0, static_cast<int>(std::ceil((p.u_px - p.half_w_px - c0) / ps)));
+      const int e_col1 =
+          std::min(grid.cols - 1, static_cast<int>(std::floor((p.u_px + p.half_w_px - c0) / ps)));
+      const int e_row0 = std::max(0, static_cast<int>(std::ceil((p.v_px - p.half_h_px - c0) / ps)));
+      const int e_row1 =
+          std::min(grid.rows - 1, static_cast<int>(std::floor((p.v_px + p.half_h_px - c0) / ps)));
       if (e_col0 > e_col1 || e_row0 > e_row1) continue;
       const size_t cells = static_cast<size_t>(e_row1 - e_row0 + 1) * (e_col1 - e_col0 + 1);
       if (hit_patch.size() < hits + cells) hit_patch.resize(2 * (hits + cells));

@@ -1,11 +1,10 @@
 #include "gmm_mcl/measurement/normal_equations.h"
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <vector>
-
-#include <Eigen/Core>
 
 namespace gmm_mcl {
 namespace {

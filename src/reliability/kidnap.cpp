@@ -7,10 +7,10 @@
 #include <stdexcept>
 #include <utility>
 
+#include "gmm_mcl/datasets/sequence_base.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/replay/replay.h"
-#include "gmm_mcl/datasets/sequence_base.h"
 #include "gmm_mcl/sim/box_scene.h"
 #include "gmm_mcl/sim/mesh_renderer.h"
 #include "gmm_mcl/sim/mesh_scene.h"
@@ -115,8 +115,8 @@ std::unique_ptr<FrameSource> makeSyntheticSource(const Intrinsics& K, int frames
     return sim::renderDepth(*scene->bvh, K, T_map_cam, DepthEncoding::kMono16Millimetres, 9.0,
                             &noise, (*rng)());
   };
-  return std::make_unique<SimSceneSource>(
-      "synthetic", K, frames, sim::tileScene(scene->primitives, 0.4, 0.015), render);
+  return std::make_unique<SimSceneSource>("synthetic", K, frames,
+                                          sim::tileScene(scene->primitives, 0.4, 0.015), render);
 }
 
 std::unique_ptr<FrameSource> makeSevenScenesSource(const std::string& data_dir,
@@ -207,9 +207,9 @@ KidnapResult runKidnapTrial(const FrameSource& src, const KidnapParams& params, 
       const int b = k == params.track_frames ? sourceIndex(k - 1) : i;
       Eigen::Isometry3d delta = src.truthBase(a).inverse() * src.truthBase(b);
       delta.translation() += params.odom_sigma_m * Eigen::Vector3d(g(rng), g(rng), g(rng));
-      delta.linear() = delta.linear() *
-                       Eigen::AngleAxisd(params.odom_sigma_yaw_rad * g(rng),
-                                         Eigen::Vector3d::UnitZ()).toRotationMatrix();
+      delta.linear() = delta.linear() * Eigen::AngleAxisd(params.odom_sigma_yaw_rad * g(rng),
+                                                          Eigen::Vector3d::UnitZ())
+                                            .toRotationMatrix();
       odom = odom * delta;
       if (k == params.track_frames) {
         // The odometry's tilt stays the body's own: a visual-inertial or wheel-and-IMU odometry

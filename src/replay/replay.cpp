@@ -125,8 +125,8 @@ void writeTum(const TrialResult& r, bool truth, const std::string& path) {
     const Particle& p = truth ? f.truth : f.estimate;
     const Eigen::Quaterniond q(
         Eigen::AngleAxisd(p.yaw_rad, Eigen::Vector3d::UnitZ()));  // yaw of the 4-DoF state
-    out << stampText(f.stamp_s) << ' ' << p.x_m << ' ' << p.y_m << ' ' << p.z_m << ' ' << q.x() << ' '
-        << q.y() << ' ' << q.z() << ' ' << q.w() << '\n';
+    out << stampText(f.stamp_s) << ' ' << p.x_m << ' ' << p.y_m << ' ' << p.z_m << ' ' << q.x()
+        << ' ' << q.y() << ' ' << q.z() << ' ' << q.w() << '\n';
   }
 }
 
@@ -142,8 +142,10 @@ void writeFrameCsv(const TrialResult& r, const std::string& path) {
   for (const ReplayFrame& f : r.frames) {
     const StepResult& s = f.step;
     out << stampText(f.stamp_s) << ',';
-    if (f.has_truth) out << f.error.translation_m << ',' << f.error.yaw_rad * 180.0 / M_PI;
-    else out << ',';
+    if (f.has_truth)
+      out << f.error.translation_m << ',' << f.error.yaw_rad * 180.0 / M_PI;
+    else
+      out << ',';
     out << ',' << f.estimate.x_m << ',' << f.estimate.y_m << ',' << f.estimate.z_m << ','
         << f.estimate.yaw_rad << ',';
     if (f.has_truth) {
@@ -151,12 +153,12 @@ void writeFrameCsv(const TrialResult& r, const std::string& path) {
     } else {
       out << ",,,";
     }
-    out << ',' << s.neff << ',' << s.best_loglik_per_pixel << ','
-        << s.mean_loglik_per_pixel << ',' << s.floor_hit_fraction << ',' << s.relevant_per_patch
-        << ',' << s.beta_fraction << ',' << s.reinitialised << ',' << s.lost_reinitialised << ','
-        << stepStatusName(s.status) << ',' << s.pixels << ',' << s.timings.frame_prep_ms << ','
-        << s.timings.projection_membership_ms << ',' << s.timings.likelihood_ms << ','
-        << s.timings.resample_ms << ',' << (s.refinement.refined ? 1 : 0) << ',';
+    out << ',' << s.neff << ',' << s.best_loglik_per_pixel << ',' << s.mean_loglik_per_pixel << ','
+        << s.floor_hit_fraction << ',' << s.relevant_per_patch << ',' << s.beta_fraction << ','
+        << s.reinitialised << ',' << s.lost_reinitialised << ',' << stepStatusName(s.status) << ','
+        << s.pixels << ',' << s.timings.frame_prep_ms << ',' << s.timings.projection_membership_ms
+        << ',' << s.timings.likelihood_ms << ',' << s.timings.resample_ms << ','
+        << (s.refinement.refined ? 1 : 0) << ',';
     if (f.has_truth) {
       out << f.error.refined_translation_m << ',' << f.error.refined_yaw_rad * 180.0 / M_PI;
     } else {

@@ -1,15 +1,15 @@
 #include "gmm_mcl/ros/conversions.h"
 
+#include <sensor_msgs/image_encodings.h>
+#include <tf2_eigen/tf2_eigen.h>
+#include <tf2_geometry_msgs/tf2_geometry_msgs.h>
+
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <sstream>
-
-#include <Eigen/Eigenvalues>
-#include <sensor_msgs/image_encodings.h>
-#include <tf2_eigen/tf2_eigen.h>
-#include <tf2_geometry_msgs/tf2_geometry_msgs.h>
 
 #include "gmm_mcl/filter/pose.h"
 

@@ -1,9 +1,9 @@
 #include "gmm_mcl/ros/debug_image.h"
 
+#include <sensor_msgs/image_encodings.h>
+
 #include <algorithm>
 #include <cmath>
-
-#include <sensor_msgs/image_encodings.h>
 
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/measurement/membership.h"
@@ -26,7 +26,8 @@ void renderDebugImage(const DepthImage& depth, const Intrinsics& K, const GmmMap
     for (int u = 0; u < w; ++u) {
       const float z = depth.depthMetres(u, v);
       uint8_t g = 0;
-      if (std::isfinite(z) && z > 0.f) g = static_cast<uint8_t>(255.f * (1.f - std::min(z / max_m, 1.f)) * 0.8f + 30.f);
+      if (std::isfinite(z) && z > 0.f)
+        g = static_cast<uint8_t>(255.f * (1.f - std::min(z / max_m, 1.f)) * 0.8f + 30.f);
       uint8_t* px = &out->data[static_cast<size_t>(v) * out->step + 3 * u];
       px[0] = px[1] = px[2] = g;
     }
@@ -36,8 +37,7 @@ void renderDebugImage(const DepthImage& depth, const Intrinsics& K, const GmmMap
   std::vector<ProjectedComponent> projected;
   std::vector<char> valid;
   PatchMembership membership;
-  computeMembership(map.packed(), T_cam_map, K, grid, measurement, &projected, &valid,
-                    &membership);
+  computeMembership(map.packed(), T_cam_map, K, grid, measurement, &projected, &valid, &membership);
   // Patch tint: green channel raised with the member count (saturates at 80).
   for (int pr = 0; pr < grid.rows; ++pr) {
     for (int pc = 0; pc < grid.cols; ++pc) {

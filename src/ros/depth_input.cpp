@@ -138,8 +138,8 @@ bool DepthInput::inOrder(const std_msgs::Header& header) {
   // running backwards. Not so when the clock went back, or when the frame is older by more than
   // a frame can wait (a looped bag whose first frame is taken before /clock, which arrives on
   // another connection and thread, has gone back).
-  const bool jump = ros::Time::now() < last_delivered_ ||
-                    (last_delivered_ - t).toSec() > kLongestWaitS;
+  const bool jump =
+      ros::Time::now() < last_delivered_ || (last_delivered_ - t).toSec() > kLongestWaitS;
   if (!last_delivered_.isZero() && t < last_delivered_ && !jump) {
     cb_.dropped(FrameDrop::kExtrinsics,
                 "tf for the frame of '" + header.frame_id + "' came after a newer frame");

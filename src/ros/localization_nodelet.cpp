@@ -1,7 +1,6 @@
 #include "gmm_mcl/ros/localization_nodelet.h"
 
 #include <chrono>
-
 #include <pluginlib/class_list_macros.hpp>
 
 #include "gmm_mcl/FilterStatus.h"
@@ -186,8 +185,9 @@ void LocalizationNodelet::onFrame(const std_msgs::Header& header, const DepthIma
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   publish(header, last_result_, T_map_base, depth, K, ms, gaps.warnings, gated);
   if (!gated) {
-    budgetUpdate(last_result_, std::chrono::duration<double, std::milli>(
-                                   std::chrono::steady_clock::now() - t0).count());
+    budgetUpdate(
+        last_result_,
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
     // amcl's pose persistence, written by the poll timer
     pose_saver_.offer(opts_.save_pose_rate_hz, stamp, last_result_.estimate.mean,
                       last_result_.estimate.covariance);

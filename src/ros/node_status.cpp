@@ -1,10 +1,10 @@
 #include "gmm_mcl/ros/node_status.h"
 
+#include <diagnostic_msgs/DiagnosticStatus.h>
+
 #include <algorithm>
 #include <cmath>
 #include <sstream>
-
-#include <diagnostic_msgs/DiagnosticStatus.h>
 
 namespace gmm_mcl {
 
@@ -187,9 +187,8 @@ Diagnosis diagnose(const NodeHealth& h) {
     m.str("");
     m.precision(3);
     m << "updates take " << h.budget.last_update_ms << " ms, over the budget of "
-      << h.budget.budget_ms << " ms at the cheapest setting (pixel stride "
-      << h.budget.pixel_stride << ", no refinement, " << h.budget.particle_cap
-      << " particles): frames are skipped";
+      << h.budget.budget_ms << " ms at the cheapest setting (pixel stride " << h.budget.pixel_stride
+      << ", no refinement, " << h.budget.particle_cap << " particles): frames are skipped";
     find(S::WARN, m.str());
   }
   for (auto it = h.problems.rbegin(); it != h.problems.rend(); ++it) {  // the latest first
@@ -219,7 +218,7 @@ Diagnosis diagnose(const NodeHealth& h) {
   add("sigma yaw (rad)", num(h.sigma_yaw_rad));
   add("Neff", num(h.neff));
   add("update ms", num(h.update_ms));
-  add("budget", !h.budget.enabled           ? "off"
+  add("budget", !h.budget.enabled          ? "off"
                 : h.budget.budget_ms > 0.0 ? num(h.budget.budget_ms) + " ms"
                                            : "no frame period yet");
   add("pixel stride", std::to_string(h.budget.pixel_stride));

@@ -20,10 +20,10 @@ void add(ParamTable<R>* t, ParamSpec<R> p, std::vector<std::string> choices = {}
 
 void addNodeOptions(ParamTable<R>* t) {
   const char* g = "node";
-  add(t,
-      paramSpec<R>("map", GMM_MCL_PARAM_FIELD(R, map_path), "", g, {}, kStartup,
-                   "The GMM map file (gmm_mcl_fit's format); required. ~reload_map loads another one "
-                   "while running"));
+  add(t, paramSpec<R>(
+             "map", GMM_MCL_PARAM_FIELD(R, map_path), "", g, {}, kStartup,
+             "The GMM map file (gmm_mcl_fit's format); required. ~reload_map loads another one "
+             "while running"));
   add(t, paramSpec<R>("map_frame", GMM_MCL_PARAM_FIELD(R, map_frame), "", g, {}, kStartup,
                       "Frame of the map, the pose and the published transform"));
   add(t, paramSpec<R>("odom_frame", GMM_MCL_PARAM_FIELD(R, odom_frame), "", g, {}, kStartup,

@@ -1,12 +1,12 @@
 #include "gmm_mcl/ros/ros_params.h"
 
-#include <cmath>
-#include <set>
-#include <sstream>
-
 #include <XmlRpcValue.h>
 #include <dynamic_reconfigure/config_tools.h>
 #include <ros/param.h>
+
+#include <cmath>
+#include <set>
+#include <sstream>
 
 #include "gmm_mcl/map/gmm_map_io.h"
 
@@ -358,14 +358,17 @@ void yamlLines(const ParamTable<S>& table, std::string* out) {
     const ParamValue v = p.defaultValue();
     const std::string value = v.toString();
     const bool unset = value == "unset" || (p.type == ParamType::kString && value.empty());
-    *out += (unset ? "# " : "") + p.name + ": " + (p.type == ParamType::kString ? "'" + value + "'" : value) +
+    *out += (unset ? "# " : "") + p.name + ": " +
+            (p.type == ParamType::kString ? "'" + value + "'" : value) +
             (p.unit.empty() ? "" : "  # " + p.unit) + "\n";
   }
 }
 }  // namespace
 
 std::string defaultsYaml() {
-  std::string out = "# Every parameter of the localization nodelet with its default (gmm_mcl_params --defaults).\n";
+  std::string out =
+      "# Every parameter of the localization nodelet with its default (gmm_mcl_params "
+      "--defaults).\n";
   yamlLines(rosOptionsTable(), &out);
   yamlLines(localizerParamTable(), &out);
   return out;

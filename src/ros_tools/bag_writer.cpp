@@ -1,17 +1,17 @@
 #include "gmm_mcl/ros/bag_writer.h"
 
-#include <cmath>
-#include <fstream>
-#include <sstream>
-#include <stdexcept>
-#include <vector>
-
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <nav_msgs/Odometry.h>
 #include <sensor_msgs/Imu.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
 #include <tf2_msgs/TFMessage.h>
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+#include <vector>
 
 #include "gmm_mcl/camera/depth_frame.h"
 #include "gmm_mcl/common/number_list.h"
@@ -130,7 +130,8 @@ void SensorBagWriter::writeCloud(const ros::Time& stamp, const DepthImage& depth
              organizedCloudFromDepth(depth, K, stamp, layout_.camera_frame));
 }
 
-void SensorBagWriter::writeGroundTruth(const ros::Time& stamp, const Eigen::Isometry3d& T_map_base) {
+void SensorBagWriter::writeGroundTruth(const ros::Time& stamp,
+                                       const Eigen::Isometry3d& T_map_base) {
   geometry_msgs::PoseStamped gt;
   gt.header.stamp = stamp;
   gt.header.frame_id = layout_.map_frame;
@@ -149,8 +150,8 @@ void SensorBagWriter::writeTransformStamped(const std::string& topic, const ros:
   bag_.write(topic, stamp, t);
 }
 
-void writeInitRegionYaml(const std::string& path, const std::string& comment,
-                         const Particle& start, double half_extent_m, double yaw_half_range_rad) {
+void writeInitRegionYaml(const std::string& path, const std::string& comment, const Particle& start,
+                         double half_extent_m, double yaw_half_range_rad) {
   std::ofstream y(path);
   y.precision(9);
   y << "# " << comment << "\n"

@@ -1,6 +1,11 @@
 // Reads a bag with the localizer's pose output and the ground truth (e.g. the demo's recording),
 // matches them by stamp and prints the ATE (translation RMSE, yaw RMSE) over the frames after
 // --skip seconds; writes a CSV and an SVG plot (top view of both trajectories, error over time).
+#include <geometry_msgs/PoseStamped.h>
+#include <geometry_msgs/PoseWithCovarianceStamped.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -9,11 +14,6 @@
 #include <map>
 #include <string>
 #include <vector>
-
-#include <geometry_msgs/PoseStamped.h>
-#include <geometry_msgs/PoseWithCovarianceStamped.h>
-#include <rosbag/bag.h>
-#include <rosbag/view.h>
 
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/ros/conversions.h"
@@ -31,7 +31,8 @@ struct Row {
 };
 
 std::string polyline(const std::vector<std::pair<double, double>>& pts, const std::string& colour) {
-  std::string s = "<polyline fill=\"none\" stroke=\"" + colour + "\" stroke-width=\"1.5\" points=\"";
+  std::string s =
+      "<polyline fill=\"none\" stroke=\"" + colour + "\" stroke-width=\"1.5\" points=\"";
   char buf[64];
   for (const auto& p : pts) {
     std::snprintf(buf, sizeof(buf), "%.2f,%.2f ", p.first, p.second);
@@ -48,8 +49,11 @@ int run(int argc, char** argv) {
   cli::CommandLine cl("gmm_mcl_evaluate_pose_bag",
                       "usage: gmm_mcl_evaluate_pose_bag BAG [--pose-topic T] [--truth-topic T] "
                       "[--skip S] [--out PREFIX]\n");
-  cl.flags({{"bag", &bag_path}, {"pose-topic", &pose_topic}, {"truth-topic", &gt_topic},
-            {"skip", &skip_s}, {"out", &out_prefix}});
+  cl.flags({{"bag", &bag_path},
+            {"pose-topic", &pose_topic},
+            {"truth-topic", &gt_topic},
+            {"skip", &skip_s},
+            {"out", &out_prefix}});
   cl.positional("bag");
   cl.parse(argc, argv);
   if (bag_path.empty()) cl.fail("no bag given");
@@ -80,11 +84,13 @@ int run(int argc, char** argv) {
     r.est = e.second.translation();
     r.gt = g->second.translation();
     r.err_m = (r.est - r.gt).norm();
-    r.yaw_err_rad = std::abs(wrapAngle(yawFromRotation(e.second.linear()) - yawFromRotation(g->second.linear())));
+    r.yaw_err_rad = std::abs(
+        wrapAngle(yawFromRotation(e.second.linear()) - yawFromRotation(g->second.linear())));
     rows.push_back(r);
   }
   if (rows.empty()) {
-    std::fprintf(stderr, "no pose on %s matched a ground-truth stamp on %s (%zu poses, %zu truths)\n",
+    std::fprintf(stderr,
+                 "no pose on %s matched a ground-truth stamp on %s (%zu poses, %zu truths)\n",
                  pose_topic.c_str(), gt_topic.c_str(), est.size(), gt.size());
     return 1;
   }
@@ -106,8 +112,10 @@ int run(int argc, char** argv) {
   double x0 = 1e9, x1 = -1e9, y0 = 1e9, y1 = -1e9, emax = 0.05;
   for (const Row& r : rows) {
     for (const Eigen::Vector3d& p : {r.est, r.gt}) {
-      x0 = std::min(x0, p.x()); x1 = std::max(x1, p.x());
-      y0 = std::min(y0, p.y()); y1 = std::max(y1, p.y());
+      x0 = std::min(x0, p.x());
+      x1 = std::max(x1, p.x());
+      y0 = std::min(y0, p.y());
+      y1 = std::max(y1, p.y());
     }
     emax = std::max(emax, r.err_m);
   }
@@ -121,7 +129,8 @@ int run(int argc, char** argv) {
   }
   std::ofstream svg(out_prefix + "_ate.svg");
   char title[256];
-  std::snprintf(title, sizeof(title), "ATE %.3f m, yaw %.2f deg RMSE (after %.1f s); error axis 0..%.2f m",
+  std::snprintf(title, sizeof(title),
+                "ATE %.3f m, yaw %.2f deg RMSE (after %.1f s); error axis 0..%.2f m",
                 n ? std::sqrt(sum_sq / n) : 0.0, n ? std::sqrt(sum_yaw_sq / n) * 180 / M_PI : 0.0,
                 skip_s, emax);
   svg << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"800\" height=\"420\">\n"
@@ -136,10 +145,11 @@ int run(int argc, char** argv) {
     std::fprintf(stderr, "no matched pose after the first %.1f s\n", skip_s);
     return 1;
   }
-  std::printf("matched %zu poses; ATE over %d poses after %.1f s: translation RMSE %.3f m, yaw RMSE "
-              "%.2f deg; final error %.3f m\nwrote %s_ate.csv and %s_ate.svg\n",
-              rows.size(), n, skip_s, std::sqrt(sum_sq / n), std::sqrt(sum_yaw_sq / n) * 180 / M_PI,
-              rows.back().err_m, out_prefix.c_str(), out_prefix.c_str());
+  std::printf(
+      "matched %zu poses; ATE over %d poses after %.1f s: translation RMSE %.3f m, yaw RMSE "
+      "%.2f deg; final error %.3f m\nwrote %s_ate.csv and %s_ate.svg\n",
+      rows.size(), n, skip_s, std::sqrt(sum_sq / n), std::sqrt(sum_yaw_sq / n) * 180 / M_PI,
+      rows.back().err_m, out_prefix.c_str(), out_prefix.c_str());
   return 0;
 }
 

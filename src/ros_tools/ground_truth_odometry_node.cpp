@@ -9,12 +9,6 @@
 // polled), "tum" (~tum_file, published as the clock passes each stamp). The stream gives the
 // marker pose in the world (z up); camera = marker * ~marker_to_camera (the calibration);
 // base = camera * ~base_to_camera^-1 (default: camera = base, x forward).
-#include <cmath>
-#include <fstream>
-#include <memory>
-#include <string>
-#include <vector>
-
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <nav_msgs/Odometry.h>
@@ -25,10 +19,16 @@
 #include <tf2_ros/transform_broadcaster.h>
 #include <tf2_ros/transform_listener.h>
 
+#include <cmath>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "gmm_mcl/datasets/tum_sequence.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/replay/odometry_synthesizer.h"
 #include "gmm_mcl/replay/replay.h"
-#include "gmm_mcl/datasets/tum_sequence.h"
 #include "gmm_mcl/ros/conversions.h"
 
 namespace gmm_mcl {
@@ -57,8 +57,7 @@ bool transformParam(ros::NodeHandle& pnh, const std::string& name, Eigen::Isomet
 
 class GroundTruthOdometry {
  public:
-  GroundTruthOdometry(ros::NodeHandle& nh, ros::NodeHandle& pnh)
-      : T_base_cam_(opticalToBase()) {
+  GroundTruthOdometry(ros::NodeHandle& nh, ros::NodeHandle& pnh) : T_base_cam_(opticalToBase()) {
     std::string why;
     pnh.param<std::string>("source", source_, "topic");
     pnh.param<std::string>("odom_frame", odom_frame_, "odom");
@@ -132,12 +131,13 @@ class GroundTruthOdometry {
       }
       timer_ = nh.createTimer(ros::Duration(1.0 / poll_hz), &GroundTruthOdometry::onTimer, this);
     }
-    ROS_INFO("ground_truth_odometry: source %s, marker -> camera [%.3f %.3f %.3f], noise %.4f m "
-             "/ %.4f rad per frame at %.0f Hz, attitude %.4f rad, seed %d%s%s",
-             source_.c_str(), T_marker_cam_.translation().x(), T_marker_cam_.translation().y(),
-             T_marker_cam_.translation().z(), noise.odom_sigma_m, noise.odom_sigma_yaw_rad,
-             reference_rate_hz_, noise.attitude_sigma_rad, seed,
-             tum_out.empty() ? "" : ", truth to ", tum_out.c_str());
+    ROS_INFO(
+        "ground_truth_odometry: source %s, marker -> camera [%.3f %.3f %.3f], noise %.4f m "
+        "/ %.4f rad per frame at %.0f Hz, attitude %.4f rad, seed %d%s%s",
+        source_.c_str(), T_marker_cam_.translation().x(), T_marker_cam_.translation().y(),
+        T_marker_cam_.translation().z(), noise.odom_sigma_m, noise.odom_sigma_yaw_rad,
+        reference_rate_hz_, noise.attitude_sigma_rad, seed, tum_out.empty() ? "" : ", truth to ",
+        tum_out.c_str());
   }
 
  private:
@@ -158,7 +158,8 @@ class GroundTruthOdometry {
     try {
       const geometry_msgs::TransformStamped t =
           tf_buffer_->lookupTransform(truth_parent_, truth_child_, ros::Time(0));
-      if (t.header.stamp != last_stamp_) process(t.header.stamp, ros_conv::isometryFromTransform(t.transform));
+      if (t.header.stamp != last_stamp_)
+        process(t.header.stamp, ros_conv::isometryFromTransform(t.transform));
     } catch (const tf2::TransformException& e) {
       ROS_WARN_THROTTLE(5.0, "ground_truth_odometry: %s", e.what());
     }
@@ -207,8 +208,8 @@ class GroundTruthOdometry {
     if (tum_) {
       const Eigen::Quaterniond qt(T_world_base.linear());
       char line[256];
-      std::snprintf(line, sizeof(line), "%.6f %.6f %.6f %.6f %.9f %.9f %.9f %.9f\n",
-                    stamp.toSec(), T_world_base.translation().x(), T_world_base.translation().y(),
+      std::snprintf(line, sizeof(line), "%.6f %.6f %.6f %.6f %.9f %.9f %.9f %.9f\n", stamp.toSec(),
+                    T_world_base.translation().x(), T_world_base.translation().y(),
                     T_world_base.translation().z(), qt.x(), qt.y(), qt.z(), qt.w());
       *tum_ << line << std::flush;
     }

@@ -6,8 +6,8 @@
 #include <memory>
 #include <string>
 
-#include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/datasets/sim_sequence.h"
+#include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/ros/bag_writer.h"
 #include "gmm_mcl/ros/sequence_bag.h"
 #include "gmm_mcl/tools/sequence_flags.h"
@@ -17,19 +17,19 @@ namespace gmm_mcl {
 namespace {
 
 const char* kUsage =
-      "usage: gmm_mcl_make_bag --format 7scenes|tum|stanford DIR OUT.bag [--map WORLD_MAP.gmm]\n"
-      "       gmm_mcl_make_bag --format sim OUT.bag [--width PX] (map: the scene's own)\n"
-      "  [--frames N] [--seed S] [--layout image|cow_and_lady]\n"
-      "  [--marker-to-camera x,y,z,qx,qy,qz,qw] (cow_and_lady calibration, default identity)\n"
-      "  [--init-half-extent M (2)] [--init-yaw-half-range RAD (pi/2)] [--start-time S (1000)]\n"
-      "  folder options: [--intrinsics fr1|fr2|fr3|icl|kinect|fx,fy,cx,cy|FILE]\n"
-      "  [--depth-scale UNITS_PER_M] [--tolerance S] [--gravity z-up|first-camera|gx,gy,gz]\n"
-      "  [--trajectory FILE.log] [--rate HZ] [--quiet]\n"
-      "Writes OUT.bag, OUT_init.yaml and, with a map, OUT.gmm (gravity-aligned).\n"
-      "image layout: /camera/depth/image_raw (16UC1) + camera_info, /imu/data, /odom, /tf,\n"
-      "/tf_static, /ground_truth (replay.launch). cow_and_lady layout: organized cloud on\n"
-      "/camera/depth_registered/points and TransformStamped on\n"
-      "/kinect/vrpn_client/estimated_transform (cow_and_lady.launch).\n";
+    "usage: gmm_mcl_make_bag --format 7scenes|tum|stanford DIR OUT.bag [--map WORLD_MAP.gmm]\n"
+    "       gmm_mcl_make_bag --format sim OUT.bag [--width PX] (map: the scene's own)\n"
+    "  [--frames N] [--seed S] [--layout image|cow_and_lady]\n"
+    "  [--marker-to-camera x,y,z,qx,qy,qz,qw] (cow_and_lady calibration, default identity)\n"
+    "  [--init-half-extent M (2)] [--init-yaw-half-range RAD (pi/2)] [--start-time S (1000)]\n"
+    "  folder options: [--intrinsics fr1|fr2|fr3|icl|kinect|fx,fy,cx,cy|FILE]\n"
+    "  [--depth-scale UNITS_PER_M] [--tolerance S] [--gravity z-up|first-camera|gx,gy,gz]\n"
+    "  [--trajectory FILE.log] [--rate HZ] [--quiet]\n"
+    "Writes OUT.bag, OUT_init.yaml and, with a map, OUT.gmm (gravity-aligned).\n"
+    "image layout: /camera/depth/image_raw (16UC1) + camera_info, /imu/data, /odom, /tf,\n"
+    "/tf_static, /ground_truth (replay.launch). cow_and_lady layout: organized cloud on\n"
+    "/camera/depth_registered/points and TransformStamped on\n"
+    "/kinect/vrpn_client/estimated_transform (cow_and_lady.launch).\n";
 
 }  // namespace
 
@@ -42,11 +42,18 @@ int run(int argc, char** argv) {
   int frames = -1;
   std::vector<std::string> paths;
   cli::CommandLine cl("gmm_mcl_make_bag", kUsage);
-  cl.flags({{"format", &format}, {"map", &map_path}, {"frames", &frames}, {"seed", &bo.seed},
-            {"layout", &bo.layout}, {"marker-to-camera", &marker_to_camera},
+  cl.flags({{"format", &format},
+            {"map", &map_path},
+            {"frames", &frames},
+            {"seed", &bo.seed},
+            {"layout", &bo.layout},
+            {"marker-to-camera", &marker_to_camera},
             {"init-half-extent", &bo.init_half_extent_m},
-            {"init-yaw-half-range", &bo.init_yaw_half_range_rad}, {"start-time", &bo.start_s},
-            {"width", &width}, {"quiet", &quiet}, {"paths", &paths}});
+            {"init-yaw-half-range", &bo.init_yaw_half_range_rad},
+            {"start-time", &bo.start_s},
+            {"width", &width},
+            {"quiet", &quiet},
+            {"paths", &paths}});
   cli::addSequenceFlags(&cl, &so);
   cl.positional("paths", 2);
   cl.parse(argc, argv);
@@ -89,9 +96,8 @@ int run(int argc, char** argv) {
     const Intrinsics& K = seq->intrinsics();
     std::printf("wrote %s (%s layout, %d frames %dx%d from %s %s, %.1f s; gravity: %s)%s%s, %s\n",
                 bag_path.c_str(), bo.layout.c_str(), r.frames, K.width_px, K.height_px,
-                seq->format(), seq->source().c_str(), r.duration_s,
-                seq->gravitySource().c_str(), r.map_path.empty() ? "" : ", map ",
-                r.map_path.c_str(), r.init_path.c_str());
+                seq->format(), seq->source().c_str(), r.duration_s, seq->gravitySource().c_str(),
+                r.map_path.empty() ? "" : ", map ", r.map_path.c_str(), r.init_path.c_str());
   } catch (const std::exception& e) {
     std::fprintf(stderr, "gmm_mcl_make_bag: %s\n", e.what());
     return 1;

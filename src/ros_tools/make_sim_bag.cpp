@@ -165,8 +165,9 @@ int run(int argc, char** argv) {
   const Particle start = poseToParticle(truth[0]);
   try {
     ros_bag::writeInitRegionYaml(
-        o.params_path, "Initial region around the true start of " + o.bag_path + " (gmm_mcl_make_sim_bag)",
-        start, o.init_half_extent_m, o.init_yaw_half_range_rad);
+        o.params_path,
+        "Initial region around the true start of " + o.bag_path + " (gmm_mcl_make_sim_bag)", start,
+        o.init_half_extent_m, o.init_yaw_half_range_rad);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "%s\n", e.what());
     return 1;

@@ -216,7 +216,7 @@ bool decodeDepth(const rosbag::MessageInstance& m, const BagTracks& tracks, cons
 
 // The localizer at the first usable frame: around the true start, else over the whole map.
 std::unique_ptr<Localizer> startLocalizer(LocalizerParams lp, const GmmMap& map, bool has_truth,
-                                         const Eigen::Isometry3d& T_truth, const Options& o) {
+                                          const Eigen::Isometry3d& T_truth, const Options& o) {
   if (!has_truth) {
     auto loc = std::make_unique<Localizer>(lp, map);
     loc->reset(loc->mapBounds());

@@ -20,14 +20,13 @@ SequenceBagResult writeSequenceBag(const Sequence& seq, const GmmMap* map_world,
   result.frames = n;
   if (map_world) {
     result.map_path = stem + ".gmm";
-    saveMap(rotateMap(*map_world, seq.R_aligned_world(), "map (gravity-aligned)"),
-            result.map_path);
+    saveMap(rotateMap(*map_world, seq.R_aligned_world(), "map (gravity-aligned)"), result.map_path);
   }
   const std::vector<Eigen::Isometry3d> truth = alignedBaseTrajectory(seq, n);
   result.init_path = stem + "_init.yaml";
   writeInitRegionYaml(result.init_path,
-                      "Initial region around the true start of " + bag_path + " (" +
-                          seq.format() + ": " + seq.source() + ")",
+                      "Initial region around the true start of " + bag_path + " (" + seq.format() +
+                          ": " + seq.source() + ")",
                       poseToParticle(truth[0]), options.init_half_extent_m,
                       options.init_yaw_half_range_rad);
 

@@ -14,15 +14,6 @@
 //
 // --write-map FILE [--write-params FILE]: writes the scene's map and an initial-region parameter
 // file around the true start instead (no ROS master needed), for the nodelet's configuration.
-#include <algorithm>
-#include <cmath>
-#include <cstdio>
-#include <cstdlib>
-#include <fstream>
-#include <random>
-#include <string>
-#include <vector>
-
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <ros/callback_queue.h>
@@ -33,6 +24,15 @@
 #include <std_msgs/UInt64.h>
 #include <tf2_ros/static_transform_broadcaster.h>
 #include <tf2_ros/transform_broadcaster.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <random>
+#include <string>
+#include <vector>
 
 #include "gmm_mcl/FilterStatus.h"
 #include "gmm_mcl/filter/pose.h"
@@ -50,13 +50,13 @@ namespace {
 constexpr char kCameraFrame[] = "camera_depth_optical_frame";
 
 struct Options {
-  long long frames = 50000;     // frames to send
-  int render_frames = 300;      // distinct frames rendered (10 s of the trajectory at 30 Hz)
-  int width_px = 160;           // height 3/4 of it
-  double period_s = 1.0 / 30.0; // stamp step
-  double timeout_s = 2.0;       // lockstep: wait at most this long for a frame's ~status
+  long long frames = 50000;       // frames to send
+  int render_frames = 300;        // distinct frames rendered (10 s of the trajectory at 30 Hz)
+  int width_px = 160;             // height 3/4 of it
+  double period_s = 1.0 / 30.0;   // stamp step
+  double timeout_s = 2.0;         // lockstep: wait at most this long for a frame's ~status
   double first_timeout_s = 60.0;  // the first frame builds the localizer
-  double linger_s = 5.0;        // stay up after /soak/done so that the monitor reads it
+  double linger_s = 5.0;          // stay up after /soak/done so that the monitor reads it
   uint64_t seed = 7;
   bool wait_for_monitor = true;  // start only once something listens to /soak/done
   std::string status_topic = "/gmm_mcl/status";
@@ -68,8 +68,10 @@ struct Options {
 void parse(int argc, char** argv, Options* o) {
   const std::string usage =
       std::string(
-          "usage: gmm_mcl_soak_publisher [--frames N] [--render-frames F] [--width PX] [--period S]\n"
-          "                              [--timeout S] [--first-timeout S] [--linger S] [--seed S]\n"
+          "usage: gmm_mcl_soak_publisher [--frames N] [--render-frames F] [--width PX] [--period "
+          "S]\n"
+          "                              [--timeout S] [--first-timeout S] [--linger S] [--seed "
+          "S]\n"
           "                              [--status-topic T] [--no-wait-for-monitor]\n"
           "       gmm_mcl_soak_publisher --write-map FILE.gmm [--write-params FILE.yaml]\n"
           "                              [--init-half-extent M] [--init-yaw-half-range RAD]\n"
@@ -77,18 +79,26 @@ void parse(int argc, char** argv, Options* o) {
           "/tf_static base_link -> ") +
       kCameraFrame + ", /ground_truth; /soak/sent, /soak/timeouts, /soak/done.\n";
   cli::CommandLine cl("gmm_mcl_soak_publisher", usage);
-  cl.flags({{"frames", &o->frames}, {"render-frames", &o->render_frames}, {"width", &o->width_px},
-            {"period", &o->period_s}, {"timeout", &o->timeout_s},
-            {"first-timeout", &o->first_timeout_s}, {"linger", &o->linger_s}, {"seed", &o->seed},
+  cl.flags({{"frames", &o->frames},
+            {"render-frames", &o->render_frames},
+            {"width", &o->width_px},
+            {"period", &o->period_s},
+            {"timeout", &o->timeout_s},
+            {"first-timeout", &o->first_timeout_s},
+            {"linger", &o->linger_s},
+            {"seed", &o->seed},
             {"status-topic", &o->status_topic},
-            {"no-wait-for-monitor", cli::Clear{&o->wait_for_monitor}}, {"write-map", &o->write_map},
-            {"write-params", &o->write_params}, {"init-half-extent", &o->init_half_extent_m},
+            {"no-wait-for-monitor", cli::Clear{&o->wait_for_monitor}},
+            {"write-map", &o->write_map},
+            {"write-params", &o->write_params},
+            {"init-half-extent", &o->init_half_extent_m},
             {"init-yaw-half-range", &o->init_yaw_half_range_rad}});
   cl.parse(argc, argv);
   if (!(o->frames >= 1 && o->render_frames >= 2 && o->width_px >= 64 && o->period_s > 0.0 &&
         o->timeout_s > 0.0 && o->first_timeout_s > 0.0 && o->linger_s >= 0.0)) {
-    cl.fail("--frames >= 1, --render-frames >= 2, --width >= 64, --period, --timeout and "
-            "--first-timeout > 0, --linger >= 0");
+    cl.fail(
+        "--frames >= 1, --render-frames >= 2, --width >= 64, --period, --timeout and "
+        "--first-timeout > 0, --linger >= 0");
   }
 }
 
@@ -184,7 +194,8 @@ class SoakPublisher {
     static_tf_.sendTransform(st);
 
     if (!waitForNodelet(120.0)) {
-      std::fprintf(stderr, "soak_publisher: the nodelet (or the monitor) did not subscribe within 120 s\n");
+      std::fprintf(stderr,
+                   "soak_publisher: the nodelet (or the monitor) did not subscribe within 120 s\n");
       return 1;
     }
     t0_ = ros::Time::now();
@@ -219,8 +230,10 @@ class SoakPublisher {
     std_msgs::UInt64 done;
     done.data = static_cast<uint64_t>(sent_);
     done_pub_.publish(done);
-    std::printf("soak_publisher: sent %lld frames in %.1f s (%.1f frames/s), %lld lockstep "
-                "timeouts\n", sent_, wall_s, sent_ / std::max(wall_s, 1e-9), timeouts_);
+    std::printf(
+        "soak_publisher: sent %lld frames in %.1f s (%.1f frames/s), %lld lockstep "
+        "timeouts\n",
+        sent_, wall_s, sent_ / std::max(wall_s, 1e-9), timeouts_);
     std::fflush(stdout);
     const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(o_.linger_s);
     while (ros::ok() && ros::WallTime::now() < end) {
@@ -231,7 +244,9 @@ class SoakPublisher {
   }
 
  private:
-  ros::Time stampOf(long long k) const { return t0_ + ros::Duration(o_.period_s * static_cast<double>(k)); }
+  ros::Time stampOf(long long k) const {
+    return t0_ + ros::Duration(o_.period_s * static_cast<double>(k));
+  }
 
   // Ping-pong over the rendered frames: 0, 1, ..., F-1, F-2, ..., 1, 0, 1, ...
   const Frame& frameOf(long long k) const {

@@ -65,12 +65,15 @@ void tileBoxFaces(const Box& b, bool skip_bottom, double spacing, double normal_
   const Eigen::Vector3d s = b.max_m - b.min_m;
   const Eigen::Vector3d& lo = b.min_m;
   const Eigen::Vector3d& hi = b.max_m;
-  tileRect(lo, ey, s.y(), ez, s.z(), spacing, normal_sigma, out);                      // x = min
-  tileRect(Eigen::Vector3d(hi.x(), lo.y(), lo.z()), ey, s.y(), ez, s.z(), spacing, normal_sigma, out);
-  tileRect(lo, ex, s.x(), ez, s.z(), spacing, normal_sigma, out);                      // y = min
-  tileRect(Eigen::Vector3d(lo.x(), hi.y(), lo.z()), ex, s.x(), ez, s.z(), spacing, normal_sigma, out);
-  if (!skip_bottom) tileRect(lo, ex, s.x(), ey, s.y(), spacing, normal_sigma, out);    // z = min
-  tileRect(Eigen::Vector3d(lo.x(), lo.y(), hi.z()), ex, s.x(), ey, s.y(), spacing, normal_sigma, out);
+  tileRect(lo, ey, s.y(), ez, s.z(), spacing, normal_sigma, out);  // x = min
+  tileRect(Eigen::Vector3d(hi.x(), lo.y(), lo.z()), ey, s.y(), ez, s.z(), spacing, normal_sigma,
+           out);
+  tileRect(lo, ex, s.x(), ez, s.z(), spacing, normal_sigma, out);  // y = min
+  tileRect(Eigen::Vector3d(lo.x(), hi.y(), lo.z()), ex, s.x(), ez, s.z(), spacing, normal_sigma,
+           out);
+  if (!skip_bottom) tileRect(lo, ex, s.x(), ey, s.y(), spacing, normal_sigma, out);  // z = min
+  tileRect(Eigen::Vector3d(lo.x(), lo.y(), hi.z()), ex, s.x(), ey, s.y(), spacing, normal_sigma,
+           out);
 }
 
 }  // namespace
@@ -79,16 +82,16 @@ BoxScene makeDefaultScene() {
   BoxScene s;
   s.room = box(0.0, 0.0, 0.0, 8.0, 6.0, 3.0);
   s.blocks = {
-      box(0.0, 0.0, 0.0, 2.2, 0.6, 0.9),    // long low cabinet along the south wall
-      box(5.6, 4.2, 0.0, 8.0, 6.0, 2.1),    // tall wardrobe in the north-east corner
-      box(3.2, 2.4, 0.0, 4.4, 3.1, 0.75),   // table in the middle
-      box(0.0, 3.6, 0.0, 0.5, 5.2, 1.6),    // shelf on the west wall
-      box(6.7, 0.8, 0.0, 7.3, 1.4, 1.1),    // pillar-like box near the east wall
-      box(2.0, 5.5, 0.0, 3.4, 6.0, 1.9),    // bookcase on the north wall
-      box(7.6, 1.9, 0.9, 8.0, 3.3, 1.6),    // wall-mounted cupboard on the east wall
-      box(1.0, 1.9, 0.0, 1.5, 2.3, 0.45),   // low stool
-      box(4.6, 0.0, 1.2, 5.8, 0.35, 1.5),   // shelf board on the south wall
-      box(0.0, 1.2, 2.3, 0.3, 3.0, 3.0),    // beam under the ceiling
+      box(0.0, 0.0, 0.0, 2.2, 0.6, 0.9),   // long low cabinet along the south wall
+      box(5.6, 4.2, 0.0, 8.0, 6.0, 2.1),   // tall wardrobe in the north-east corner
+      box(3.2, 2.4, 0.0, 4.4, 3.1, 0.75),  // table in the middle
+      box(0.0, 3.6, 0.0, 0.5, 5.2, 1.6),   // shelf on the west wall
+      box(6.7, 0.8, 0.0, 7.3, 1.4, 1.1),   // pillar-like box near the east wall
+      box(2.0, 5.5, 0.0, 3.4, 6.0, 1.9),   // bookcase on the north wall
+      box(7.6, 1.9, 0.9, 8.0, 3.3, 1.6),   // wall-mounted cupboard on the east wall
+      box(1.0, 1.9, 0.0, 1.5, 2.3, 0.45),  // low stool
+      box(4.6, 0.0, 1.2, 5.8, 0.35, 1.5),  // shelf board on the south wall
+      box(0.0, 1.2, 2.3, 0.3, 3.0, 3.0),   // beam under the ceiling
   };
   return s;
 }

@@ -57,8 +57,7 @@ Mesh loadPlyMesh(const std::string& path) {
   PlyContents ply = readPlyFile(path);
   auto fail = [&](const std::string& what) { throw MeshError(path + ": " + what); };
   if (ply.first_bad_vertex >= 0) {
-    fail("vertex " + std::to_string(ply.first_bad_vertex) +
-         " has a non-finite or huge coordinate");
+    fail("vertex " + std::to_string(ply.first_bad_vertex) + " has a non-finite or huge coordinate");
   }
   if (!ply.has_faces) fail("no face element (a point cloud, not a mesh)");
   if (ply.mesh.triangles.empty()) fail("no triangles");

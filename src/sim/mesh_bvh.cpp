@@ -10,7 +10,7 @@ namespace {
 
 constexpr int kBins = 16;
 constexpr uint32_t kMaxLeafSize = 8;
-constexpr int kMaxDepth = 60;          // traversal stack below holds 64
+constexpr int kMaxDepth = 60;           // traversal stack below holds 64
 constexpr float kTraversalCost = 1.0f;  // relative to one triangle test
 constexpr float kBaryEps = 1e-6f;       // closes cracks between triangles sharing an edge
 
@@ -133,8 +133,8 @@ uint32_t MeshBvh::build(std::vector<uint32_t>* order, const std::vector<Eigen::V
     }
   }
   const float leaf_cost = halfArea(blo, bhi) * count;
-  if (best_axis < 0 || (count <= kMaxLeafSize &&
-                        kTraversalCost * halfArea(blo, bhi) + best_cost >= leaf_cost)) {
+  if (best_axis < 0 ||
+      (count <= kMaxLeafSize && kTraversalCost * halfArea(blo, bhi) + best_cost >= leaf_cost)) {
     if (best_axis < 0 && count > kMaxLeafSize) {
       // All centroids coincide: split the list in half so that leaves stay small.
       best_axis = 0;
@@ -188,8 +188,8 @@ inline float enterBox(const float lo[3], const float hi[3], const float inv[3], 
 }  // namespace
 
 template <bool kAnyHit>
-bool MeshBvh::traverse(const Eigen::Vector3f& o, const Eigen::Vector3f& d, float t_min,
-                       float t_max, RayHit* hit) const {
+bool MeshBvh::traverse(const Eigen::Vector3f& o, const Eigen::Vector3f& d, float t_min, float t_max,
+                       RayHit* hit) const {
   constexpr float kInf = std::numeric_limits<float>::infinity();
   float inv[3], oi[3];
   for (int k = 0; k < 3; ++k) {

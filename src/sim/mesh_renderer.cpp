@@ -65,9 +65,9 @@ DepthImage toDepthImage(int width_px, int height_px, const std::vector<float>& z
   return DepthImage::fromMillimetres(width_px, height_px, mm);
 }
 
-DepthImage renderDepth(const MeshBvh& bvh, const Intrinsics& K,
-                       const Eigen::Isometry3d& T_map_cam, DepthEncoding encoding,
-                       double max_range_m, const SensorNoiseParams* noise, uint64_t seed) {
+DepthImage renderDepth(const MeshBvh& bvh, const Intrinsics& K, const Eigen::Isometry3d& T_map_cam,
+                       DepthEncoding encoding, double max_range_m, const SensorNoiseParams* noise,
+                       uint64_t seed) {
   if (!noise) {
     const IdealDepth ideal = renderIdealDepth(bvh, K, T_map_cam, max_range_m, 0.0);
     return toDepthImage(ideal.width_px, ideal.height_px, ideal.z_m, encoding);

@@ -110,8 +110,9 @@ void tileRect(const Rect& f, double spacing, double normal_sigma,
   for (int i = 0; i < nu; ++i) {
     for (int j = 0; j < nv; ++j) {
       const Eigen::Vector3d o = f.origin + i * cu * f.u + j * cv * f.v;
-      addPatch([&](double s, double t) -> Eigen::Vector3d { return o + s * cu * f.u + t * cv * f.v; },
-               [&](double, double) { return cu * cv; }, f.normal, normal_sigma, out);
+      addPatch(
+          [&](double s, double t) -> Eigen::Vector3d { return o + s * cu * f.u + t * cv * f.v; },
+          [&](double, double) { return cu * cv; }, f.normal, normal_sigma, out);
     }
   }
 }
@@ -122,13 +123,13 @@ void tileCap(const Cylinder& c, double z, bool up, double spacing, double normal
   const int nr = std::max(1, static_cast<int>(std::round(c.radius_m / spacing)));
   for (int k = 0; k < nr; ++k) {
     const double r0 = c.radius_m * k / nr, r1 = c.radius_m * (k + 1) / nr;
-    const int nt = k == 0 ? 1 : std::max(3, static_cast<int>(std::round(kTwoPi * 0.5 * (r0 + r1) / spacing)));
+    const int nt =
+        k == 0 ? 1 : std::max(3, static_cast<int>(std::round(kTwoPi * 0.5 * (r0 + r1) / spacing)));
     for (int j = 0; j < nt; ++j) {
       const double t0 = kTwoPi * j / nt, dt = kTwoPi / nt;
-      addPatch(
-          [&](double s, double t) { return cylPoint(c, r0 + s * (r1 - r0), t0 + t * dt, z); },
-          [&](double s, double) { return (r0 + s * (r1 - r0)) * (r1 - r0) * dt; },
-          Eigen::Vector3d(0, 0, up ? 1.0 : -1.0), normal_sigma, out);
+      addPatch([&](double s, double t) { return cylPoint(c, r0 + s * (r1 - r0), t0 + t * dt, z); },
+               [&](double s, double) { return (r0 + s * (r1 - r0)) * (r1 - r0) * dt; },
+               Eigen::Vector3d(0, 0, up ? 1.0 : -1.0), normal_sigma, out);
     }
   }
 }
@@ -143,9 +144,10 @@ void tileCylinder(const Cylinder& c, const Box& room, double spacing, double nor
     for (int k = 0; k < nz; ++k) {
       const double t0 = j * dt, z0 = c.z_min_m + k * dz;
       const double tm = t0 + 0.5 * dt;
-      addPatch([&](double s, double t) { return cylPoint(c, c.radius_m, t0 + s * dt, z0 + t * dz); },
-               [&](double, double) { return c.radius_m * dt * dz; },
-               Eigen::Vector3d(std::cos(tm), std::sin(tm), 0.0), normal_sigma, out);
+      addPatch(
+          [&](double s, double t) { return cylPoint(c, c.radius_m, t0 + s * dt, z0 + t * dz); },
+          [&](double, double) { return c.radius_m * dt * dz; },
+          Eigen::Vector3d(std::cos(tm), std::sin(tm), 0.0), normal_sigma, out);
     }
   }
   if (!onFloorOrCeiling(c.z_max_m, room)) tileCap(c, c.z_max_m, true, spacing, normal_sigma, out);
@@ -169,12 +171,12 @@ PrimitiveScene makeDefaultPrimitiveScene() {
   s.room = boxes.room;
   s.boxes = boxes.blocks;
   s.cylinders = {
-      cylinder(1.0, 4.8, 0.20, 0.0, 3.0),    // column from floor to ceiling, north-west
-      cylinder(2.7, 0.95, 0.35, 0.0, 1.0),   // drum beside the low cabinet
-      cylinder(6.2, 1.5, 0.25, 0.0, 0.6),    // round stool near the east pillar
+      cylinder(1.0, 4.8, 0.20, 0.0, 3.0),     // column from floor to ceiling, north-west
+      cylinder(2.7, 0.95, 0.35, 0.0, 1.0),    // drum beside the low cabinet
+      cylinder(6.2, 1.5, 0.25, 0.0, 0.6),     // round stool near the east pillar
       cylinder(7.0, 3.65, 0.45, 0.70, 0.75),  // round side-table top ...
       cylinder(7.0, 3.65, 0.05, 0.0, 0.70),   // ... on one leg
-      cylinder(3.8, 2.75, 0.30, 2.6, 3.0),   // ceiling lamp above the table
+      cylinder(3.8, 2.75, 0.30, 2.6, 3.0),    // ceiling lamp above the table
   };
   return s;
 }
@@ -208,8 +210,10 @@ Mesh meshFromScene(const PrimitiveScene& scene, int segments) {
       }
       for (int j = 0; j < segments; ++j) {
         const uint32_t a = centre + 1 + j, b = centre + 1 + (j + 1) % segments;
-        if (cap == 0) m.triangles.push_back({centre, a, b});  // normal up
-        else m.triangles.push_back({centre, b, a});           // normal down
+        if (cap == 0)
+          m.triangles.push_back({centre, a, b});  // normal up
+        else
+          m.triangles.push_back({centre, b, a});  // normal down
       }
     }
   }

@@ -34,7 +34,8 @@ double gaussian(uint64_t seed, uint64_t pixel) {
 std::string SensorNoiseParams::validate() const {
   std::ostringstream e;
   if (!(min_range_m >= 0.0) || !(max_range_m > min_range_m) || !std::isfinite(max_range_m)) {
-    e << "range window [" << min_range_m << ", " << max_range_m << "] m must satisfy 0 <= min < max; ";
+    e << "range window [" << min_range_m << ", " << max_range_m
+      << "] m must satisfy 0 <= min < max; ";
   }
   if (!(axial_a_m >= 0.0) || !(axial_b_per_m >= 0.0) || !(axial_angle_m >= 0.0) ||
       !std::isfinite(axial_z0_m)) {
@@ -105,8 +106,8 @@ std::vector<float> applySensorNoise(const IdealDepth& ideal, const SensorNoisePa
       if (!std::isfinite(z0)) continue;
       if (p.projector_shadow && have_shadow && ideal.shadowed[i]) continue;
       if (p.random_dropout > 0.0 && uniform(seed, i, 0) < p.random_dropout) continue;
-      const double theta = have_cos ? std::acos(std::min(1.0f, std::max(0.0f, ideal.cos_incidence[i])))
-                                    : 0.0;
+      const double theta =
+          have_cos ? std::acos(std::min(1.0f, std::max(0.0f, ideal.cos_incidence[i]))) : 0.0;
       if (theta >= p.grazing_end_rad && p.grazing_end_rad < kHalfPi) continue;
       if (theta > p.grazing_start_rad && graze_span > 0.0 &&
           uniform(seed, i, 1) < (theta - p.grazing_start_rad) / graze_span) {

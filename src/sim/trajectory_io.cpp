@@ -1,13 +1,12 @@
 #include "gmm_mcl/sim/trajectory_io.h"
 
+#include <Eigen/SVD>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
 #include <sstream>
 #include <stdexcept>
-
-#include <Eigen/SVD>
 
 namespace gmm_mcl {
 namespace sim {
@@ -37,7 +36,8 @@ std::vector<Eigen::Isometry3d> readMatrixTrajectory(const std::string& path) {
       v.push_back(x);
     }
     if (v.empty()) continue;
-    if (v.size() != 16) fail("expected 16 numbers (a row-major 4x4), found " + std::to_string(v.size()));
+    if (v.size() != 16)
+      fail("expected 16 numbers (a row-major 4x4), found " + std::to_string(v.size()));
     Eigen::Matrix4d M;
     for (int r = 0; r < 4; ++r) {
       for (int c = 0; c < 4; ++c) M(r, c) = v[r * 4 + c];

@@ -38,9 +38,12 @@ std::string toParamValue(const std::string& text, ParamType type, ParamValue* v)
   v->type = type;
   switch (type) {
     case ParamType::kBool:
-      if (text == "true" || text == "1" || text == "yes" || text == "on") v->b = true;
-      else if (text == "false" || text == "0" || text == "no" || text == "off") v->b = false;
-      else return "'" + text + "' is not true or false";
+      if (text == "true" || text == "1" || text == "yes" || text == "on")
+        v->b = true;
+      else if (text == "false" || text == "0" || text == "no" || text == "off")
+        v->b = false;
+      else
+        return "'" + text + "' is not true or false";
       return "";
     case ParamType::kInt:
       return parseInteger(text, &v->i) ? "" : "'" + text + "' is not an integer";
@@ -80,8 +83,8 @@ void CommandLine::addLocalizerParams(LocalizerParams* values, const std::set<std
   for (const ParamSpec<LocalizerParams>& p : localizerParamTable()) {
     if (skip.count(p.name) || (!groups.empty() && !groups.count(p.group))) continue;
     const std::string name = flagName(p.name);
-    std::string help = p.help + " (" + p.defaultValue().toString() +
-                       (p.unit.empty() ? "" : " " + p.unit) + ")";
+    std::string help =
+        p.help + " (" + p.defaultValue().toString() + (p.unit.empty() ? "" : " " + p.unit) + ")";
     table_options_.add_options()(name.c_str(), po::value<std::string>(), help.c_str());
     table_flags_.insert(p.name);
   }
@@ -142,13 +145,13 @@ void CommandLine::parse(int argc, char** argv) {
   all.add(options_);
   if (!table_flags_.empty()) all.add(table_options_);
   try {
-    po::store(po::command_line_parser(args)
-                  .options(all)
-                  .positional(positional_)
-                  .style(po::command_line_style::unix_style ^
-                         po::command_line_style::allow_guessing)
-                  .run(),
-              vm_);
+    po::store(
+        po::command_line_parser(args)
+            .options(all)
+            .positional(positional_)
+            .style(po::command_line_style::unix_style ^ po::command_line_style::allow_guessing)
+            .run(),
+        vm_);
     po::notify(vm_);
   } catch (const po::error& e) {
     fail(e.what());

@@ -38,23 +38,24 @@ double secondsSince(Clock::time_point t0) {
 }
 
 const char* kUsage =
-      "usage: gmm_mcl_figures nll-sweep   [common] [--frame F] [--stride PX] [--range-m R]\n"
-      "                                   [--step-m S] [--range-rad R] [--step-rad S] [--no-exact]\n"
-      "       gmm_mcl_figures sensitivity [common] [--sweep particles|components|both]\n"
-      "                                   [--particles-list 50,100,...] [--reference-particles N]\n"
-      "                                   [--components-list 50,100,...] [--reference-components M]\n"
-      "                                   [--component-particles N] [--component-reference-particles N]\n"
-      "                                   [--runs R] [--frames F] [--first-frame F] [--eval-from F]\n"
-      "                                   [--stride PX] [--init local|global] [--data-seed S]\n"
-      "                                   [--max-iter I (component sweep fits, 30)]\n"
-      "common: [--scene auto|7scenes|synthetic] [--dataset DIR] [--map MAP.gmm] [--width PX]\n"
-      "        [--out DIR] [--quiet]\n"
-      "--scene auto (default) uses 7-Scenes redkitchen ($GMM_MCL_DATASETS, else\n"
-      "../shared/datasets) when found, else the synthetic box scene. --map: a 7-Scenes map in\n"
-      "the data set's world frame (scripts/build_map_7scenes.sh); without it the M=1000 map is\n"
-      "fitted in-process as that script does. --width: synthetic image width (640).\n"
-      "Writes OUT/nll_sweep.{csv,txt} or OUT/sensitivity_{samples,summary}.csv and\n"
-      "sensitivity_summary.md; plot them with scripts/plot_figures.py OUT.\n";
+    "usage: gmm_mcl_figures nll-sweep   [common] [--frame F] [--stride PX] [--range-m R]\n"
+    "                                   [--step-m S] [--range-rad R] [--step-rad S] [--no-exact]\n"
+    "       gmm_mcl_figures sensitivity [common] [--sweep particles|components|both]\n"
+    "                                   [--particles-list 50,100,...] [--reference-particles N]\n"
+    "                                   [--components-list 50,100,...] [--reference-components M]\n"
+    "                                   [--component-particles N] [--component-reference-particles "
+    "N]\n"
+    "                                   [--runs R] [--frames F] [--first-frame F] [--eval-from F]\n"
+    "                                   [--stride PX] [--init local|global] [--data-seed S]\n"
+    "                                   [--max-iter I (component sweep fits, 30)]\n"
+    "common: [--scene auto|7scenes|synthetic] [--dataset DIR] [--map MAP.gmm] [--width PX]\n"
+    "        [--out DIR] [--quiet]\n"
+    "--scene auto (default) uses 7-Scenes redkitchen ($GMM_MCL_DATASETS, else\n"
+    "../shared/datasets) when found, else the synthetic box scene. --map: a 7-Scenes map in\n"
+    "the data set's world frame (scripts/build_map_7scenes.sh); without it the M=1000 map is\n"
+    "fitted in-process as that script does. --width: synthetic image width (640).\n"
+    "Writes OUT/nll_sweep.{csv,txt} or OUT/sensitivity_{samples,summary}.csv and\n"
+    "sensitivity_summary.md; plot them with scripts/plot_figures.py OUT.\n";
 
 std::vector<int> parseList(const std::string& s) {
   std::vector<int> out;
@@ -64,7 +65,8 @@ std::vector<int> parseList(const std::string& s) {
     if (item.empty()) continue;
     char* end = nullptr;
     const long v = std::strtol(item.c_str(), &end, 10);
-    if (*end != '\0' || v <= 0 || v > 1000000000) throw std::invalid_argument("bad list entry '" + item + "' in '" + s + "'");
+    if (*end != '\0' || v <= 0 || v > 1000000000)
+      throw std::invalid_argument("bad list entry '" + item + "' in '" + s + "'");
     out.push_back(static_cast<int>(v));
   }
   if (out.empty()) throw std::invalid_argument("empty list '" + s + "'");
@@ -112,19 +114,33 @@ struct Options {
 void parseArgs(int argc, char** argv, Options* o) {
   std::string particle_list, component_list;
   cli::CommandLine cl("gmm_mcl_figures", kUsage);
-  cl.flags({{"command", &o->command}, {"scene", &o->scene}, {"dataset", &o->dataset},
-            {"map", &o->map_path}, {"out", &o->out_dir}, {"width", &o->width_px},
-            {"quiet", &o->quiet}, {"frame", &o->frame}, {"stride", &o->stride},
-            {"range-m", &o->sweep.half_range_m}, {"step-m", &o->sweep.step_m},
-            {"range-rad", &o->sweep.half_range_rad}, {"step-rad", &o->sweep.step_rad},
-            {"no-exact", cli::Clear{&o->sweep.exact}}, {"sweep", &o->which},
-            {"particles-list", &particle_list}, {"reference-particles", &o->reference_particles},
+  cl.flags({{"command", &o->command},
+            {"scene", &o->scene},
+            {"dataset", &o->dataset},
+            {"map", &o->map_path},
+            {"out", &o->out_dir},
+            {"width", &o->width_px},
+            {"quiet", &o->quiet},
+            {"frame", &o->frame},
+            {"stride", &o->stride},
+            {"range-m", &o->sweep.half_range_m},
+            {"step-m", &o->sweep.step_m},
+            {"range-rad", &o->sweep.half_range_rad},
+            {"step-rad", &o->sweep.step_rad},
+            {"no-exact", cli::Clear{&o->sweep.exact}},
+            {"sweep", &o->which},
+            {"particles-list", &particle_list},
+            {"reference-particles", &o->reference_particles},
             {"components-list", &component_list},
             {"reference-components", &o->reference_components},
             {"component-particles", &o->component_particles},
             {"component-reference-particles", &o->component_reference_particles},
-            {"runs", &o->runs}, {"frames", &o->frames}, {"first-frame", &o->first_frame},
-            {"eval-from", &o->eval_from}, {"init", &o->init}, {"data-seed", &o->data_seed},
+            {"runs", &o->runs},
+            {"frames", &o->frames},
+            {"first-frame", &o->first_frame},
+            {"eval-from", &o->eval_from},
+            {"init", &o->init},
+            {"data-seed", &o->data_seed},
             {"max-iter", &o->max_iter}});
   cl.positional("command");
   cl.parse(argc, argv);
@@ -207,14 +223,15 @@ int runNllSweep(const Options& o, const char* argv0) {
   const std::string fault = fp.validate();
   if (!fault.empty()) throw std::invalid_argument("frame parameters: " + fault);
   const DepthFrame frame = prepareFrame(s.depth[0], s.intrinsics, fp);
-  std::printf("nll-sweep: %s, frame %d, map %zu components, stride %d, %zu pixels, "
-              "+-%.3g m step %.3g m, +-%.3g rad step %.3g rad, exact %s\n",
-              s.name.c_str(), frame_index, map.size(), o.stride, frame.size(),
-              o.sweep.half_range_m, o.sweep.step_m, o.sweep.half_range_rad, o.sweep.step_rad,
-              o.sweep.exact ? "yes" : "no");
+  std::printf(
+      "nll-sweep: %s, frame %d, map %zu components, stride %d, %zu pixels, "
+      "+-%.3g m step %.3g m, +-%.3g rad step %.3g rad, exact %s\n",
+      s.name.c_str(), frame_index, map.size(), o.stride, frame.size(), o.sweep.half_range_m,
+      o.sweep.step_m, o.sweep.half_range_rad, o.sweep.step_rad, o.sweep.exact ? "yes" : "no");
   std::fflush(stdout);
   const Clock::time_point t0 = Clock::now();
-  const std::vector<NllSweepRow> rows = nllSweep(map, frame, s.T_map_base[0], s.T_base_cam, o.sweep);
+  const std::vector<NllSweepRow> rows =
+      nllSweep(map, frame, s.T_map_base[0], s.T_base_cam, o.sweep);
   const double elapsed = secondsSince(t0);
 
   mkdir(o.out_dir.c_str(), 0755);
@@ -225,8 +242,7 @@ int runNllSweep(const Options& o, const char* argv0) {
        << "\nstride_px=" << o.stride << "\npixels=" << frame.size()
        << "\nimage=" << s.intrinsics.width_px << "x" << s.intrinsics.height_px
        << "\ntrue_pose_xyz_yaw=" << truth.x_m << "," << truth.y_m << "," << truth.z_m << ","
-       << truth.yaw_rad << "\nfloor_log_density=" << o.sweep.measurement.floor_log_density
-       << "\n";
+       << truth.yaw_rad << "\nfloor_log_density=" << o.sweep.measurement.floor_log_density << "\n";
   writeText(o.out_dir + "/nll_sweep.txt", meta.str());
 
   // Summary per axis: where each curve has its minimum, and the approximation's gap.
@@ -264,7 +280,8 @@ int runSensitivity(const Options& o, const char* argv0) {
 #endif
   const std::string dataset = resolveDataset(o, argv0);
   FilterRunParams run;
-  if (!parseInitMode(o.init, &run.init)) throw std::invalid_argument("--init must be local or global");
+  if (!parseInitMode(o.init, &run.init))
+    throw std::invalid_argument("--init must be local or global");
   run.localizer.frame.pixel_stride = o.stride_given ? o.stride : 16;
   SweepParams sweep;
   sweep.runs = o.runs;
@@ -278,11 +295,12 @@ int runSensitivity(const Options& o, const char* argv0) {
                          : sevenScenesScenario(dataset, o.first_frame, o.frames);
   run.localizer.frame.max_range_m = s.max_range_m;
   const SensorInputs inputs = synthesiseInputs(s, SensorNoise(), o.data_seed);
-  std::printf("sensitivity: %s, %dx%d, stride %d, init %s, %d runs, KL over frames %d..%d, "
-              "data seed %llu (loaded in %.1f s)\n",
-              s.name.c_str(), s.intrinsics.width_px, s.intrinsics.height_px,
-              run.localizer.frame.pixel_stride, initModeName(run.init), o.runs, o.eval_from,
-              o.frames - 1, static_cast<unsigned long long>(o.data_seed), secondsSince(t_load));
+  std::printf(
+      "sensitivity: %s, %dx%d, stride %d, init %s, %d runs, KL over frames %d..%d, "
+      "data seed %llu (loaded in %.1f s)\n",
+      s.name.c_str(), s.intrinsics.width_px, s.intrinsics.height_px,
+      run.localizer.frame.pixel_stride, initModeName(run.init), o.runs, o.eval_from, o.frames - 1,
+      static_cast<unsigned long long>(o.data_seed), secondsSince(t_load));
   std::fflush(stdout);
   const SweepProgress progress = [&](const std::string& what) {
     if (!o.quiet) std::fprintf(stderr, "  %s\n", what.c_str());
@@ -292,11 +310,10 @@ int runSensitivity(const Options& o, const char* argv0) {
   std::vector<KlSummary> rows;
   mkdir(o.out_dir.c_str(), 0755);
   std::ostringstream meta;
-  meta << "scene=" << s.name << "\nimage=" << s.intrinsics.width_px << "x"
-       << s.intrinsics.height_px << "\nstride_px=" << run.localizer.frame.pixel_stride
-       << "\ninit=" << initModeName(run.init) << "\nruns=" << o.runs << "\nframes=" << o.frames
-       << "\nfirst_frame=" << o.first_frame << "\neval_from=" << o.eval_from
-       << "\ndata_seed=" << o.data_seed << "\n";
+  meta << "scene=" << s.name << "\nimage=" << s.intrinsics.width_px << "x" << s.intrinsics.height_px
+       << "\nstride_px=" << run.localizer.frame.pixel_stride << "\ninit=" << initModeName(run.init)
+       << "\nruns=" << o.runs << "\nframes=" << o.frames << "\nfirst_frame=" << o.first_frame
+       << "\neval_from=" << o.eval_from << "\ndata_seed=" << o.data_seed << "\n";
 
   if (o.which != "components") {
     const Clock::time_point t0 = Clock::now();
@@ -304,8 +321,8 @@ int runSensitivity(const Options& o, const char* argv0) {
     std::printf("particle sweep: N = %s against N = %d, map %zu components\n",
                 listString(o.particle_counts).c_str(), o.reference_particles, map.size());
     std::fflush(stdout);
-    const std::vector<KlSummary> r = particleSweep(s, inputs, map, run, o.particle_counts,
-                                                   o.reference_particles, sweep, &samples, progress);
+    const std::vector<KlSummary> r = particleSweep(
+        s, inputs, map, run, o.particle_counts, o.reference_particles, sweep, &samples, progress);
     rows.insert(rows.end(), r.begin(), r.end());
     std::printf("  %.1f s\n", secondsSince(t0));
     meta << "particle_counts=" << listString(o.particle_counts)
@@ -336,13 +353,14 @@ int runSensitivity(const Options& o, const char* argv0) {
                                                           : o.component_particles;
     FilterRunParams p = run;
     p.localizer.filter.num_particles = o.component_particles;
-    std::printf("component sweep: M = %s (N = %d) against M = %d (N = %d); %zu cloud points, "
-                "maps fitted in %.1f s\n",
-                listString(o.component_counts).c_str(), o.component_particles,
-                o.reference_components, ref_n, cloud.size(), fit_s);
+    std::printf(
+        "component sweep: M = %s (N = %d) against M = %d (N = %d); %zu cloud points, "
+        "maps fitted in %.1f s\n",
+        listString(o.component_counts).c_str(), o.component_particles, o.reference_components,
+        ref_n, cloud.size(), fit_s);
     std::fflush(stdout);
-    const std::vector<KlSummary> r = componentSweep(s, inputs, maps, counts, reference, ref_n, p,
-                                                    sweep, &samples, progress);
+    const std::vector<KlSummary> r =
+        componentSweep(s, inputs, maps, counts, reference, ref_n, p, sweep, &samples, progress);
     rows.insert(rows.end(), r.begin(), r.end());
     std::printf("  %.1f s\n", secondsSince(t0));
     meta << "component_counts=" << listString(o.component_counts)
@@ -358,9 +376,10 @@ int runSensitivity(const Options& o, const char* argv0) {
   const std::string md = klSummaryMarkdown(rows);
   writeText(o.out_dir + "/sensitivity_summary.md", md);
   writeText(o.out_dir + "/sensitivity.txt", meta.str());
-  std::printf("\n%s\nwrote %s/sensitivity_{samples,summary}.csv, sensitivity_summary.md, "
-              "sensitivity.txt\n",
-              md.c_str(), o.out_dir.c_str());
+  std::printf(
+      "\n%s\nwrote %s/sensitivity_{samples,summary}.csv, sensitivity_summary.md, "
+      "sensitivity.txt\n",
+      md.c_str(), o.out_dir.c_str());
   return 0;
 }
 

@@ -6,8 +6,8 @@
 
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <cstdlib>
+#include <fstream>
 #include <string>
 
 #include "gmm_mcl/reliability/kidnap.h"
@@ -20,26 +20,26 @@ namespace reliability {
 namespace {
 
 const char* kUsage =
-      "usage: gmm_mcl_kidnap [--scene synthetic|box|7scenes|tum|stanford] [--map MAP.gmm]\n"
-      "                      [--dataset DIR]\n"
-      "                      [--trials N] [--first-seed S] [--stride PX] [--particles MAX]\n"
-      "                      [--width PX] [--track-frames N] [--after-frames N] [--start-frame F]\n"
-      "                      [--backend cpu|cuda]\n"
-      "                      [--weighting paper|tempered] [--temperature T]\n"
-      "                      [--sigma-translation-m M] [--sigma-yaw-rad RAD]\n"
-      "                      [--attitude-noise DEG] [--no-lost-detector]\n"
-      "                      [--lost-candidates-per-particle K] [--lost-reinit-fraction F]\n"
-      "                      [--lost-margin-nats NATS] [--lost-grace-frames FRAMES]\n"
-      "                      [--lost-frames FRAMES] [--min-particles MIN]\n"
-      "                      [--depth-noise A,B,Z0] [--out DIR] [--init region|map]\n"
-      "Particles: MIN..MAX by KLD-sampling (default 1068..3000 on the CPU, 1068..100000 with\n"
-      "CUDA; MIN = MAX: fixed).\n"
-      "--track-frames 0: global localisation trials (uniform start, no kidnap): over the recovery\n"
-      "region around the start, or with --init map over the whole map (its bounds, full yaw).\n"
-      "--width: the synthetic scenes' camera width (f = 585 px at 640, scaled; default 640).\n"
-      "7scenes needs --map (scripts/build_map_7scenes.sh); DIR defaults to\n"
-      "$GMM_MCL_DATASETS/7scenes_redkitchen/data, else ../shared/datasets/...\n"
-      "Filter parameters: every one as --name-with-dashes (the list under --help).\n";
+    "usage: gmm_mcl_kidnap [--scene synthetic|box|7scenes|tum|stanford] [--map MAP.gmm]\n"
+    "                      [--dataset DIR]\n"
+    "                      [--trials N] [--first-seed S] [--stride PX] [--particles MAX]\n"
+    "                      [--width PX] [--track-frames N] [--after-frames N] [--start-frame F]\n"
+    "                      [--backend cpu|cuda]\n"
+    "                      [--weighting paper|tempered] [--temperature T]\n"
+    "                      [--sigma-translation-m M] [--sigma-yaw-rad RAD]\n"
+    "                      [--attitude-noise DEG] [--no-lost-detector]\n"
+    "                      [--lost-candidates-per-particle K] [--lost-reinit-fraction F]\n"
+    "                      [--lost-margin-nats NATS] [--lost-grace-frames FRAMES]\n"
+    "                      [--lost-frames FRAMES] [--min-particles MIN]\n"
+    "                      [--depth-noise A,B,Z0] [--out DIR] [--init region|map]\n"
+    "Particles: MIN..MAX by KLD-sampling (default 1068..3000 on the CPU, 1068..100000 with\n"
+    "CUDA; MIN = MAX: fixed).\n"
+    "--track-frames 0: global localisation trials (uniform start, no kidnap): over the recovery\n"
+    "region around the start, or with --init map over the whole map (its bounds, full yaw).\n"
+    "--width: the synthetic scenes' camera width (f = 585 px at 640, scaled; default 640).\n"
+    "7scenes needs --map (scripts/build_map_7scenes.sh); DIR defaults to\n"
+    "$GMM_MCL_DATASETS/7scenes_redkitchen/data, else ../shared/datasets/...\n"
+    "Filter parameters: every one as --name-with-dashes (the list under --help).\n";
 
 }  // namespace
 
@@ -55,17 +55,26 @@ int run(int argc, char** argv) {
   std::string out_dir, init = "region";
   double attitude_noise_deg = kp.attitude_sigma_rad * 180.0 / M_PI;
   cli::CommandLine cl("gmm_mcl_kidnap", kUsage);
-  cl.flags({{"scene", &scene}, {"map", &map_path}, {"dataset", &dataset}, {"trials", &trials},
-            {"first-seed", &first_seed}, {"stride", &stride}, {"width", &width},
-            {"particles", &particles}, {"min-particles", &min_particles},
-            {"track-frames", &kp.track_frames}, {"after-frames", &kp.after_frames},
-            {"start-frame", &kp.start_frame}, {"backend", &backend},
+  cl.flags({{"scene", &scene},
+            {"map", &map_path},
+            {"dataset", &dataset},
+            {"trials", &trials},
+            {"first-seed", &first_seed},
+            {"stride", &stride},
+            {"width", &width},
+            {"particles", &particles},
+            {"min-particles", &min_particles},
+            {"track-frames", &kp.track_frames},
+            {"after-frames", &kp.after_frames},
+            {"start-frame", &kp.start_frame},
+            {"backend", &backend},
             {"attitude-noise", &attitude_noise_deg},
-            {"no-lost-detector", cli::Clear{&lost_detector}}, {"out", &out_dir}, {"init", &init}});
-  cl.addLocalizerParams(&kp.localizer, {"num_particles", "min_particles", "pixel_stride",
-                                        "backend", "device_filter", "seed", "init_centre",
-                                        "init_half_extent", "init_yaw_centre",
-                                        "init_yaw_half_range"});
+            {"no-lost-detector", cli::Clear{&lost_detector}},
+            {"out", &out_dir},
+            {"init", &init}});
+  cl.addLocalizerParams(&kp.localizer, {"num_particles", "min_particles", "pixel_stride", "backend",
+                                        "device_filter", "seed", "init_centre", "init_half_extent",
+                                        "init_yaw_centre", "init_yaw_half_range"});
   cl.addDepthNoise(&kp.localizer.measurement.depth_noise);
   cl.parse(argc, argv);
   if (cl.given("attitude-noise")) kp.attitude_sigma_rad = attitude_noise_deg * M_PI / 180.0;
@@ -99,28 +108,31 @@ int run(int argc, char** argv) {
     kp.localizer.filter.min_particles = min_particles;
     kp.localizer.backend = backend;
     if (!lost_detector) kp.localizer.lost.margin_nats = 0.0;
-    std::printf("gmm_mcl kidnap: %s, %d..%d particles, stride %d, %s weighting, lost detector %s, "
-                "%d tracked + %d frames after the kidnap; %d candidates per redrawn particle, "
-                "redraw fraction %.2f, margin %.1f nats/px\n\n",
-                src->name().c_str(), min_particles, particles, kp.localizer.frame.pixel_stride,
-                weightingModeName(kp.localizer.filter.weighting), lost_detector ? "on" : "off", kp.track_frames,
-                kp.after_frames, kp.localizer.lost.candidates_per_particle,
-                kp.localizer.lost.reinit_fraction, kp.localizer.lost.margin_nats);
-    std::printf("| seed | frames | jump (m) | yaw jump (deg) | error before (cm) | recovered in (s) "
-                "| final error (cm) | ATE after (cm) | lost events | final best / reference (nats/px) "
-                "| success |\n"
-                "|---|---|---|---|---|---|---|---|---|---|---|\n");
+    std::printf(
+        "gmm_mcl kidnap: %s, %d..%d particles, stride %d, %s weighting, lost detector %s, "
+        "%d tracked + %d frames after the kidnap; %d candidates per redrawn particle, "
+        "redraw fraction %.2f, margin %.1f nats/px\n\n",
+        src->name().c_str(), min_particles, particles, kp.localizer.frame.pixel_stride,
+        weightingModeName(kp.localizer.filter.weighting), lost_detector ? "on" : "off",
+        kp.track_frames, kp.after_frames, kp.localizer.lost.candidates_per_particle,
+        kp.localizer.lost.reinit_fraction, kp.localizer.lost.margin_nats);
+    std::printf(
+        "| seed | frames | jump (m) | yaw jump (deg) | error before (cm) | recovered in (s) "
+        "| final error (cm) | ATE after (cm) | lost events | final best / reference (nats/px) "
+        "| success |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|\n");
     int ok = 0;
     double sum_s = 0.0, worst_s = 0.0, step_ms = 0.0;
     for (int t = 0; t < trials; ++t) {
       const KidnapResult r = runKidnapTrial(*src, kp, first_seed + t);
-      std::printf("| %llu | %d..%d -> %d | %.2f | %.0f | %.1f | %s | %.1f | %.1f | %d "
-                  "| %.2f / %.2f | %s |\n",
-                  static_cast<unsigned long long>(r.seed), r.start_frame, r.from_frame - 1,
-                  r.to_frame, r.jump_m, r.jump_yaw_rad * 180.0 / M_PI, 100.0 * r.error_before_m,
-                  r.recovery_s >= 0.0 ? std::to_string(r.recovery_s).substr(0, 5).c_str() : "never",
-                  100.0 * r.final_error_m, 100.0 * r.ate_after_m, r.lost_events,
-                  r.final_best_loglik_px, r.final_reference_px, r.recovered ? "yes" : "no");
+      std::printf(
+          "| %llu | %d..%d -> %d | %.2f | %.0f | %.1f | %s | %.1f | %.1f | %d "
+          "| %.2f / %.2f | %s |\n",
+          static_cast<unsigned long long>(r.seed), r.start_frame, r.from_frame - 1, r.to_frame,
+          r.jump_m, r.jump_yaw_rad * 180.0 / M_PI, 100.0 * r.error_before_m,
+          r.recovery_s >= 0.0 ? std::to_string(r.recovery_s).substr(0, 5).c_str() : "never",
+          100.0 * r.final_error_m, 100.0 * r.ate_after_m, r.lost_events, r.final_best_loglik_px,
+          r.final_reference_px, r.recovered ? "yes" : "no");
       std::fflush(stdout);
       if (r.recovered) {
         ++ok;
@@ -150,10 +162,10 @@ int run(int argc, char** argv) {
         }
       }
     }
-    std::printf("\n%d/%d recovered within %.0f s; mean recovery %.2f s, worst %.2f s; "
-                "mean step %.1f ms\n",
-                ok, trials, kp.max_recovery_s, ok > 0 ? sum_s / ok : 0.0, worst_s,
-                step_ms / trials);
+    std::printf(
+        "\n%d/%d recovered within %.0f s; mean recovery %.2f s, worst %.2f s; "
+        "mean step %.1f ms\n",
+        ok, trials, kp.max_recovery_s, ok > 0 ? sum_s / ok : 0.0, worst_s, step_ms / trials);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "gmm_mcl_kidnap: %s\n", e.what());
     return 1;

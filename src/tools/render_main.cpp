@@ -15,10 +15,10 @@
 #include <vector>
 
 #include "gmm_mcl/common/number_list.h"
-#include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/datasets/sequence_base.h"
 #include "gmm_mcl/datasets/sequence_writer.h"
 #include "gmm_mcl/datasets/tum_sequence.h"
+#include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/sim/mesh_renderer.h"
 #include "gmm_mcl/sim/mesh_scene.h"
 #include "gmm_mcl/sim/trajectory_io.h"
@@ -29,24 +29,24 @@ namespace gmm_mcl {
 namespace {
 
 const char* kUsage =
-      "usage: gmm_mcl_render --out DIR [--mesh FILE.ply] [--trajectory FILE] [--camera SPEC]\n"
-      "                      [--first I] [--frames N] [--stride K] [--rate HZ] [--start-time S]\n"
-      "                      [--seed S] [--no-noise] [--dropout P] [--max-range M]\n"
-      "                      [--down GX,GY,GZ] [--width PX]\n"
-      "                      [--save-map FILE.gmm] [--save-mesh FILE.ply] [--quiet]\n"
-      "  --mesh        a PLY mesh (default: the built-in room with boxes and cylinders)\n"
-      "  --trajectory  camera-to-world poses: 16 numbers a line (row-major 4x4, Replica traj.txt)\n"
-      "                or TUM 't tx ty tz qx qy qz qw' (default: the built-in drone trajectory)\n"
-      "  --camera      cam_params.json (Replica) or fx,fy,cx,cy,width,height (default: f = 585 px\n"
-      "                at 640x480 scaled to --width)\n"
-      "  --first I     start at pose I of the trajectory (default 0; stamps keep their place)\n"
-      "  --frames N    at most N frames (default: all of a file, 300 of the built-in)\n"
-      "  --stride K    every K-th pose of the trajectory (default 1)\n"
-      "  --rate HZ     frame rate for trajectories without stamps (default 30)\n"
-      "  --no-noise    ideal depth (only the range window of --max-range)\n"
-      "  --dropout P   probability that a pixel is missing at random (default 0.005)\n"
-      "  --down        gravity direction in world coordinates (default 0,0,-1: z up)\n"
-      "  --save-map    the built-in scene's tiled GMM (0.4 m tiles, 1.5 cm normal sigma)\n";
+    "usage: gmm_mcl_render --out DIR [--mesh FILE.ply] [--trajectory FILE] [--camera SPEC]\n"
+    "                      [--first I] [--frames N] [--stride K] [--rate HZ] [--start-time S]\n"
+    "                      [--seed S] [--no-noise] [--dropout P] [--max-range M]\n"
+    "                      [--down GX,GY,GZ] [--width PX]\n"
+    "                      [--save-map FILE.gmm] [--save-mesh FILE.ply] [--quiet]\n"
+    "  --mesh        a PLY mesh (default: the built-in room with boxes and cylinders)\n"
+    "  --trajectory  camera-to-world poses: 16 numbers a line (row-major 4x4, Replica traj.txt)\n"
+    "                or TUM 't tx ty tz qx qy qz qw' (default: the built-in drone trajectory)\n"
+    "  --camera      cam_params.json (Replica) or fx,fy,cx,cy,width,height (default: f = 585 px\n"
+    "                at 640x480 scaled to --width)\n"
+    "  --first I     start at pose I of the trajectory (default 0; stamps keep their place)\n"
+    "  --frames N    at most N frames (default: all of a file, 300 of the built-in)\n"
+    "  --stride K    every K-th pose of the trajectory (default 1)\n"
+    "  --rate HZ     frame rate for trajectories without stamps (default 30)\n"
+    "  --no-noise    ideal depth (only the range window of --max-range)\n"
+    "  --dropout P   probability that a pixel is missing at random (default 0.005)\n"
+    "  --down        gravity direction in world coordinates (default 0,0,-1: z up)\n"
+    "  --save-map    the built-in scene's tiled GMM (0.4 m tiles, 1.5 cm normal sigma)\n";
 
 // True when the first pose line of a file has 16 numbers (a 4x4 matrix per line).
 bool isMatrixTrajectory(const std::string& path) {
@@ -73,8 +73,13 @@ class RenderedSequence : public Sequence {
                    const Eigen::Matrix3d& R_aligned_world, double max_range_m, bool noise,
                    const sim::SensorNoiseParams& sensor, uint64_t seed, std::string source,
                    bool quiet)
-      : Sequence("render", std::move(source)), bvh_(std::move(bvh)), max_range_m_(max_range_m),
-        noise_(noise), seed_(seed), quiet_(quiet), sensor_(sensor) {
+      : Sequence("render", std::move(source)),
+        bvh_(std::move(bvh)),
+        max_range_m_(max_range_m),
+        noise_(noise),
+        seed_(seed),
+        quiet_(quiet),
+        sensor_(sensor) {
     intrinsics_ = K;
     stamps_s_ = std::move(stamps);
     T_world_cam_ = std::move(poses);
@@ -85,9 +90,9 @@ class RenderedSequence : public Sequence {
 
   DepthImage loadDepth(int i) const override {
     const auto t0 = std::chrono::steady_clock::now();
-    const DepthImage img = sim::renderDepth(
-        *bvh_, intrinsics_, T_world_cam_[i], DepthEncoding::kMono16Millimetres, max_range_m_,
-        noise_ ? &sensor_ : nullptr, sim::frameSeed(seed_, i));
+    const DepthImage img =
+        sim::renderDepth(*bvh_, intrinsics_, T_world_cam_[i], DepthEncoding::kMono16Millimetres,
+                         max_range_m_, noise_ ? &sensor_ : nullptr, sim::frameSeed(seed_, i));
     const double ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     total_ms_ += ms;
@@ -118,11 +123,23 @@ int run(int argc, char** argv) {
   uint64_t seed = 1;
   bool noise = true, quiet = false;
   cli::CommandLine cl("gmm_mcl_render", kUsage);
-  cl.flags({{"out", &out}, {"mesh", &mesh_path}, {"trajectory", &traj_path}, {"camera", &camera},
-            {"first", &first}, {"frames", &frames}, {"stride", &stride}, {"rate", &rate_hz},
-            {"start-time", &start_s}, {"seed", &seed}, {"no-noise", cli::Clear{&noise}},
-            {"dropout", &sensor.random_dropout}, {"max-range", &max_range_m}, {"down", &down},
-            {"width", &width_px}, {"save-map", &save_map}, {"save-mesh", &save_mesh},
+  cl.flags({{"out", &out},
+            {"mesh", &mesh_path},
+            {"trajectory", &traj_path},
+            {"camera", &camera},
+            {"first", &first},
+            {"frames", &frames},
+            {"stride", &stride},
+            {"rate", &rate_hz},
+            {"start-time", &start_s},
+            {"seed", &seed},
+            {"no-noise", cli::Clear{&noise}},
+            {"dropout", &sensor.random_dropout},
+            {"max-range", &max_range_m},
+            {"down", &down},
+            {"width", &width_px},
+            {"save-map", &save_map},
+            {"save-mesh", &save_mesh},
             {"quiet", &quiet}});
   cl.parse(argc, argv);
   const std::string sensor_err = sensor.validate();
@@ -180,7 +197,8 @@ int run(int argc, char** argv) {
     const std::vector<Eigen::Isometry3d> base = sim::makeTrajectory(n);
     for (const auto& T : base) poses.push_back(T * sim::defaultBaseToCamera());
     if (!builtin && !quiet) {
-      std::printf("note: the built-in trajectory is made for the built-in scene's 8 x 6 x 3 m room\n");
+      std::printf(
+          "note: the built-in trajectory is made for the built-in scene's 8 x 6 x 3 m room\n");
     }
   } else if (isMatrixTrajectory(traj_path)) {
     poses = sim::readMatrixTrajectory(traj_path);
@@ -199,7 +217,8 @@ int run(int argc, char** argv) {
   }
   for (size_t i = 1; i < kept_stamps.size(); ++i) {
     if (!(kept_stamps[i] > kept_stamps[i - 1])) {
-      throw std::runtime_error(traj_path + ": stamps must increase (pose " + std::to_string(i) + ")");
+      throw std::runtime_error(traj_path + ": stamps must increase (pose " + std::to_string(i) +
+                               ")");
     }
   }
 
@@ -212,15 +231,14 @@ int run(int argc, char** argv) {
   if (kept_poses.empty()) {
     throw std::runtime_error("no poses from --first " + std::to_string(first) + " on");
   }
-  RenderedSequence seq(bvh, K, kept_stamps, kept_poses, R_aligned_world, max_range_m, noise,
-                       sensor, seed, source, quiet);
+  RenderedSequence seq(bvh, K, kept_stamps, kept_poses, R_aligned_world, max_range_m, noise, sensor,
+                       seed, source, quiet);
   TumWriteOptions options;
   options.truth_offset_s = 0.0;  // rendered: ground truth at exactly the depth stamps
   options.truth_per_frame = 1;
   const auto t0 = std::chrono::steady_clock::now();
   writeTumFolder(seq, out, options);
-  const double s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::printf("wrote %s: %d frames %dx%d, %s, seed %llu; render %.1f ms/frame, total %.1f s\n",
               out.c_str(), seq.size(), K.width_px, K.height_px,
               noise ? "sensor noise on" : "no noise", static_cast<unsigned long long>(seed),

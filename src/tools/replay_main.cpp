@@ -13,10 +13,10 @@
 #include <string>
 #include <vector>
 
-#include "gmm_mcl/map/gmm_map_io.h"
-#include "gmm_mcl/replay/replay.h"
 #include "gmm_mcl/datasets/sequence_writer.h"
 #include "gmm_mcl/datasets/sim_sequence.h"
+#include "gmm_mcl/map/gmm_map_io.h"
+#include "gmm_mcl/replay/replay.h"
 #include "gmm_mcl/tools/sequence_flags.h"
 
 namespace gmm_mcl {

@@ -24,12 +24,12 @@ namespace gmm_mcl {
 namespace {
 
 const char* kUsage =
-      "usage: gmm_mcl_sim_demo [--frames N] [--particles N] [--seed S] [--stride PX]\n"
-      "                        [--weighting paper|tempered] [--temperature T] [--backend cpu|cuda]\n"
-      "                        [--width PX] [--map-spacing M] [--map-normal-sigma M]\n"
-      "                        [--scene mesh|box] [--no-sensor-noise] [--save-map FILE]\n"
-      "                        [--save-mesh FILE.ply] [--quiet]\n"
-      "Filter parameters: every one as --name-with-dashes (the list under --help).\n";
+    "usage: gmm_mcl_sim_demo [--frames N] [--particles N] [--seed S] [--stride PX]\n"
+    "                        [--weighting paper|tempered] [--temperature T] [--backend cpu|cuda]\n"
+    "                        [--width PX] [--map-spacing M] [--map-normal-sigma M]\n"
+    "                        [--scene mesh|box] [--no-sensor-noise] [--save-map FILE]\n"
+    "                        [--save-mesh FILE.ply] [--quiet]\n"
+    "Filter parameters: every one as --name-with-dashes (the list under --help).\n";
 
 }  // namespace
 
@@ -42,13 +42,21 @@ int run(int argc, char** argv) {
   bool quiet = false, sensor_noise = true;
   LocalizerParams params;
   cli::CommandLine cl("gmm_mcl_sim_demo", kUsage);
-  cl.flags({{"frames", &frames}, {"particles", &particles}, {"seed", &seed}, {"stride", &stride},
-            {"map-spacing", &spacing_m}, {"map-normal-sigma", &normal_sigma_m},
-            {"width", &width_px}, {"backend", &backend}, {"save-map", &save_map},
-            {"scene", &scene_name}, {"no-sensor-noise", cli::Clear{&sensor_noise}},
-            {"save-mesh", &save_mesh}, {"quiet", &quiet}});
-  cl.addLocalizerParams(&params, {"num_particles", "seed", "pixel_stride", "backend",
-                                  "init_centre", "init_yaw_centre"});
+  cl.flags({{"frames", &frames},
+            {"particles", &particles},
+            {"seed", &seed},
+            {"stride", &stride},
+            {"map-spacing", &spacing_m},
+            {"map-normal-sigma", &normal_sigma_m},
+            {"width", &width_px},
+            {"backend", &backend},
+            {"save-map", &save_map},
+            {"scene", &scene_name},
+            {"no-sensor-noise", cli::Clear{&sensor_noise}},
+            {"save-mesh", &save_mesh},
+            {"quiet", &quiet}});
+  cl.addLocalizerParams(&params, {"num_particles", "seed", "pixel_stride", "backend", "init_centre",
+                                  "init_yaw_centre"});
   cl.parse(argc, argv);
 
   if (scene_name != "mesh" && scene_name != "box") {
@@ -85,10 +93,12 @@ int run(int argc, char** argv) {
   if (!localizer.backendWarning().empty()) {
     std::fprintf(stderr, "warning: %s\n", localizer.backendWarning().c_str());
   }
-  std::printf("gmm_mcl demo: synthetic %s scene, %zu components, %d particles, %dx%d depth, stride %d, "
-              "%s weighting, %s backend, seed %llu\n",
-              mesh_scene ? "mesh (boxes and cylinders)" : "box", map.size(), particles, K.width_px, K.height_px, stride, weightingModeName(params.filter.weighting),
-              localizer.backend().name().c_str(), static_cast<unsigned long long>(seed));
+  std::printf(
+      "gmm_mcl demo: synthetic %s scene, %zu components, %d particles, %dx%d depth, stride %d, "
+      "%s weighting, %s backend, seed %llu\n",
+      mesh_scene ? "mesh (boxes and cylinders)" : "box", map.size(), particles, K.width_px,
+      K.height_px, stride, weightingModeName(params.filter.weighting),
+      localizer.backend().name().c_str(), static_cast<unsigned long long>(seed));
 
   // Odometry and attitude noise per the DESIGN.md protocol; depth noise seeded per frame.
   OdometrySynthesizer motion(ProtocolNoise(), seed + 1000);
@@ -104,10 +114,11 @@ int run(int argc, char** argv) {
     motion.attitude(truth[f], &roll, &pitch);
     const Eigen::Isometry3d T_map_cam = truth[f] * T_base_cam;
     const DepthImage depth =
-        mesh_scene ? sim::renderDepth(*scene.bvh, K, T_map_cam, DepthEncoding::kMono16Millimetres,
-                                      8.0, sensor_noise ? &sensor : nullptr, sim::frameSeed(seed, f))
-                   : sim::renderDepth(box_scene, K, T_map_cam, DepthEncoding::kMono16Millimetres,
-                                      8.0, sensor_noise ? box_noise : sim::DepthNoise(), &rng);
+        mesh_scene
+            ? sim::renderDepth(*scene.bvh, K, T_map_cam, DepthEncoding::kMono16Millimetres, 8.0,
+                               sensor_noise ? &sensor : nullptr, sim::frameSeed(seed, f))
+            : sim::renderDepth(box_scene, K, T_map_cam, DepthEncoding::kMono16Millimetres, 8.0,
+                               sensor_noise ? box_noise : sim::DepthNoise(), &rng);
     StepInput in;
     in.stamp_s = f / 30.0;
     in.has_odometry = true;
@@ -134,17 +145,20 @@ int run(int argc, char** argv) {
       const DepthFrame frame = prepareFrame(depth, K, params.frame);
       const double truth_ll =
           poseLogLikelihood(map.packed(), frame, toRigidF(truth[f] * T_base_cam),
-                            params.measurement, &scratch).log_likelihood / std::max<size_t>(1, frame.size());
-      std::printf("frame %4d  error %7.3f m %6.2f deg  Neff %7.1f  loglik/px best %6.2f truth %6.2f"
-                  "  beta %.3f  reinit %3d  %6.1f ms  %s\n",
-                  f, err_t, err_yaw * 180.0 / M_PI, r.neff, r.best_loglik_per_pixel, truth_ll,
-                  r.beta_fraction, r.reinitialised, r.timings.total_ms, stepStatusName(r.status));
+                            params.measurement, &scratch)
+              .log_likelihood /
+          std::max<size_t>(1, frame.size());
+      std::printf(
+          "frame %4d  error %7.3f m %6.2f deg  Neff %7.1f  loglik/px best %6.2f truth %6.2f"
+          "  beta %.3f  reinit %3d  %6.1f ms  %s\n",
+          f, err_t, err_yaw * 180.0 / M_PI, r.neff, r.best_loglik_per_pixel, truth_ll,
+          r.beta_fraction, r.reinitialised, r.timings.total_ms, stepStatusName(r.status));
     }
   }
-  std::printf("final error: %.3f m translation, %.2f deg yaw; RMSE over the second half: %.3f m; "
-              "mean step %.1f ms\n",
-              err_t, err_yaw * 180.0 / M_PI, std::sqrt(sum_sq / std::max(1, counted)),
-              total_ms / frames);
+  std::printf(
+      "final error: %.3f m translation, %.2f deg yaw; RMSE over the second half: %.3f m; "
+      "mean step %.1f ms\n",
+      err_t, err_yaw * 180.0 / M_PI, std::sqrt(sum_sq / std::max(1, counted)), total_ms / frames);
   return 0;
 }
 

@@ -2,10 +2,10 @@
 // the localizer's convergence case is too slow): particles spread around the reference pose
 // give the same per-particle log-likelihoods with 1, 2 and 3 threads, since each particle is one
 // thread's work with its own scratch.
+#include <gtest/gtest.h>
+
 #include <random>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "gmm_mcl/backend/cpu_backend.h"
 #include "gmm_mcl/filter/pose.h"

@@ -16,9 +16,9 @@
 #include "gmm_mcl/backend/cuda_backend.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/filter/pose_refinement.h"
+#include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/measurement/likelihood.h"
 #include "gmm_mcl/measurement/normal_equations.h"
-#include "gmm_mcl/map/gmm_map_io.h"
 #include "test_utils/synthetic_fixtures.h"
 
 namespace gmm_mcl {
@@ -210,19 +210,19 @@ TEST(CudaBackendTest, RefinementSumsMatchHost) {
                   kNormalEquationsRelTol * std::max(1.0, std::abs(h1.loglik_start)))
           << "stride " << stride << " start " << k;
       const RefinementParams full;
-      const RefinementResult h = refinePose(w.map.packed(), frame, start, roll, pitch,
-                                            w.T_base_cam, mp, full);
-      const RefinementResult g = refinePose(w.map.packed(), frame, start, roll, pitch,
-                                            w.T_base_cam, mp, full, gpu.normalEquations());
+      const RefinementResult h =
+          refinePose(w.map.packed(), frame, start, roll, pitch, w.T_base_cam, mp, full);
+      const RefinementResult g = refinePose(w.map.packed(), frame, start, roll, pitch, w.T_base_cam,
+                                            mp, full, gpu.normalEquations());
       ASSERT_TRUE(h.refined) << h.why;
       ASSERT_TRUE(g.refined) << g.why;
       host_ms += h.ms;
       gpu_ms += g.ms;
       host_iterations += h.iterations;
       gpu_iterations += g.iterations;
-      const double d = std::sqrt(std::pow(h.pose.x_m - g.pose.x_m, 2) +
-                                 std::pow(h.pose.y_m - g.pose.y_m, 2) +
-                                 std::pow(h.pose.z_m - g.pose.z_m, 2));
+      const double d =
+          std::sqrt(std::pow(h.pose.x_m - g.pose.x_m, 2) + std::pow(h.pose.y_m - g.pose.y_m, 2) +
+                    std::pow(h.pose.z_m - g.pose.z_m, 2));
       worst = std::max(worst, d);
       worst_yaw = std::max(worst_yaw, std::abs(wrapAngle(h.pose.yaw_rad - g.pose.yaw_rad)));
       EXPECT_LT(d, kRefinedPoseTolM) << "stride " << stride << " start " << k;
@@ -280,9 +280,9 @@ TEST(CudaBackendTest, RefinementOnTheDeviceFrameMatchesHost) {
         refinePose(w.map.packed(), on_device, start, roll, pitch, w.T_base_cam, mp, rp, sums);
     ASSERT_TRUE(h.refined) << h.why;
     ASSERT_TRUE(d.refined) << d.why;
-    const double dist = std::sqrt(std::pow(h.pose.x_m - d.pose.x_m, 2) +
-                                  std::pow(h.pose.y_m - d.pose.y_m, 2) +
-                                  std::pow(h.pose.z_m - d.pose.z_m, 2));
+    const double dist =
+        std::sqrt(std::pow(h.pose.x_m - d.pose.x_m, 2) + std::pow(h.pose.y_m - d.pose.y_m, 2) +
+                  std::pow(h.pose.z_m - d.pose.z_m, 2));
     worst = std::max(worst, dist);
     EXPECT_LT(dist, kRefinedPoseTolM) << "start " << k;
     EXPECT_NEAR(d.loglik_start, h.loglik_start,
@@ -513,8 +513,8 @@ TEST(CudaBackendTest, SevenScenesFramesMatchCpu) {
     fp.patch_size_px = patch;
     const DepthFrame frame = prepareFrame(frames.images[0], frames.K, fp);
     const auto poses = perturbedPoses(frames.T_map_cam[0], 64, 300u + unsigned(patch));
-    const std::string label = "7-Scenes frame 0, " + std::to_string(patch) + "x" +
-                              std::to_string(patch) + " patches";
+    const std::string label =
+        "7-Scenes frame 0, " + std::to_string(patch) + "x" + std::to_string(patch) + " patches";
     expectSameLikelihood(map, frame, poses, &cpu, &gpu, label.c_str());
     const std::vector<RigidTransformF> some(poses.begin(), poses.begin() + 8);
     expectSameMembership(map, frame, some, &cpu, &gpu, label.c_str());

@@ -1,13 +1,13 @@
 // The faults the fuzzing found in the camera input paths (intrinsics, clouds, image buffers, PNG,
 // compressedDepth), each as a named case with its message (the fuzz_replay_* tests replay the
 // raw reproducers; these say what each fix promises).
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "gmm_mcl/camera/depth_frame.h"
 #include "gmm_mcl/camera/depth_image.h"

@@ -1,7 +1,7 @@
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <limits>
-
-#include <gtest/gtest.h>
 
 #include "gmm_mcl/camera/depth_frame.h"
 #include "test_utils/synthetic_fixtures.h"
@@ -25,10 +25,14 @@ TEST(DepthFrameTest, BothEncodingsGiveTheSamePoints) {
     mm[i] = static_cast<uint16_t>(500 + (i * 37) % 5000);
     m[i] = 0.001f * mm[i];
   }
-  mm[0] = 0;  m[0] = std::numeric_limits<float>::quiet_NaN();
-  mm[2] = 65535;  m[2] = std::numeric_limits<float>::infinity();
-  mm[4] = 0;  m[4] = 0.f;
-  const DepthFrame a = prepareFrame(DepthImage::fromMillimetres(K.width_px, K.height_px, mm), K, params);
+  mm[0] = 0;
+  m[0] = std::numeric_limits<float>::quiet_NaN();
+  mm[2] = 65535;
+  m[2] = std::numeric_limits<float>::infinity();
+  mm[4] = 0;
+  m[4] = 0.f;
+  const DepthFrame a =
+      prepareFrame(DepthImage::fromMillimetres(K.width_px, K.height_px, mm), K, params);
   const DepthFrame b = prepareFrame(DepthImage::fromMetres(K.width_px, K.height_px, m), K, params);
   ASSERT_EQ(a.size(), b.size());
   EXPECT_EQ(a.invalid_pixels, 3);
@@ -49,8 +53,8 @@ TEST(DepthFrameTest, StrideRangeWindowAndPatchGrouping) {
   params.min_range_m = 1.0f;
   params.max_range_m = 3.0f;
   std::vector<float> d(K.width_px * K.height_px, 2.0f);
-  d[0] = 0.5f;           // below range
-  d[4] = 3.5f;           // above range
+  d[0] = 0.5f;               // below range
+  d[4] = 3.5f;               // above range
   d[K.width_px * 1] = 1.0f;  // off the stride grid: never sampled
   const DepthFrame f = prepareFrame(DepthImage::fromMetres(K.width_px, K.height_px, d), K, params);
   EXPECT_EQ(f.total_pixels_sampled, 80 * 60);
@@ -84,7 +88,8 @@ TEST(DepthFrameTest, SizeMismatchAndBadLayoutAreClearErrors) {
     prepareFrame(small, K, FrameParams());
     FAIL();
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("10x10 but the camera info says 320x240"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("10x10 but the camera info says 320x240"),
+              std::string::npos);
   }
   DepthImage truncated = DepthImage::fromMetres(320, 240, std::vector<float>(320 * 240, 1.f));
   truncated.data.resize(100);
@@ -100,7 +105,8 @@ TEST(DepthFrameTest, SizeMismatchAndBadLayoutAreClearErrors) {
 TEST(DepthFrameTest, AllInvalidFrameIsEmptyNotAnError) {
   const Intrinsics K = test::smallCamera();
   std::vector<float> d(K.width_px * K.height_px, std::numeric_limits<float>::quiet_NaN());
-  const DepthFrame f = prepareFrame(DepthImage::fromMetres(K.width_px, K.height_px, d), K, FrameParams());
+  const DepthFrame f =
+      prepareFrame(DepthImage::fromMetres(K.width_px, K.height_px, d), K, FrameParams());
   EXPECT_TRUE(f.empty());
   EXPECT_EQ(f.invalid_pixels, f.total_pixels_sampled);
 }
@@ -127,8 +133,10 @@ TEST(DepthFrameTest, PngRoundTripAndSevenScenesFrame) {
   for (int v = 0; v < 480; ++v) {
     for (int u = 0; u < 640; ++u) {
       const float z = frame.depthMetres(u, v);
-      if (!std::isfinite(z)) ++zeros;
-      else if (z > 0.3f && z < 5.0f) ++plausible;
+      if (!std::isfinite(z))
+        ++zeros;
+      else if (z > 0.3f && z < 5.0f)
+        ++plausible;
     }
   }
   // SOURCES.md: about 11% of pixels are 0; the rest are room-scale depths in millimetres.

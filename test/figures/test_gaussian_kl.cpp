@@ -1,9 +1,9 @@
 // The KL divergence of the Sensitivity Analysis: closed form against known values and a
 // Monte-Carlo estimate, yaw wrapping, and the Gaussian of a filter estimate.
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <random>
-
-#include <gtest/gtest.h>
 
 #include "gmm_mcl/figures/gaussian_kl.h"
 
@@ -19,8 +19,7 @@ constexpr double kMonteCarloTol = 0.01;
 TEST(GaussianKlTest, IdenticalGaussiansHaveZeroDivergence) {
   StateGaussian g;
   g.mean << 1.0, 2.0, 0.5, 0.3;
-  g.cov << 0.04, 0.01, 0.0, 0.002, 0.01, 0.09, 0.0, 0.0, 0.0, 0.0, 0.01, 0.0, 0.002, 0.0, 0.0,
-      0.01;
+  g.cov << 0.04, 0.01, 0.0, 0.002, 0.01, 0.09, 0.0, 0.0, 0.0, 0.0, 0.01, 0.0, 0.002, 0.0, 0.0, 0.01;
   EXPECT_NEAR(stateKl(g, g, 0.0), 0.0, kClosedFormTol);
 }
 

@@ -1,11 +1,11 @@
 // Paper Fig. 2 on the synthetic scene: the sweep's minimum is at the true pose along every
 // axis, and the approximation (patch membership) agrees with the exact sum near the truth.
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "gmm_mcl/figures/nll_sweep.h"
 #include "test_utils/synthetic_fixtures.h"

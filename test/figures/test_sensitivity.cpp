@@ -1,9 +1,9 @@
 // The Sensitivity Analysis pipeline on the synthetic scene: the variance definition on
 // hand-made samples, determinism (a run equal to the reference has zero divergence), and fewer
 // particles giving a larger KL variance against the reference filter.
-#include <cmath>
-
 #include <gtest/gtest.h>
+
+#include <cmath>
 
 #include "gmm_mcl/figures/scenario.h"
 #include "gmm_mcl/figures/sensitivity.h"
@@ -77,8 +77,9 @@ TEST_F(SensitivityTest, InputsAreSeededAndDrift) {
   EXPECT_TRUE(inputs_->T_odom_base[0].isApprox(scenario_->T_map_base[0]));
   EXPECT_TRUE(again.T_odom_base.back().isApprox(inputs_->T_odom_base.back()));
   EXPECT_FALSE(other.T_odom_base.back().isApprox(inputs_->T_odom_base.back(), 1e-6));
-  const double drift = (inputs_->T_odom_base.back().translation() -
-                        scenario_->T_map_base.back().translation()).norm();
+  const double drift =
+      (inputs_->T_odom_base.back().translation() - scenario_->T_map_base.back().translation())
+          .norm();
   EXPECT_GT(drift, 0.0);
   EXPECT_LT(drift, 0.1);  // 11 steps of 5 mm per axis
 }

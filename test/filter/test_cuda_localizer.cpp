@@ -53,10 +53,9 @@ const Frames& frames() {
     out.truth = sim::makeTrajectory(n);
     std::mt19937_64 rng(17);
     for (int i = 0; i < n; ++i) {
-      out.depth.push_back(sim::renderDepth(test::world().scene, test::smallCamera(),
-                                           out.truth[i] * test::world().T_base_cam,
-                                           DepthEncoding::kMono16Millimetres, 9.0,
-                                           sim::DepthNoise{0.0015, 0.02}, &rng));
+      out.depth.push_back(sim::renderDepth(
+          test::world().scene, test::smallCamera(), out.truth[i] * test::world().T_base_cam,
+          DepthEncoding::kMono16Millimetres, 9.0, sim::DepthNoise{0.0015, 0.02}, &rng));
     }
     return out;
   }();
@@ -105,10 +104,11 @@ TEST(CudaLocalizerTest, DeviceAndHostFilterBothConvergeFromTheFourMetreCube) {
       if (f >= n - 30) worst_last_30 = std::max(worst_last_30, errorAt(r[f], f));
       if (f > 0) total_ms += r[f].timings.total_ms;
     }
-    std::printf("[ measured ] %s: final error %.3f m, worst of the last 30 frames %.3f m, mean "
-                "step %.2f ms, screened %d on frame 0\n",
-                device ? "device filter" : "host filter", errorAt(r[n - 1], n - 1), worst_last_30,
-                total_ms / (n - 1), r[0].screened_candidates);
+    std::printf(
+        "[ measured ] %s: final error %.3f m, worst of the last 30 frames %.3f m, mean "
+        "step %.2f ms, screened %d on frame 0\n",
+        device ? "device filter" : "host filter", errorAt(r[n - 1], n - 1), worst_last_30,
+        total_ms / (n - 1), r[0].screened_candidates);
     EXPECT_LT(worst_last_30, kConvergedErrorM);
   }
 }
@@ -219,11 +219,11 @@ TEST(CudaLocalizerTest, ThreadsDriveStepsResetsAndARebuild) {
     EXPECT_TRUE(results[f].estimate.covariance.allFinite()) << f;
   }
   EXPECT_GT(results[global_at].screened_candidates, 0);
-  std::printf("[ measured ] error %.3f m before the global reset, %.3f m before the pose reset, "
-              "%.3f m before the rebuild, %.3f m at the end\n",
-              errorAt(results[global_at - 1], global_at - 1),
-              errorAt(results[pose_at - 1], pose_at - 1),
-              errorAt(results[rebuild_at - 1], rebuild_at - 1), errorAt(results[n - 1], n - 1));
+  std::printf(
+      "[ measured ] error %.3f m before the global reset, %.3f m before the pose reset, "
+      "%.3f m before the rebuild, %.3f m at the end\n",
+      errorAt(results[global_at - 1], global_at - 1), errorAt(results[pose_at - 1], pose_at - 1),
+      errorAt(results[rebuild_at - 1], rebuild_at - 1), errorAt(results[n - 1], n - 1));
   EXPECT_LT(errorAt(results[rebuild_at - 1], rebuild_at - 1), kConvergedErrorM);
   EXPECT_LT(errorAt(results[n - 1], n - 1), kConvergedErrorM);
   EXPECT_EQ(loc->filter().size(), results[n - 1].particles);  // copied down on request
@@ -258,11 +258,12 @@ TEST(CudaLocalizerTest, LostDetectorRedrawsOnTheDevice) {
     ASSERT_LT(lost_frame, 7);
     const StepResult& before = r[lost_frame];
     const StepResult& after = r[lost_frame + 1];
-    std::printf("[ measured ] %s: lost at frame %d (best %.2f nats/px, reference %.2f), %d "
-                "redrawn; next frame best %.2f nats/px with %d particles\n",
-                device ? "device filter" : "host filter", lost_frame, before.best_loglik_per_pixel,
-                before.reference_loglik_per_pixel, before.lost_reinitialised,
-                after.best_loglik_per_pixel, after.particles);
+    std::printf(
+        "[ measured ] %s: lost at frame %d (best %.2f nats/px, reference %.2f), %d "
+        "redrawn; next frame best %.2f nats/px with %d particles\n",
+        device ? "device filter" : "host filter", lost_frame, before.best_loglik_per_pixel,
+        before.reference_loglik_per_pixel, before.lost_reinitialised, after.best_loglik_per_pixel,
+        after.particles);
     EXPECT_EQ(before.screened_candidates, before.lost_reinitialised * 16);
     EXPECT_EQ(after.particles, 3000);  // grown back to the largest count
     EXPECT_GT(after.best_loglik_per_pixel, before.best_loglik_per_pixel + 5.0);

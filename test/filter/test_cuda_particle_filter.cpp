@@ -77,9 +77,9 @@ double relDiff(double a, double b, double scale) { return std::abs(a - b) / scal
 struct WeightCase {
   const char* name;
   WeightingMode mode;
-  double ll_spread;       // nats, the spread of the log-likelihoods
-  bool peaked_prior;      // prior weights concentrated on a few particles
-  bool non_finite;        // some -inf and NaN entries
+  double ll_spread;   // nats, the spread of the log-likelihoods
+  bool peaked_prior;  // prior weights concentrated on a few particles
+  bool non_finite;    // some -inf and NaN entries
 };
 
 TEST(CudaParticleFilterTest, WeightsMatchTheHostForTheSameLogLikelihoods) {
@@ -130,10 +130,11 @@ TEST(CudaParticleFilterTest, WeightsMatchTheHostForTheSameLogLikelihoods) {
     const double wmax = *std::max_element(hw.begin(), hw.end());
     double worst = 0.0;
     for (int i = 0; i < n; ++i) worst = std::max(worst, relDiff(dw[i], hw[i], wmax));
-    std::printf("[ measured ] %s: weights max |dw| / max w = %.2e, beta fraction %.6f vs %.6f, "
-                "Neff %.1f vs %.1f\n",
-                c.name, worst, ds.beta_fraction, hs.beta_fraction, device.effectiveSampleSize(),
-                host.effectiveSampleSize());
+    std::printf(
+        "[ measured ] %s: weights max |dw| / max w = %.2e, beta fraction %.6f vs %.6f, "
+        "Neff %.1f vs %.1f\n",
+        c.name, worst, ds.beta_fraction, hs.beta_fraction, device.effectiveSampleSize(),
+        host.effectiveSampleSize());
     EXPECT_LT(worst, kWeightRelTol);
     EXPECT_NEAR(ds.beta_fraction, hs.beta_fraction, kBetaTol);
     EXPECT_EQ(ds.best_loglik, hs.best_loglik);
@@ -171,8 +172,8 @@ TEST(CudaParticleFilterTest, ResamplingIndicesMatchTheHostForTheSameOrderAndOffs
     SCOPED_TRACE(n_out);
     CudaParticleFilter device(filterParams(n), backend.get());
     std::vector<double> w = randomWeights(n, 11);
-    for (int i = 0; i < n; i += 7) w[i] = 0.0;                // particles that cannot be drawn
-    for (int i = 3; i < n; i += 1000) w[i] *= 300.0;          // and some that are drawn often
+    for (int i = 0; i < n; i += 7) w[i] = 0.0;        // particles that cannot be drawn
+    for (int i = 3; i < n; i += 1000) w[i] *= 300.0;  // and some that are drawn often
     const double total = std::accumulate(w.begin(), w.end(), 0.0);
     for (double& x : w) x /= total;
     device.setParticles(randomParticles(n, 12), w);
@@ -255,9 +256,8 @@ TEST(CudaParticleFilterTest, KldBinCountAndAdaptiveCountMatchTheHost) {
   device.setParticles(particles, std::vector<double>(n, 1.0));
   host.resample();
   device.resample();
-  const int expected =
-      std::max(p.min_particles, std::min(p.num_particles, kldParticleBound(bins, p.kld_epsilon,
-                                                                           p.kld_z)));
+  const int expected = std::max(
+      p.min_particles, std::min(p.num_particles, kldParticleBound(bins, p.kld_epsilon, p.kld_z)));
   std::printf("[ measured ] adaptive count: device %d, host %d, bound of %d bins %d\n",
               device.size(), host.size(), bins, expected);
   EXPECT_EQ(host.size(), expected);
@@ -311,9 +311,9 @@ TEST(CudaParticleFilterTest, EstimateMatchesTheHost) {
               cov_diff, device.effectiveSampleSize(), host.effectiveSampleSize());
   EXPECT_LT(worst, kEstimateTol);
   EXPECT_LT(cov_diff, kEstimateTol);
-  EXPECT_LT(relDiff(device.effectiveSampleSize(), host.effectiveSampleSize(),
-                    host.effectiveSampleSize()),
-            1e-9);
+  EXPECT_LT(
+      relDiff(device.effectiveSampleSize(), host.effectiveSampleSize(), host.effectiveSampleSize()),
+      1e-9);
 }
 
 // ---- selection (screening and lost redraws) -------------------------------------------------
@@ -363,7 +363,8 @@ TEST(CudaParticleFilterTest, RedrawSelectionMatchesTheHost) {
     ASSERT_EQ(device.size(), host.size());
     // The same particles (any order) with the same weights.
     std::vector<std::pair<double, double>> hx, dx;  // (x, weight)
-    for (int i = 0; i < host.size(); ++i) hx.emplace_back(host.particles()[i].x_m, host.weights()[i]);
+    for (int i = 0; i < host.size(); ++i)
+      hx.emplace_back(host.particles()[i].x_m, host.weights()[i]);
     for (int i = 0; i < device.size(); ++i) {
       dx.emplace_back(device.particles()[i].x_m, device.weights()[i]);
     }
@@ -648,8 +649,8 @@ TEST(CudaParticleFilterTest, LikelihoodOfDeviceParticlesMatchesTheHostPath) {
     ASSERT_EQ(got.size(), expected.size());
     double worst = 0.0;
     for (int i = 0; i < n; ++i) {
-      worst = std::max(worst, relDiff(got[i], expected[i],
-                                      std::max(std::abs(expected[i]), floor_scale)));
+      worst = std::max(worst,
+                       relDiff(got[i], expected[i], std::max(std::abs(expected[i]), floor_scale)));
     }
     std::printf(
         "[ measured ] device-resident poses: max relative log-likelihood difference "

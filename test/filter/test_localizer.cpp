@@ -1,8 +1,8 @@
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <limits>
 #include <random>
-
-#include <gtest/gtest.h>
 
 #include "gmm_mcl/backend/cpu_backend.h"
 #include "gmm_mcl/filter/localizer.h"
@@ -12,7 +12,7 @@ namespace gmm_mcl {
 namespace {
 
 constexpr double kConvergedErrorM = 0.05;  // issue: converges below 5 cm
-constexpr int kConvergenceFrames = 200;     // 6.7 s of data at 30 Hz
+constexpr int kConvergenceFrames = 200;    // 6.7 s of data at 30 Hz
 
 LocalizerParams syntheticParams(const Eigen::Isometry3d& start) {
   LocalizerParams p;
@@ -56,9 +56,9 @@ RunResult runSynthetic(const LocalizerParams& params, int frames, uint64_t noise
       delta.translation() += 0.005 * Eigen::Vector3d(g(rng), g(rng), g(rng));
       odom = odom * delta;
     }
-    const DepthImage depth = sim::renderDepth(w.scene, K, truth[f] * w.T_base_cam,
-                                              DepthEncoding::kMono16Millimetres, 9.0,
-                                              sim::DepthNoise{0.0015, 0.02}, &rng);
+    const DepthImage depth =
+        sim::renderDepth(w.scene, K, truth[f] * w.T_base_cam, DepthEncoding::kMono16Millimetres,
+                         9.0, sim::DepthNoise{0.0015, 0.02}, &rng);
     double roll, pitch, yaw;
     rpyFromRotation(truth[f].linear(), &roll, &pitch, &yaw);
     StepInput in;
@@ -123,7 +123,8 @@ TEST(LocalizerTest, BadFramesKeepTheStateAndSayWhy) {
   EXPECT_EQ(r.status, StepStatus::kBadFrame);
   EXPECT_NE(r.message.find("camera info"), std::string::npos) << r.message;
   EXPECT_EQ(loc.filter().particles().size(), before.size());
-  for (size_t i = 0; i < before.size(); ++i) ASSERT_EQ(loc.filter().particles()[i].x_m, before[i].x_m);
+  for (size_t i = 0; i < before.size(); ++i)
+    ASSERT_EQ(loc.filter().particles()[i].x_m, before[i].x_m);
 
   // Time going backwards re-initialises.
   in.depth = nullptr;
@@ -169,7 +170,8 @@ class FailingBackend : public LikelihoodBackend {
 };
 
 // Inputs of the synthetic trajectory's frame f (perfect odometry and attitude).
-StepInput syntheticInput(const std::vector<Eigen::Isometry3d>& truth, int f, const DepthImage& depth) {
+StepInput syntheticInput(const std::vector<Eigen::Isometry3d>& truth, int f,
+                         const DepthImage& depth) {
   double roll, pitch, yaw;
   rpyFromRotation(truth[f].linear(), &roll, &pitch, &yaw);
   StepInput in;
@@ -279,7 +281,8 @@ TEST(LocalizerTest, InvalidParametersAreRejectedAtConstruction) {
 }
 
 double distanceM(const Particle& a, const Particle& b) {
-  return std::sqrt(std::pow(a.x_m - b.x_m, 2) + std::pow(a.y_m - b.y_m, 2) + std::pow(a.z_m - b.z_m, 2));
+  return std::sqrt(std::pow(a.x_m - b.x_m, 2) + std::pow(a.y_m - b.y_m, 2) +
+                   std::pow(a.z_m - b.z_m, 2));
 }
 
 DepthImage syntheticDepth(const Eigen::Isometry3d& T_map_cam) {
@@ -323,9 +326,10 @@ TEST(LocalizerTest, PerFrameExtrinsicsEnterWithoutTouchingTheBelief) {
   std::normal_distribution<double> g(0.0, 1.0);
   for (int f = 5; f < 8; ++f) {
     Eigen::Isometry3d T = with.T_base_cam;
-    T.linear() = T.linear() * Eigen::AngleAxisd(0.5 * M_PI / 180,
-                                                Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized())
-                                  .toRotationMatrix();
+    T.linear() =
+        T.linear() *
+        Eigen::AngleAxisd(0.5 * M_PI / 180, Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized())
+            .toRotationMatrix();
     const DepthImage depth = syntheticDepth(truth[f] * T);
     LocalizerParams moved = a.params();
     moved.T_base_cam = T;

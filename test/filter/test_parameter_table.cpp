@@ -1,8 +1,8 @@
 // The core's parameter table: names unique, defaults valid, each entry bound to its own field,
 // and every parameter marked as changeable at run time accepted by Localizer::setParams.
-#include <set>
-
 #include <gtest/gtest.h>
+
+#include <set>
 
 #include "gmm_mcl/filter/localizer.h"
 #include "gmm_mcl/filter/parameter_table.h"
@@ -10,15 +10,21 @@
 
 namespace gmm_mcl {
 
-void PrintTo(const ParamValue& v, std::ostream* os) { *os << paramTypeName(v.type) << " " << v.toString(); }
+void PrintTo(const ParamValue& v, std::ostream* os) {
+  *os << paramTypeName(v.type) << " " << v.toString();
+}
 
 namespace {
 
 // Another valid value of the parameter: inside its range or choices, different from `v`.
 ParamValue otherValue(const ParamSpec<LocalizerParams>& p, ParamValue v) {
   switch (p.type) {
-    case ParamType::kBool: v.b = !v.b; break;
-    case ParamType::kInt: v.i = v.i + 1 <= p.max ? v.i + 1 : v.i - 1; break;
+    case ParamType::kBool:
+      v.b = !v.b;
+      break;
+    case ParamType::kInt:
+      v.i = v.i + 1 <= p.max ? v.i + 1 : v.i - 1;
+      break;
     case ParamType::kDouble: {
       double x = v.d == 0.0 ? 0.001 : v.d * 1.1;
       if (x > p.max) x = v.d * 0.9;
@@ -33,7 +39,9 @@ ParamValue otherValue(const ParamSpec<LocalizerParams>& p, ParamValue v) {
         }
       }
       break;
-    case ParamType::kVector3: v.v += Eigen::Vector3d(0.1, 0.2, 0.3); break;
+    case ParamType::kVector3:
+      v.v += Eigen::Vector3d(0.1, 0.2, 0.3);
+      break;
   }
   return v;
 }
@@ -48,7 +56,8 @@ TEST(ParameterTableTest, NamesUniqueDefaultsValidAndDocumented) {
     EXPECT_FALSE(p.help.empty()) << p.name;
     EXPECT_FALSE(p.group.empty()) << p.name;
     EXPECT_EQ(p.help.find('|'), std::string::npos) << p.name << ": '|' breaks the Markdown table";
-    EXPECT_EQ(p.check(p.defaultValue()), "") << p.name << " default " << p.defaultValue().toString();
+    EXPECT_EQ(p.check(p.defaultValue()), "")
+        << p.name << " default " << p.defaultValue().toString();
     EXPECT_EQ(p.defaultValue().type, p.type) << p.name;
     if (p.type == ParamType::kInt || p.type == ParamType::kDouble) {
       EXPECT_LT(p.min, p.max) << p.name;
@@ -91,7 +100,8 @@ TEST(ParameterTableTest, ChecksTypeRangeAndChoices) {
   ASSERT_NE(w, nullptr);
   v = w->defaultValue();
   v.s = "bogus";
-  EXPECT_NE(w->check(v).find("weighting 'bogus' is not one of tempered paper"), std::string::npos) << w->check(v);
+  EXPECT_NE(w->check(v).find("weighting 'bogus' is not one of tempered paper"), std::string::npos)
+      << w->check(v);
   EXPECT_EQ(findParam(localizerParamTable(), "no_such_parameter"), nullptr);
 
   LocalizerParams a, b;
@@ -101,7 +111,9 @@ TEST(ParameterTableTest, ChecksTypeRangeAndChoices) {
   EXPECT_NE(described.find("sigma_translation_m 0.05 m*"), std::string::npos) << described;
   EXPECT_NE(described.find("num_particles 1068,"), std::string::npos) << described;
   const std::string md = markdownReference(localizerParamTable());
-  EXPECT_NE(md.find("| `lost_margin_nats` | double | 3 | nats/px | [0, 100] | yes |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| `lost_margin_nats` | double | 3 | nats/px | [0, 100] | yes |"),
+            std::string::npos)
+      << md;
 }
 
 // Every parameter marked as changeable at run time is accepted by Localizer::setParams (the

@@ -16,7 +16,7 @@ TEST(ParamsTest, DefaultsAreThePapers) {
   EXPECT_EQ(p.frame.pixel_stride, 4);
   EXPECT_FLOAT_EQ(p.measurement.sigma_bound, 3.f);
   EXPECT_FLOAT_EQ(p.measurement.floor_log_density, -10.f);
-  EXPECT_DOUBLE_EQ(p.init.half_extent_m.x(), 2.0);  // 4 m cube
+  EXPECT_DOUBLE_EQ(p.init.half_extent_m.x(), 2.0);        // 4 m cube
   EXPECT_DOUBLE_EQ(p.init.yaw_half_range_rad, M_PI / 2);  // yaw range pi
   EXPECT_EQ(p.validate(), "");
 }
@@ -30,8 +30,8 @@ TEST(ParamsTest, ValidateNamesEveryFault) {
   p.measurement.floor_log_density = std::nanf("");
   p.backend = "tpu";
   const std::string err = p.validate();
-  for (const char* what : {"num_particles", "alpha_slow", "pixel_stride", "floor_log_density",
-                           "backend must be"}) {
+  for (const char* what :
+       {"num_particles", "alpha_slow", "pixel_stride", "floor_log_density", "backend must be"}) {
     EXPECT_NE(err.find(what), std::string::npos) << what << " missing from: " << err;
   }
   WeightingMode m;

@@ -1,7 +1,7 @@
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <random>
-
-#include <gtest/gtest.h>
 
 #include "gmm_mcl/filter/particle_filter.h"
 
@@ -124,7 +124,8 @@ TEST(ParticleFilterTest, OdometryDeltaIsIndependentOfTheOdometryFrame) {
   a.linear() = rotationFromRpy(0.1, -0.05, 0.7);
   a.translation() = Eigen::Vector3d(1, 2, 3);
   b.linear() = rotationFromRpy(0.12, -0.02, 0.9);
-  b.translation() = a.translation() + Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()) * Eigen::Vector3d(0.3, 0.1, -0.05);
+  b.translation() = a.translation() + Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()) *
+                                          Eigen::Vector3d(0.3, 0.1, -0.05);
   const PlanarDelta d = odometryDelta(a, b);
   EXPECT_NEAR(d.translation_m.x(), 0.3, 1e-12);
   EXPECT_NEAR(d.translation_m.y(), 0.1, 1e-12);

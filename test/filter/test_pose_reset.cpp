@@ -1,8 +1,8 @@
 // The pose-reset policy (a requested pose -> the Gaussian the filter restarts from) and the
 // motion gate.
-#include <cmath>
-
 #include <gtest/gtest.h>
+
+#include <cmath>
 
 #include "gmm_mcl/filter/pose_reset.h"
 
@@ -44,7 +44,8 @@ TEST(PoseResetTest, PlanarToolKeepsTheCurrentHeight) {
   EXPECT_NEAR(out.sigma[0], 0.5, 1e-12);
   EXPECT_NEAR(out.sigma[2], 0.02, 1e-12);  // the estimate's
   EXPECT_NEAR(out.sigma[3], std::sqrt(0.0685), 1e-12);
-  EXPECT_NE(out.message.find("height 1.33 m kept from the current estimate"), std::string::npos) << out.message;
+  EXPECT_NE(out.message.find("height 1.33 m kept from the current estimate"), std::string::npos)
+      << out.message;
   // Before any estimate: the fallback height.
   const PoseReset early = resolvePoseReset(r, nullptr, 0.7, kDefaultSigma);
   EXPECT_NEAR(early.pose.z_m, 0.7, 1e-12);
@@ -100,10 +101,10 @@ TEST(MotionGateTest, UpdatesOnlyAfterMovingOrTurning) {
   const Eigen::Isometry3d start = planarPose(0, 0, 0);
   EXPECT_TRUE(gate.shouldUpdate(true, start));  // the first frame
   gate.updated(true, start);
-  EXPECT_FALSE(gate.shouldUpdate(true, planarPose(0.1, 0.1, 0.3)));  // hovering
+  EXPECT_FALSE(gate.shouldUpdate(true, planarPose(0.1, 0.1, 0.3)));   // hovering
   EXPECT_TRUE(gate.shouldUpdate(true, planarPose(0.15, 0.15, 0.0)));  // 0.21 m
   EXPECT_TRUE(gate.shouldUpdate(true, planarPose(0.0, 0.0, -0.6)));   // turned
-  EXPECT_TRUE(gate.shouldUpdate(false, start));                        // no odometry
+  EXPECT_TRUE(gate.shouldUpdate(false, start));                       // no odometry
   gate.force();
   EXPECT_TRUE(gate.shouldUpdate(true, start));
   gate.updated(true, start);

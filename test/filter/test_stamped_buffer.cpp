@@ -1,9 +1,9 @@
 // Stamped poses and attitudes looked up at a frame's stamp; concurrent producers and readers.
+#include <gtest/gtest.h>
+
 #include <atomic>
 #include <cmath>
 #include <thread>
-
-#include <gtest/gtest.h>
 
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/filter/stamped_buffer.h"
@@ -73,8 +73,12 @@ TEST(StampedPoseBufferTest, ConcurrentProducersAndReader) {
     Eigen::Isometry3d T;
     while (!done) EXPECT_TRUE(b.at(0.0, 0.0, &T));
   });
-  std::thread a([&] { for (int i = 1; i <= 20000; i += 2) b.add(i * 1e-3, pose(i, 0)); });
-  std::thread c([&] { for (int i = 2; i <= 20000; i += 2) b.add(i * 1e-3, pose(i, 0)); });
+  std::thread a([&] {
+    for (int i = 1; i <= 20000; i += 2) b.add(i * 1e-3, pose(i, 0));
+  });
+  std::thread c([&] {
+    for (int i = 2; i <= 20000; i += 2) b.add(i * 1e-3, pose(i, 0));
+  });
   a.join();
   c.join();
   done = true;

@@ -65,8 +65,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   std::vector<uint8_t> again_data;
   FUZZ_CHECK(encodeCompressedDepth(image, &again_format, &again_data, &error));
   DepthImage again;
-  FUZZ_CHECK(decodeCompressedDepth(again_format, again_data.data(), again_data.size(), &again,
-                                   &error));
+  FUZZ_CHECK(
+      decodeCompressedDepth(again_format, again_data.data(), again_data.size(), &again, &error));
   FUZZ_CHECK(again.width_px == image.width_px && again.height_px == image.height_px);
   FUZZ_CHECK(again.encoding == image.encoding);
   for (int v = 0; v < image.height_px; ++v) {
@@ -78,8 +78,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   }
 
   // A camera that matches the decoded size: the frame builds.
-  const double K[9] = {525.0, 0.0, 0.5 * image.width_px, 0.0, 525.0, 0.5 * image.height_px,
-                       0.0,   0.0, 1.0};
+  const double K[9] = {525.0, 0.0, 0.5 * image.width_px, 0.0, 525.0, 0.5 * image.height_px, 0.0,
+                       0.0,   1.0};
   const Intrinsics intrinsics = makeIntrinsics(K, image.width_px, image.height_px);
   FrameParams params;
   params.pixel_stride = 1;

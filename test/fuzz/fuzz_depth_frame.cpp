@@ -87,8 +87,8 @@ void fuzzImage(fuzz::Reader* in) {
   const FrameParams params = frameParamsFrom(in);
   DepthImage image;
   std::string error;
-  if (!depthImageFromBuffer(encoding, width, height, step, big_endian, in->rest(),
-                            in->restSize(), &image, &error)) {
+  if (!depthImageFromBuffer(encoding, width, height, step, big_endian, in->rest(), in->restSize(),
+                            &image, &error)) {
     FUZZ_CHECK(!error.empty());
     return;
   }

@@ -2,6 +2,7 @@
 // fuzzing found (test/fuzz/regressions/<target>/): small valid inputs and one of each kind of
 // fault. Usage: fuzz_make_corpus <test/fuzz folder>. scripts/fuzz.sh runs it before fuzzing;
 // the files are checked in and replayed by the fuzz_replay_* tests.
+#include <png.h>
 #include <sys/stat.h>
 
 #include <cmath>
@@ -10,8 +11,6 @@
 #include <limits>
 #include <string>
 #include <vector>
-
-#include <png.h>
 
 #include "fuzz_input.h"
 #include "gmm_mcl/camera/png_io.h"
@@ -32,7 +31,8 @@ void write(const std::string& kind, const std::string& target, const std::string
   makeDir(g_root + "/" + kind + "/" + target);
   const std::string path = g_root + "/" + kind + "/" + target + "/" + name;
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  out.write(reinterpret_cast<const char*>(bytes.data()),
+            static_cast<std::streamsize>(bytes.size()));
   if (!out) {
     std::fprintf(stderr, "%s: cannot write\n", path.c_str());
     std::exit(1);
@@ -340,7 +340,8 @@ Bytes eightBitPng() {
 void compressedCorpus() {
   const std::string t = "compressed_depth";
   std::vector<uint16_t> mm(6 * 4);
-  for (size_t i = 0; i < mm.size(); ++i) mm[i] = i % 5 == 0 ? 0 : static_cast<uint16_t>(700 + 97 * i);
+  for (size_t i = 0; i < mm.size(); ++i)
+    mm[i] = i % 5 == 0 ? 0 : static_cast<uint16_t>(700 + 97 * i);
   const Bytes c16 = compressed(DepthImage::fromMillimetres(6, 4, mm));
   write("corpus", t, "valid_16uc1.bin", compressedInput(0, c16));
   std::vector<float> m(5 * 3);
@@ -375,7 +376,6 @@ void compressedCorpus() {
 }
 
 }  // namespace
-
 
 int main(int argc, char** argv) {
   if (argc != 2) {

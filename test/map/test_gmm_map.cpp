@@ -1,10 +1,10 @@
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <limits>
-
-#include <gtest/gtest.h>
 
 #include "gmm_mcl/map/gmm_map_io.h"
 
@@ -51,7 +51,8 @@ size_t covOffset(size_t m, size_t i) { return kMapHeaderBytes + 16 * m + 24 * i;
 TEST(GmmMapTest, PrecomputesNormaliserAndPrecision) {
   const GmmMap map = smallMap();
   const ComponentF& c = map.packed()[1];
-  const double expected = std::log(0.3) - 1.5 * std::log(2 * M_PI) - 0.5 * std::log(0.01 * 0.02 * 0.03);
+  const double expected =
+      std::log(0.3) - 1.5 * std::log(2 * M_PI) - 0.5 * std::log(0.01 * 0.02 * 0.03);
   EXPECT_NEAR(c.log_norm, expected, 1e-5);
   EXPECT_NEAR(c.precision[0], 100.0, 1e-3);
   EXPECT_NEAR(c.precision[3], 50.0, 1e-3);

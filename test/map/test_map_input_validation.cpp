@@ -1,10 +1,10 @@
 // The fault the fuzzing found in the map loader, as a named case with its message (the
 // fuzz_replay_map_loader test replays the raw reproducers; this says what the fix promises).
+#include <gtest/gtest.h>
+
 #include <cstring>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "gmm_mcl/map/gmm_map_io.h"
 

@@ -6,9 +6,9 @@
 #include <cstdio>
 #include <random>
 
-#include "gmm_mcl/internal/fast_math.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/internal/cpu_simd.h"
+#include "gmm_mcl/internal/fast_math.h"
 #include "gmm_mcl/measurement/likelihood.h"
 #include "test_utils/synthetic_fixtures.h"
 
@@ -75,7 +75,8 @@ TEST(LikelihoodTest, FloatKernelAgreesWithDoubleReferencePerPixel) {
     all.begin.push_back(static_cast<int>(all.comps.size()));
   }
   std::vector<float> values;
-  const FrameLikelihood f = frameLogLikelihood(w.map.packed(), frame, toRigidF(T), all, -10.f, &values);
+  const FrameLikelihood f =
+      frameLogLikelihood(w.map.packed(), frame, toRigidF(T), all, -10.f, &values);
   const FrameLikelihood d = exactFrameLogLikelihood(w.map, frame, T, -10.f);
   EXPECT_NEAR(f.log_likelihood, d.log_likelihood, 2e-4 * f.pixels);
   EXPECT_EQ(f.floor_hits, d.floor_hits);
@@ -91,9 +92,10 @@ TEST(LikelihoodTest, CholeskyEvaluationFormMatchesThePrecisionForm) {
   for (const ComponentF& c : comps) {
     const EvalComponentF e = makeEvalComponentF(c, kEvalScaleNats);
     const EvalComponentF e2 = makeEvalComponentF(c, kEvalScaleLog2);
-    const Eigen::Matrix3d cov = (Eigen::Matrix3d() << c.cov_m2[0], c.cov_m2[1], c.cov_m2[2],
-                                 c.cov_m2[1], c.cov_m2[3], c.cov_m2[4], c.cov_m2[2], c.cov_m2[4],
-                                 c.cov_m2[5]).finished();
+    const Eigen::Matrix3d cov =
+        (Eigen::Matrix3d() << c.cov_m2[0], c.cov_m2[1], c.cov_m2[2], c.cov_m2[1], c.cov_m2[3],
+         c.cov_m2[4], c.cov_m2[2], c.cov_m2[4], c.cov_m2[5])
+            .finished();
     const Eigen::Matrix3d L = cov.llt().matrixL();
     for (int k = 0; k < 20; ++k) {
       Eigen::Vector3d z(n01(rng), n01(rng), n01(rng));
@@ -103,12 +105,13 @@ TEST(LikelihoodTest, CholeskyEvaluationFormMatchesThePrecisionForm) {
       const float pf[3] = {static_cast<float>(p.x()), static_cast<float>(p.y()),
                            static_cast<float>(p.z())};
       worst = std::max(worst, std::abs(evalLogDensity(e, pf[0], pf[1], pf[2]) - ref));
-      worst = std::max(worst,
-                       std::abs(evalLogDensity(e2, pf[0], pf[1], pf[2]) / kEvalScaleLog2 - ref));
+      worst =
+          std::max(worst, std::abs(evalLogDensity(e2, pf[0], pf[1], pf[2]) / kEvalScaleLog2 - ref));
     }
   }
-  std::printf("[ measured ] Cholesky form: worst |ln density error| %.2e nats over %zu components\n",
-              worst, comps.size());
+  std::printf(
+      "[ measured ] Cholesky form: worst |ln density error| %.2e nats over %zu components\n", worst,
+      comps.size());
   EXPECT_LT(worst, 1e-3);  // float rounding of map-frame points (DESIGN.md: ~1e-4 per pixel)
 }
 
@@ -127,7 +130,8 @@ TEST(LikelihoodTest, FastLogIsAccurate) {
 TEST(LikelihoodTest, FastExpIsAccurate) {
   double worst = 0.0;
   for (float x = -87.f; x <= 0.f; x += 0.0137f) {
-    const double rel = std::abs(expNonPositive(x) - std::exp(static_cast<double>(x))) / std::exp(static_cast<double>(x));
+    const double rel = std::abs(expNonPositive(x) - std::exp(static_cast<double>(x))) /
+                       std::exp(static_cast<double>(x));
     worst = std::max(worst, rel);
   }
   EXPECT_LT(worst, 3e-7);
@@ -159,9 +163,10 @@ TEST(LikelihoodTest, VectorExpAndLogAreAccurate) {
       differ += out[i] != logPositive(in[i]) ? 1 : 0;
     }
   }
-  std::printf("[ measured ] expNonPositive8: worst relative error %.2e on [-87, 0]; logPositive8: "
-              "worst error / max(1, |ln x|) %.2e, %d values differ from logPositive\n",
-              worst_exp, worst_log, differ);
+  std::printf(
+      "[ measured ] expNonPositive8: worst relative error %.2e on [-87, 0]; logPositive8: "
+      "worst error / max(1, |ln x|) %.2e, %d values differ from logPositive\n",
+      worst_exp, worst_log, differ);
   EXPECT_LT(worst_exp, 3e-7);
   EXPECT_LT(worst_log, 1e-7);
   alignas(32) float big[8] = {-1000.f, -88.f, -87.f, 0.f, -1e30f, -0.f, -1e-30f, -50.f}, e[8];

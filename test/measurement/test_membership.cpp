@@ -6,8 +6,8 @@
 #include <random>
 
 #include "gmm_mcl/backend/cpu_backend.h"
-#include "gmm_mcl/internal/fast_math.h"
 #include "gmm_mcl/filter/pose.h"
+#include "gmm_mcl/internal/fast_math.h"
 #include "gmm_mcl/measurement/likelihood.h"
 #include "test_utils/synthetic_fixtures.h"
 
@@ -119,10 +119,11 @@ TEST(MembershipTest, ViewCullKeepsEveryContributingComponent) {
         }
         members += brute.comps.size();
       }
-      std::printf("[ measured ] %dx%d, %s: %zu of %zu components visible to the 16 poses "
-                  "(%.0f per pose alone), %zu (patch, component) pairs all kept\n",
-                  K.width_px, K.height_px, all_around ? "all around" : "cluster",
-                  visible.size(), w.map.size(), double(own_visible) / poses.size(), members);
+      std::printf(
+          "[ measured ] %dx%d, %s: %zu of %zu components visible to the 16 poses "
+          "(%.0f per pose alone), %zu (patch, component) pairs all kept\n",
+          K.width_px, K.height_px, all_around ? "all around" : "cluster", visible.size(),
+          w.map.size(), double(own_visible) / poses.size(), members);
       EXPECT_GT(members, 0u);
       // A cluster looking one way sees part of the room: the cull has something to drop.
       if (!all_around) EXPECT_LT(visible.size(), w.map.size());
@@ -151,8 +152,8 @@ TEST(MembershipTest, BackendOnCulledListEqualsWholeMap) {
     EXPECT_LT(out.visible_components, static_cast<int>(w.map.size()));
     LikelihoodScratch scratch;
     for (size_t i = 0; i < T_map_cam.size(); ++i) {
-      const FrameLikelihood ref = poseLogLikelihood(w.map.packed(), frame, T_map_cam[i], mp,
-                                                    &scratch);
+      const FrameLikelihood ref =
+          poseLogLikelihood(w.map.packed(), frame, T_map_cam[i], mp, &scratch);
       EXPECT_EQ(out.log_likelihood[i], ref.log_likelihood) << i;
       EXPECT_EQ(out.floor_hits[i], ref.floor_hits) << i;
     }
@@ -197,13 +198,14 @@ TEST(MembershipTest, ApproximateLikelihoodWithinOnePercentOfExact) {
       const FrameLikelihood approx =
           poseLogLikelihood(w.map.packed(), frame, toRigidF(T_map_cam), mp, &scratch);
       const FrameLikelihood exact = exactFrameLogLikelihood(w.map, frame, T_map_cam, mp);
-      const double rel = std::abs(approx.log_likelihood - exact.log_likelihood) /
-                         std::abs(exact.log_likelihood);
-      std::printf("[ measured ] %dx%d, depth noise %s: approx %.2f exact %.2f nats over %d px, "
-                  "relative error %.2e, evaluations %lld vs %lld, floor hits %d vs %d\n",
-                  K.width_px, K.height_px, mp.depth_noise.enabled() ? "on" : "off",
-                  approx.log_likelihood, exact.log_likelihood, approx.pixels, rel,
-                  approx.evaluations, exact.evaluations, approx.floor_hits, exact.floor_hits);
+      const double rel =
+          std::abs(approx.log_likelihood - exact.log_likelihood) / std::abs(exact.log_likelihood);
+      std::printf(
+          "[ measured ] %dx%d, depth noise %s: approx %.2f exact %.2f nats over %d px, "
+          "relative error %.2e, evaluations %lld vs %lld, floor hits %d vs %d\n",
+          K.width_px, K.height_px, mp.depth_noise.enabled() ? "on" : "off", approx.log_likelihood,
+          exact.log_likelihood, approx.pixels, rel, approx.evaluations, exact.evaluations,
+          approx.floor_hits, exact.floor_hits);
       EXPECT_LT(rel, kApproxRelTol);
       EXPECT_LT(approx.evaluations, exact.evaluations / 10);  // the point of the approximation
     }
@@ -218,9 +220,9 @@ TEST(MembershipTest, PatchesWithoutComponentsGetTheFloor) {
   PatchMembership none;
   none.begin.assign(frame.grid.count() + 1, 0);
   std::vector<float> values;
-  const FrameLikelihood fl = frameLogLikelihood(w.map.packed(), frame,
-                                                toRigidF(test::referenceBasePose() * w.T_base_cam),
-                                                none, -10.f, &values);
+  const FrameLikelihood fl =
+      frameLogLikelihood(w.map.packed(), frame, toRigidF(test::referenceBasePose() * w.T_base_cam),
+                         none, -10.f, &values);
   EXPECT_EQ(fl.floor_hits, fl.pixels);
   EXPECT_NEAR(fl.log_likelihood, -10.0 * fl.pixels, 1e-6 * fl.pixels);
 }

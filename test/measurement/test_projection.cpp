@@ -1,6 +1,6 @@
-#include <random>
-
 #include <gtest/gtest.h>
+
+#include <random>
 
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/map/gmm_map.h"
@@ -29,7 +29,8 @@ void checkAgainstMonteCarlo(const Eigen::Vector3d& mean_cam, const Eigen::Matrix
   gc.cov_m2 = 0.5 * (gc.cov_m2 + gc.cov_m2.transpose());
   const GmmMap map({gc}, "mc");
   ProjectedComponent p;
-  ASSERT_TRUE(projectComponent(map.packed()[0], toRigidF(T_map_cam.inverse()), K, 0.1f, 3.f, 0.f, &p));
+  ASSERT_TRUE(
+      projectComponent(map.packed()[0], toRigidF(T_map_cam.inverse()), K, 0.1f, 3.f, 0.f, &p));
 
   std::mt19937_64 rng(42);
   std::normal_distribution<double> g(0.0, 1.0);

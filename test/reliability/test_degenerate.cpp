@@ -1,11 +1,11 @@
 // Degenerate views and numerical safety (issue #7): the filter keeps its state, its covariance
 // grows or stays positive-definite, it never produces NaN, and the status says why.
+#include <gtest/gtest.h>
+
+#include <Eigen/Eigenvalues>
 #include <cmath>
 #include <limits>
 #include <random>
-
-#include <Eigen/Eigenvalues>
-#include <gtest/gtest.h>
 
 #include "gmm_mcl/filter/localizer.h"
 #include "gmm_mcl/filter/pose.h"
@@ -51,7 +51,8 @@ StepInput input(double stamp, const DepthImage* depth) {
 // covariance grows with the process noise, the status names the reason.
 TEST(DegenerateViewTest, AllPixelsInvalidKeepsStateAndGrowsCovariance) {
   Localizer loc(params(), test::world().map);
-  loc.resetToPose(poseToParticle(test::referenceBasePose()), Eigen::Vector4d(0.05, 0.05, 0.05, 0.05));
+  loc.resetToPose(poseToParticle(test::referenceBasePose()),
+                  Eigen::Vector4d(0.05, 0.05, 0.05, 0.05));
   const Intrinsics K = test::smallCamera();
   const DepthImage blank = DepthImage::fromMillimetres(
       K.width_px, K.height_px, std::vector<uint16_t>(K.width_px * K.height_px, 0));
@@ -88,9 +89,9 @@ TEST(DegenerateViewTest, EmptySpaceIsOutOfRange) {
   p.frame.max_range_m = 0.3f;  // the room's surfaces are all farther away
   Localizer loc(p, test::world().map);
   const Intrinsics K = test::smallCamera();
-  const DepthImage img = sim::renderDepth(test::world().scene, K,
-                                          test::referenceBasePose() * test::world().T_base_cam,
-                                          DepthEncoding::kMono16Millimetres, 9.0);
+  const DepthImage img =
+      sim::renderDepth(test::world().scene, K, test::referenceBasePose() * test::world().T_base_cam,
+                       DepthEncoding::kMono16Millimetres, 9.0);
   const StepResult r = loc.step(input(0.0, &img));
   EXPECT_EQ(r.status, StepStatus::kNoValidPixels);
   EXPECT_NE(r.message.find("out of range"), std::string::npos) << r.message;
@@ -136,9 +137,9 @@ TEST(DegenerateViewTest, AllParticlesOutsideTheMap) {
   far.x_m += 100.0;
   loc.resetToPose(far, Eigen::Vector4d(0.1, 0.1, 0.1, 0.1));
   const Intrinsics K = test::smallCamera();
-  const DepthImage img = sim::renderDepth(test::world().scene, K,
-                                          test::referenceBasePose() * test::world().T_base_cam,
-                                          DepthEncoding::kMono16Millimetres, 9.0);
+  const DepthImage img =
+      sim::renderDepth(test::world().scene, K, test::referenceBasePose() * test::world().T_base_cam,
+                       DepthEncoding::kMono16Millimetres, 9.0);
   bool said_floor = false, lost = false;
   for (int f = 0; f < 60; ++f) {
     const StepResult r = loc.step(input(f / 30.0, &img));

@@ -4,11 +4,11 @@
 // seeded 7-Scenes trials and one on the built-in synthetic scene at 640x480 (gmm_mcl_kidnap
 // runs the full ten of each) and checks on the synthetic scene that without recovery a kidnap
 // is not recovered.
+#include <gtest/gtest.h>
+
 #include <cstdio>
 #include <fstream>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "gmm_mcl/fit/em_fitter.h"
 #include "gmm_mcl/fit/seven_scenes_cloud.h"
@@ -21,11 +21,12 @@ namespace gmm_mcl {
 namespace {
 
 void print(const reliability::KidnapResult& r) {
-  std::printf("seed %2llu: frames %d..%d -> %d, jump %.2f m %.0f deg, error before %.1f cm, "
-              "recovered in %.2f s, final error %.1f cm, lost events %d, mean step %.0f ms\n",
-              static_cast<unsigned long long>(r.seed), r.start_frame, r.from_frame - 1,
-              r.to_frame, r.jump_m, r.jump_yaw_rad * 180.0 / M_PI, 100.0 * r.error_before_m,
-              r.recovery_s, 100.0 * r.final_error_m, r.lost_events, r.mean_step_ms);
+  std::printf(
+      "seed %2llu: frames %d..%d -> %d, jump %.2f m %.0f deg, error before %.1f cm, "
+      "recovered in %.2f s, final error %.1f cm, lost events %d, mean step %.0f ms\n",
+      static_cast<unsigned long long>(r.seed), r.start_frame, r.from_frame - 1, r.to_frame,
+      r.jump_m, r.jump_yaw_rad * 180.0 / M_PI, 100.0 * r.error_before_m, r.recovery_s,
+      100.0 * r.final_error_m, r.lost_events, r.mean_step_ms);
   std::fflush(stdout);
 }
 
@@ -63,8 +64,8 @@ TEST(KidnapTest, SyntheticRecoversWithinFiveSeconds) {
   EXPECT_LT(r.error_before_m, 0.10) << "not tracking before the kidnap";
   EXPECT_GE(r.jump_m, kp.min_jump_m);
   EXPECT_FALSE(r.any_non_finite);
-  EXPECT_TRUE(r.recovered) << "recovery " << r.recovery_s << " s, final error "
-                           << r.final_error_m << " m";
+  EXPECT_TRUE(r.recovered) << "recovery " << r.recovery_s << " s, final error " << r.final_error_m
+                           << " m";
 }
 
 // Without recovery (no augmented MCL, no lost detector) the kidnap is not recovered: the trial

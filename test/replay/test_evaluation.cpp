@@ -1,9 +1,9 @@
-#include <cmath>
-
 #include <gtest/gtest.h>
 
-#include "gmm_mcl/replay/evaluation.h"
+#include <cmath>
+
 #include "gmm_mcl/datasets/seven_scenes_sequence.h"
+#include "gmm_mcl/replay/evaluation.h"
 
 namespace gmm_mcl {
 namespace {
@@ -25,11 +25,13 @@ TEST(EvaluationTest, ConvergenceAteAndSuccess) {
   p.hold_frames = 3;
   p.tail_frames = 2;
   // Dips below 10 cm at frame 2 but only for two frames; stays from frame 5 on.
-  const TrialMetrics m = evaluateTrial(errors({0.5, 0.3, 0.05, 0.06, 0.2, 0.04, 0.03, 0.05, 0.02}), p);
+  const TrialMetrics m =
+      evaluateTrial(errors({0.5, 0.3, 0.05, 0.06, 0.2, 0.04, 0.03, 0.05, 0.02}), p);
   EXPECT_TRUE(m.converged);
   EXPECT_EQ(m.converge_frame, 5);
   EXPECT_NEAR(m.converge_time_s, 5 / 30.0, 1e-12);
-  EXPECT_NEAR(m.ate_translation_m, std::sqrt((0.04 * 0.04 + 0.03 * 0.03 + 0.05 * 0.05 + 0.02 * 0.02) / 4), 1e-12);
+  EXPECT_NEAR(m.ate_translation_m,
+              std::sqrt((0.04 * 0.04 + 0.03 * 0.03 + 0.05 * 0.05 + 0.02 * 0.02) / 4), 1e-12);
   EXPECT_NEAR(m.ate_yaw_rad, 0.01, 1e-12);
   EXPECT_TRUE(m.success);
 }

@@ -1,8 +1,8 @@
 // The protocol's odometry and attitude noise: seeded, per-frame sigmas as DESIGN.md says,
 // variance scaled by the step length in frames, odometry frame gravity-aligned at the start.
-#include <cmath>
-
 #include <gtest/gtest.h>
+
+#include <cmath>
 
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/replay/odometry_synthesizer.h"

@@ -2,29 +2,29 @@
 // back and replayed through the localizer; it must converge and track. (The TUM format runs
 // the same way through the gmm_mcl_replay tool: test_replay_tool_tum.) The writers' handling
 // of frames without ground truth.
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 
-#include <gtest/gtest.h>
-
-#include "gmm_mcl/replay/replay.h"
 #include "gmm_mcl/datasets/sequence_writer.h"
 #include "gmm_mcl/datasets/sim_sequence.h"
+#include "gmm_mcl/replay/replay.h"
 #include "test_utils/temp_dir.h"
 
 namespace gmm_mcl {
 namespace {
 
-constexpr int kFrames = 90;             // 3 s at 30 Hz
-constexpr double kAteLimitM = 0.05;     // over the converged frames
-constexpr double kFinalLimitM = 0.05;   // last frame
+constexpr int kFrames = 90;            // 3 s at 30 Hz
+constexpr double kAteLimitM = 0.05;    // over the converged frames
+constexpr double kFinalLimitM = 0.05;  // last frame
 
 ReplayParams smallReplay() {
   ReplayParams rp;
   rp.localizer.filter.num_particles = 300;
   rp.localizer.frame.pixel_stride = 4;
   rp.localizer.frame.max_range_m = 8.0f;
-  rp.init_half_extent_m = 0.5;        // CI-sized start region (the paper's 4 m cube needs ~1000)
+  rp.init_half_extent_m = 0.5;  // CI-sized start region (the paper's 4 m cube needs ~1000)
   rp.init_yaw_half_range_rad = 0.3;
   rp.evaluation.hold_frames = 15;
   rp.evaluation.tail_frames = 30;
@@ -38,11 +38,11 @@ void replayFolder(const std::string& format, const Sequence& seq, const GmmMap& 
   const TrialResult r = runTrial(
       seq, [&depth](int f) -> const DepthImage& { return depth[f]; }, map, smallReplay(), 1);
   const TrialMetrics& m = r.metrics;
-  std::printf("[ measured ] %s: converged %d at %.2f s, ATE %.2f cm / %.2f deg, final %.2f cm, "
-              "%.0f ms per step\n",
-              format.c_str(), m.converged, m.converge_time_s, 100 * m.ate_translation_m,
-              m.ate_yaw_rad * 180 / M_PI, 100 * r.frames.back().error.translation_m,
-              r.mean_step_ms);
+  std::printf(
+      "[ measured ] %s: converged %d at %.2f s, ATE %.2f cm / %.2f deg, final %.2f cm, "
+      "%.0f ms per step\n",
+      format.c_str(), m.converged, m.converge_time_s, 100 * m.ate_translation_m,
+      m.ate_yaw_rad * 180 / M_PI, 100 * r.frames.back().error.translation_m, r.mean_step_ms);
   ASSERT_EQ(static_cast<int>(r.frames.size()), kFrames);
   ASSERT_TRUE(m.converged) << format;
   EXPECT_LT(m.ate_translation_m, kAteLimitM) << format;

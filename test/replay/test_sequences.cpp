@@ -1,29 +1,29 @@
 // The data-set readers on fixtures written from the synthetic scene (TUM, Stanford), their
 // error messages on bad input, and the 7-Scenes reader on the shared data (skipped without).
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <functional>
 #include <string>
 #include <utility>
 #include <vector>
 
-#include <gtest/gtest.h>
-
-#include "gmm_mcl/datasets/seven_scenes_sequence.h"
 #include "gmm_mcl/datasets/sequence_writer.h"
+#include "gmm_mcl/datasets/seven_scenes_sequence.h"
 #include "gmm_mcl/datasets/sim_sequence.h"
 #include "gmm_mcl/datasets/stanford_sequence.h"
 #include "gmm_mcl/datasets/tum_sequence.h"
-#include "test_utils/temp_dir.h"
 #include "test_utils/synthetic_fixtures.h"
+#include "test_utils/temp_dir.h"
 
 namespace gmm_mcl {
 namespace {
 
-using test::TempDir;
 using test::readText;
+using test::TempDir;
 using test::writeText;
 
-constexpr double kPoseTolM = 1e-6;     // text round trip of poses (9+ significant digits)
+constexpr double kPoseTolM = 1e-6;  // text round trip of poses (9+ significant digits)
 constexpr double kPoseTolRad = 1e-6;
 
 SimSequence smallSim(int frames = 12, double start_s = 0.0) {
@@ -111,7 +111,9 @@ TEST(TumSequenceTest, RoundTripOfTheSyntheticScene) {
             1e-12);
   o.gravity = "z-down";
   EXPECT_LT((TumSequence(dir.path(), o).R_aligned_world() * Eigen::Vector3d::UnitZ() +
-             Eigen::Vector3d::UnitZ()).norm(), 1e-12);
+             Eigen::Vector3d::UnitZ())
+                .norm(),
+            1e-12);
   o.gravity = "w-up";
   EXPECT_THROW(TumSequence(dir.path(), o), std::runtime_error);
   EXPECT_FLOAT_EQ(five.intrinsics().fx_px, 535.4f);

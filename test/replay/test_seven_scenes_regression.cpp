@@ -1,10 +1,10 @@
 // Shortened accuracy protocol on the shared 7-Scenes data (DESIGN.md): the map built exactly
 // as scripts/build_map_7scenes.sh does, then the first kFrames frames for two seeds.
 // Skips with a printed reason when the data set is absent.
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdlib>
-
-#include <gtest/gtest.h>
 
 #include "gmm_mcl/fit/em_fitter.h"
 #include "gmm_mcl/fit/seven_scenes_cloud.h"
@@ -42,10 +42,11 @@ TEST(SevenScenesRegressionTest, ConvergesAndTracksOnTheFirstFrames) {
     const TrialResult r = runSevenScenesTrial(
         seq, [&depth](int f) -> const DepthImage& { return depth[f]; }, map, rp, seed);
     const TrialMetrics& m = r.metrics;
-    std::printf("[ measured ] seed %llu: converged %d at %.2f s, ATE %.2f cm / %.2f deg, "
-                "success %d, %.0f ms per step\n",
-                static_cast<unsigned long long>(seed), m.converged, m.converge_time_s,
-                100 * m.ate_translation_m, m.ate_yaw_rad * 180 / M_PI, m.success, r.mean_step_ms);
+    std::printf(
+        "[ measured ] seed %llu: converged %d at %.2f s, ATE %.2f cm / %.2f deg, "
+        "success %d, %.0f ms per step\n",
+        static_cast<unsigned long long>(seed), m.converged, m.converge_time_s,
+        100 * m.ate_translation_m, m.ate_yaw_rad * 180 / M_PI, m.success, r.mean_step_ms);
     ASSERT_TRUE(m.converged) << "seed " << seed;
     EXPECT_LT(m.converge_time_s, kConvergeWithinS) << "seed " << seed;
     EXPECT_LT(m.ate_translation_m, kAteLimitM) << "seed " << seed;

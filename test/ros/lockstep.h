@@ -5,6 +5,21 @@
 // loaded machine makes the tests slower, not different.
 #pragma once
 
+#include <diagnostic_msgs/DiagnosticArray.h>
+#include <geometry_msgs/PoseArray.h>
+#include <geometry_msgs/PoseWithCovarianceStamped.h>
+#include <gtest/gtest.h>
+#include <ros/ros.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+#include <rosgraph_msgs/Clock.h>
+#include <sensor_msgs/CompressedImage.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <tf2_msgs/TFMessage.h>
+#include <topic_tools/shape_shifter.h>
+#include <visualization_msgs/MarkerArray.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -13,21 +28,6 @@
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <diagnostic_msgs/DiagnosticArray.h>
-#include <gtest/gtest.h>
-#include <geometry_msgs/PoseArray.h>
-#include <geometry_msgs/PoseWithCovarianceStamped.h>
-#include <rosbag/bag.h>
-#include <rosbag/view.h>
-#include <rosgraph_msgs/Clock.h>
-#include <sensor_msgs/CompressedImage.h>
-#include <sensor_msgs/Image.h>
-#include <sensor_msgs/PointCloud2.h>
-#include <ros/ros.h>
-#include <tf2_msgs/TFMessage.h>
-#include <topic_tools/shape_shifter.h>
-#include <visualization_msgs/MarkerArray.h>
 
 #include "gmm_mcl/FilterStatus.h"
 
@@ -47,7 +47,8 @@ inline void dumpManagerStacks() {
   std::fflush(stdout);
   const int rc = std::system(
       "command -v gdb >/dev/null || { echo 'no gdb: no stacks'; exit 0; }; "
-      "for p in $(pgrep -f '^[^ ]*nodelet manager'); do echo \"== stacks of $(cat /proc/$p/cmdline | "
+      "for p in $(pgrep -f '^[^ ]*nodelet manager'); do echo \"== stacks of $(cat /proc/$p/cmdline "
+      "| "
       "tr '\\0' ' ')\"; timeout 60 gdb -batch -nx -ex 'thread apply all bt' -p $p 2>&1 | "
       "grep -v '^\\[New LWP'; done");
   (void)rc;
@@ -110,7 +111,8 @@ class Observer {
   void onPose(const geometry_msgs::PoseWithCovarianceStampedConstPtr& m) { poses.push_back(*m); }
   void onTf(const tf2_msgs::TFMessageConstPtr& m) {
     for (const auto& t : m->transforms) {
-      if (t.header.frame_id == "map" && t.child_frame_id == "odom") tf_stamps.push_back(t.header.stamp);
+      if (t.header.frame_id == "map" && t.child_frame_id == "odom")
+        tf_stamps.push_back(t.header.stamp);
     }
   }
   // This nodelet's diagnostics only (named "<nodelet>: localization").
@@ -143,12 +145,14 @@ class Observer {
   // stamps); nullptr when it does not come.
   const FilterStatus* statusAt(const ros::Time& t, double limit_s = kWaitLimitS, size_t since = 0) {
     const FilterStatus* found = nullptr;
-    waitFor([&] {
-      for (size_t i = statuses.size(); i > since && !found; --i) {
-        if (statuses[i - 1].header.stamp == t) found = &statuses[i - 1];
-      }
-      return found != nullptr;
-    }, limit_s);
+    waitFor(
+        [&] {
+          for (size_t i = statuses.size(); i > since && !found; --i) {
+            if (statuses[i - 1].header.stamp == t) found = &statuses[i - 1];
+          }
+          return found != nullptr;
+        },
+        limit_s);
     if (!found) dumpManagerStacks();
     return found;
   }
@@ -175,22 +179,26 @@ class Observer {
   // The nodelet's diagnostics that arrive after index `since` and satisfy `ok`.
   bool waitDiag(size_t since, const std::function<bool(const Diag&)>& ok, Diag* out = nullptr,
                 double limit_s = kWaitLimitS) {
-    return waitFor([&] {
-      for (size_t i = since; i < diags.size(); ++i) {
-        if (ok(diags[i])) {
-          if (out) *out = diags[i];
-          return true;
-        }
-      }
-      return false;
-    }, limit_s);
+    return waitFor(
+        [&] {
+          for (size_t i = since; i < diags.size(); ++i) {
+            if (ok(diags[i])) {
+              if (out) *out = diags[i];
+              return true;
+            }
+          }
+          return false;
+        },
+        limit_s);
   }
   // Moves the clock on by `period_s` and waits for the next diagnostics message of the nodelet.
   bool tickDiagnostics(Clock* clock, double period_s, Diag* out = nullptr,
-                       const std::function<bool(const Diag&)>& ok = nullptr, double limit_s = kWaitLimitS) {
+                       const std::function<bool(const Diag&)>& ok = nullptr,
+                       double limit_s = kWaitLimitS) {
     const size_t since = diags.size();
     clock->set(clock->now() + ros::Duration(period_s));
-    return waitDiag(since, ok ? ok : [](const Diag&) { return true; }, out, limit_s);
+    return waitDiag(
+        since, ok ? ok : [](const Diag&) { return true; }, out, limit_s);
   }
   // What the nodelet said last (for a failure's message).
   std::string describe() const {
@@ -198,15 +206,14 @@ class Observer {
     if (!statuses.empty()) {
       const FilterStatus& s = statuses.back();
       out += ", the last: frames received " + std::to_string(s.frames_received) + ", processed " +
-             std::to_string(s.frames_processed) + ", waiting " + std::to_string(s.frames_waiting) + ", dropped " +
+             std::to_string(s.frames_processed) + ", waiting " + std::to_string(s.frames_waiting) +
+             ", dropped " +
              std::to_string(s.dropped_conversion + s.dropped_camera_info + s.dropped_extrinsics);
     }
     if (!diags.empty()) out += "; last diagnostics: " + diags.back().message;
     return out;
   }
-  const Diag* lastDiag() const {
-    return diags.empty() ? nullptr : &diags.back();
-  }
+  const Diag* lastDiag() const { return diags.empty() ? nullptr : &diags.back(); }
 
   std::vector<FilterStatus> statuses;
   std::vector<geometry_msgs::PoseWithCovarianceStamped> poses;
@@ -227,7 +234,8 @@ class Observer {
 // or a cloud) waits for the nodelet's ~status of that frame.
 class BagPlayer {
  public:
-  BagPlayer(ros::NodeHandle& nh, const std::string& path, const std::string& frame_topic, Clock* clock)
+  BagPlayer(ros::NodeHandle& nh, const std::string& path, const std::string& frame_topic,
+            Clock* clock)
       : nh_(nh), clock_(clock), frame_topic_(frame_topic) {
     bag_.open(path, rosbag::bagmode::Read);
     view_.reset(new rosbag::View(bag_));
@@ -244,9 +252,7 @@ class BagPlayer {
   }
   int frames() const { return static_cast<int>(frames_.size()); }
   // The frame's header stamp.
-  ros::Time frameStamp(int i) const {
-    return frameHeaderStamp(messages_[frames_[i]]);
-  }
+  ros::Time frameStamp(int i) const { return frameHeaderStamp(messages_[frames_[i]]); }
   // Waits until the nodelet listens to the frame topic and every node the master lists as
   // subscribing one of the bag's topics is connected to its publisher: /tf is not latched, so a
   // frame's odometry sent before the nodelet's tf listener connected (a loaded machine) never
@@ -294,7 +300,8 @@ class BagPlayer {
   static ros::Time frameHeaderStamp(const rosbag::MessageInstance& m) {
     if (auto image = m.instantiate<sensor_msgs::Image>()) return image->header.stamp;
     if (auto cloud = m.instantiate<sensor_msgs::PointCloud2>()) return cloud->header.stamp;
-    if (auto compressed = m.instantiate<sensor_msgs::CompressedImage>()) return compressed->header.stamp;
+    if (auto compressed = m.instantiate<sensor_msgs::CompressedImage>())
+      return compressed->header.stamp;
     return ros::Time();
   }
   void publish(const rosbag::MessageInstance& m) {

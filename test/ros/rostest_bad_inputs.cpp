@@ -4,12 +4,7 @@
 // IMU, an odometry gap); the node must stay up, say what is wrong (status and /diagnostics) and
 // recover when good data returns. mode "config": a bad configuration is reported on
 // /diagnostics and nothing is subscribed (wall time: nothing runs to wait for).
-#include <cmath>
-#include <functional>
-#include <limits>
-#include <string>
-#include <vector>
-
+#include <XmlRpcValue.h>
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <gtest/gtest.h>
@@ -19,7 +14,12 @@
 #include <sensor_msgs/Imu.h>
 #include <tf2_ros/static_transform_broadcaster.h>
 #include <tf2_ros/transform_broadcaster.h>
-#include <XmlRpcValue.h>
+
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <string>
+#include <vector>
 
 #include "gmm_mcl/FilterStatus.h"
 #include "gmm_mcl/filter/pose.h"
@@ -69,7 +69,8 @@ TEST(BadInputsTest, NodeSaysWhatIsWrongAndRecovers) {
   };
   auto says = [&](const std::string& text) {
     return diagUntil([&](const lockstep::Diag& d) {
-      return d.level >= diagnostic_msgs::DiagnosticStatus::WARN && d.message.find(text) != std::string::npos;
+      return d.level >= diagnostic_msgs::DiagnosticStatus::WARN &&
+             d.message.find(text) != std::string::npos;
     });
   };
   const SyntheticRobot::Frame good;
@@ -111,7 +112,8 @@ TEST(BadInputsTest, NodeSaysWhatIsWrongAndRecovers) {
   const long long received = obs.statuses.back().frames_received;
   send(f);
   // It arrived (and waits for tf) before the next frame is sent, which takes its place.
-  ASSERT_TRUE(diagUntil([&](const lockstep::Diag& d) { return d.number("frames received") > received; }));
+  ASSERT_TRUE(
+      diagUntil([&](const lockstep::Diag& d) { return d.number("frames received") > received; }));
   ASSERT_NE(obs.statusAt(send(good)), nullptr);
   EXPECT_TRUE(says("'unknown_camera_frame'"));
   EXPECT_GE(obs.lastDiag()->number("dropped: no extrinsics"), 1);
@@ -131,7 +133,8 @@ TEST(BadInputsTest, NodeSaysWhatIsWrongAndRecovers) {
   f.odom_tf = false;
   const long long received_before_gap = obs.statuses.back().frames_received;
   const ros::Time t_gap = send(f);
-  ASSERT_TRUE(diagUntil([&](const lockstep::Diag& d) { return d.number("frames received") > received_before_gap; }));
+  ASSERT_TRUE(diagUntil(
+      [&](const lockstep::Diag& d) { return d.number("frames received") > received_before_gap; }));
   const ros::Time t_next = robot.stamp(step);
   robot.publishOdometry(t_next, robot.truth(k));
   s = obs.statusAt(t_gap);
@@ -153,8 +156,9 @@ TEST(BadInputsTest, NodeSaysWhatIsWrongAndRecovers) {
   EXPECT_EQ(d.message, "localizing");
   // Every frame accounted for: received = used + dropped + waiting.
   const FilterStatus& last = obs.statuses.back();
-  EXPECT_EQ(last.frames_received, last.frames_processed + last.frames_gated + last.dropped_conversion +
-                                      last.dropped_camera_info + last.dropped_extrinsics + last.frames_waiting);
+  EXPECT_EQ(last.frames_received, last.frames_processed + last.frames_gated +
+                                      last.dropped_conversion + last.dropped_camera_info +
+                                      last.dropped_extrinsics + last.frames_waiting);
 }
 
 TEST(BadConfigTest, ReportedAndNothingSubscribed) {

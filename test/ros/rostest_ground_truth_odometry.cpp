@@ -2,21 +2,21 @@
 // TransformStamped of the marker) plays in lockstep (test/ros/lockstep.h: the test owns /clock
 // and waits for the nodelet's ~status of each cloud); gmm_mcl_ground_truth_odometry makes
 // odometry, IMU and ground truth from it (with the marker -> camera calibration); the nodelet
-// localizes on the cloud. Checks convergence against the ground truth, the odometry's drift and the IMU's
-// attitude against the truth, and the TUM file of the ground truth.
-#include <cmath>
-#include <fstream>
-#include <functional>
-#include <map>
-#include <string>
-#include <vector>
-
+// localizes on the cloud. Checks convergence against the ground truth, the odometry's drift and the
+// IMU's attitude against the truth, and the TUM file of the ground truth.
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/PoseWithCovarianceStamped.h>
 #include <gtest/gtest.h>
 #include <nav_msgs/Odometry.h>
 #include <ros/ros.h>
 #include <sensor_msgs/Imu.h>
+
+#include <cmath>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
 
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/ros/conversions.h"
@@ -26,11 +26,11 @@ using namespace gmm_mcl;
 
 namespace {
 
-constexpr double kTrackErrorM = 0.15;     // 3 s into the bag
-constexpr double kFinalErrorM = 0.10;     // last pose
+constexpr double kTrackErrorM = 0.15;                     // 3 s into the bag
+constexpr double kFinalErrorM = 0.10;                     // last pose
 constexpr double kAttitudeErrorRad = 3.0 * M_PI / 180.0;  // 6 sigma of the 0.5 deg noise
-constexpr double kMaxOdomDriftM = 0.5;    // drifting odometry over the bag, vs truth motion
-constexpr double kMinOdomDriftM = 1e-4;   // it is noisy at all
+constexpr double kMaxOdomDriftM = 0.5;   // drifting odometry over the bag, vs truth motion
+constexpr double kMinOdomDriftM = 1e-4;  // it is noisy at all
 
 struct Stamped {
   ros::Time stamp;
@@ -57,7 +57,8 @@ class Recorder {
   }
   void imu(const sensor_msgs::ImuConstPtr& m) {
     double r, p;
-    if (ros_conv::attitudeFromImu(*m, &r, &p)) imu_[m->header.stamp.toNSec()] = Eigen::Vector2d(r, p);
+    if (ros_conv::attitudeFromImu(*m, &r, &p))
+      imu_[m->header.stamp.toNSec()] = Eigen::Vector2d(r, p);
   }
   double error(const Stamped& p) const {
     const auto it = truth_.find(p.stamp.toNSec());
@@ -91,14 +92,16 @@ TEST(GroundTruthOdometryTest, LocalizerConvergesOnACowAndLadyLayoutBag) {
   ros::param::param<std::string>("~cloud_topic", cloud_topic, "/camera/depth_registered/points");
   lockstep::BagPlayer player(nh, bag, cloud_topic, &clock);
   ASSERT_TRUE(player.waitForSubscribers()) << "the nodelet does not subscribe " << cloud_topic;
-  ASSERT_TRUE(lockstep::waitFor([&] { return ros::service::exists("/gmm_mcl/reset_to_pose", false); }));
+  ASSERT_TRUE(
+      lockstep::waitFor([&] { return ros::service::exists("/gmm_mcl/reset_to_pose", false); }));
   const ros::Time t0 = player.frameStamp(0);
   bool tracked = false;
   for (int i = 0; i < player.frames(); ++i) {
     player.publishFrame(i);
     const ros::Time t = player.frameStamp(i);
     ASSERT_NE(obs.statusAt(t), nullptr) << "no ~status for cloud " << i << "; " << obs.describe();
-    ASSERT_TRUE(lockstep::waitFor([&] { return !rec.poses_.empty() && rec.poses_.back().stamp == t; }));
+    ASSERT_TRUE(
+        lockstep::waitFor([&] { return !rec.poses_.empty() && rec.poses_.back().stamp == t; }));
     if (!tracked && (t - t0).toSec() >= 3.0) {
       tracked = true;
       const double err_track = errorOf(rec, rec.poses_.back());
@@ -150,11 +153,13 @@ TEST(GroundTruthOdometryTest, LocalizerConvergesOnACowAndLadyLayoutBag) {
     while (in >> t >> x >> y >> z >> qx >> qy >> qz >> qw) {
       ++lines;
       const auto g = rec.truth_.lower_bound(static_cast<uint64_t>(std::llround((t - 5e-7) * 1e9)));
-      if (g != rec.truth_.end() && (g->second.translation() - Eigen::Vector3d(x, y, z)).norm() < 1e-5) {
+      if (g != rec.truth_.end() &&
+          (g->second.translation() - Eigen::Vector3d(x, y, z)).norm() < 1e-5) {
         ++matched;
       }
     }
-    std::printf("[ measured ] %s: %d poses, %d match /ground_truth\n", truth_tum.c_str(), lines, matched);
+    std::printf("[ measured ] %s: %d poses, %d match /ground_truth\n", truth_tum.c_str(), lines,
+                matched);
     EXPECT_GE(lines, static_cast<int>(rec.truth_.size()));
     EXPECT_GE(matched, static_cast<int>(rec.truth_.size()) * 9 / 10);
   }

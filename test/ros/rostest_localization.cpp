@@ -6,14 +6,14 @@
 //   frame + transform_tolerance and increasing, covariance consistency.
 // mode "looped": the first 5 s twice (time jumps back): reported, tf restarts once, the filter
 //   re-converges.
+#include <geometry_msgs/PoseStamped.h>
+#include <gtest/gtest.h>
+#include <std_srvs/Empty.h>
+
 #include <cmath>
 #include <map>
 #include <set>
 #include <vector>
-
-#include <geometry_msgs/PoseStamped.h>
-#include <gtest/gtest.h>
-#include <std_srvs/Empty.h>
 
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/ros/conversions.h"
@@ -33,7 +33,8 @@ constexpr double kTransformTolerance = 0.1;  // the launch's transform_tolerance
 // Ground truth of the bag, by stamp.
 class Truth {
  public:
-  explicit Truth(ros::NodeHandle& nh) : sub_(nh.subscribe("/ground_truth", 1000, &Truth::onTruth, this)) {}
+  explicit Truth(ros::NodeHandle& nh)
+      : sub_(nh.subscribe("/ground_truth", 1000, &Truth::onTruth, this)) {}
   void onTruth(const geometry_msgs::PoseStampedConstPtr& m) {
     truth_[m->header.stamp.toNSec()] = ros_conv::isometryFromPose(m->pose);
   }
@@ -51,10 +52,13 @@ class Truth {
     if (!at(p.header.stamp, &T)) return Eigen::Vector4d::Constant(1e9);
     const Eigen::Isometry3d E = ros_conv::isometryFromPose(p.pose.pose);
     Eigen::Vector4d e;
-    e << E.translation() - T.translation(), wrapAngle(yawFromRotation(E.linear()) - yawFromRotation(T.linear()));
+    e << E.translation() - T.translation(),
+        wrapAngle(yawFromRotation(E.linear()) - yawFromRotation(T.linear()));
     return e;
   }
-  double translationError(const geometry_msgs::PoseWithCovarianceStamped& p) { return error(p).head<3>().norm(); }
+  double translationError(const geometry_msgs::PoseWithCovarianceStamped& p) {
+    return error(p).head<3>().norm();
+  }
 
  private:
   ros::Subscriber sub_;
@@ -76,19 +80,22 @@ TEST(LocalizationBagTest, TracksResetsAndPublishesTf) {
   Clock clock(nh);
   BagPlayer player(nh, bagPath(), "/camera/depth/image_raw", &clock);
   ASSERT_TRUE(player.waitForSubscribers()) << "the nodelet does not subscribe the depth image";
-  ros::Publisher init_pub = nh.advertise<geometry_msgs::PoseWithCovarianceStamped>("/initialpose", 1, true);
+  ros::Publisher init_pub =
+      nh.advertise<geometry_msgs::PoseWithCovarianceStamped>("/initialpose", 1, true);
   const ros::Time t0 = player.frameStamp(0);
   auto rel = [&](const ros::Time& t) { return (t - t0).toSec(); };
 
   enum Phase { kTracking, kGlobal, kInitialPose, kToTheEnd } phase = kTracking;
-  ros::Time t_global, t_stale, t_carried;  // frames: after the global reset, the stale pose's, after it
+  ros::Time t_global, t_stale,
+      t_carried;  // frames: after the global reset, the stale pose's, after it
   int resets = 0;
   std::vector<geometry_msgs::PoseWithCovarianceStamped> poses;
   for (int i = 0; i < player.frames(); ++i) {
     player.publishFrame(i);
     const ros::Time t = player.frameStamp(i);
     const FilterStatus* s = obs.statusAt(t);
-    ASSERT_NE(s, nullptr) << "no ~status for frame " << i << " at " << rel(t) << " s; " << obs.describe();
+    ASSERT_NE(s, nullptr) << "no ~status for frame " << i << " at " << rel(t) << " s; "
+                          << obs.describe();
     EXPECT_NE(s->step_status, "bad_frame") << s->message;
     const geometry_msgs::PoseWithCovarianceStamped* p = obs.poseAt(t);
     ASSERT_NE(p, nullptr);
@@ -119,7 +126,8 @@ TEST(LocalizationBagTest, TracksResetsAndPublishesTf) {
       t_stale = player.frameStamp(i - 45);
       ASSERT_TRUE(truth.at(t, &T_now));
       const double moved_m = (T_now.translation() - T_then.translation()).norm();
-      std::printf("[ measured ] the robot moved %.2f m since the stale initial pose's stamp\n", moved_m);
+      std::printf("[ measured ] the robot moved %.2f m since the stale initial pose's stamp\n",
+                  moved_m);
       ASSERT_GT(moved_m, 2.0 * kCarriedErrorM) << "the stale-stamp check would not discriminate";
       geometry_msgs::PoseWithCovarianceStamped init;
       init.header.frame_id = "map";
@@ -167,11 +175,13 @@ TEST(LocalizationBagTest, TracksResetsAndPublishesTf) {
   const int diag[4] = {0, 7, 14, 35};
   for (const auto& p : poses) {
     const double t = rel(p.header.stamp);
-    const bool converged = (t >= 1.5 && p.header.stamp < t_global) || (p.header.stamp - t_carried).toSec() >= 1.0;
+    const bool converged =
+        (t >= 1.5 && p.header.stamp < t_global) || (p.header.stamp - t_carried).toSec() >= 1.0;
     if (!converged) continue;
     const Eigen::Vector4d e = truth.error(p);
     ++n;
-    for (int k = 0; k < 4; ++k) within[k] += std::abs(e[k]) <= 3.0 * std::sqrt(p.pose.covariance[diag[k]]);
+    for (int k = 0; k < 4; ++k)
+      within[k] += std::abs(e[k]) <= 3.0 * std::sqrt(p.pose.covariance[diag[k]]);
   }
   ASSERT_GE(n, 10);
   for (int k = 0; k < 4; ++k) {
@@ -200,7 +210,8 @@ TEST(LocalizationBagTest, LoopedBagResets) {
       player.publishFrame(i);
       const ros::Time t = player.frameStamp(i);
       const FilterStatus* s = obs.statusAt(t, kWaitLimitS, since);
-      ASSERT_NE(s, nullptr) << "no ~status for frame " << i << " of loop " << loop << "; " << obs.describe();
+      ASSERT_NE(s, nullptr) << "no ~status for frame " << i << " of loop " << loop << "; "
+                            << obs.describe();
       if (loop == 1 && i == 0) {
         EXPECT_EQ(s->step_status, "time_jump_back") << s->message;
         EXPECT_EQ(s->time_jumps, 1);
@@ -208,19 +219,22 @@ TEST(LocalizationBagTest, LoopedBagResets) {
       }
       last = *obs.poseAt(t, since_pose);
       if (loop == 1 && i % 20 == 0) {
-        std::printf("  second loop: pose at %.3f s: error %.3f m, sigma x %.3f m\n", (t - t0).toSec(),
-                    truth.translationError(last), std::sqrt(last.pose.covariance[0]));
+        std::printf("  second loop: pose at %.3f s: error %.3f m, sigma x %.3f m\n",
+                    (t - t0).toSec(), truth.translationError(last),
+                    std::sqrt(last.pose.covariance[0]));
       }
     }
   }
   const double err_after = truth.translationError(last);
-  std::printf("[ measured ] error at %.2f s of the second loop: %.3f m\n", (last.header.stamp - t0).toSec(), err_after);
+  std::printf("[ measured ] error at %.2f s of the second loop: %.3f m\n",
+              (last.header.stamp - t0).toSec(), err_after);
   EXPECT_LT(err_after, kTrackErrorM);
   // tf: one step back at the loop, strictly increasing on either side.
   EXPECT_TRUE(waitFor([&] { return obs.tf_stamps.size() >= 2u * frames; }))
       << obs.tf_stamps.size() << " map -> odom transforms for " << 2 * frames << " frames";
   int backs = 0;
-  for (size_t i = 1; i < obs.tf_stamps.size(); ++i) backs += obs.tf_stamps[i] <= obs.tf_stamps[i - 1];
+  for (size_t i = 1; i < obs.tf_stamps.size(); ++i)
+    backs += obs.tf_stamps[i] <= obs.tf_stamps[i - 1];
   EXPECT_EQ(backs, 1) << "map -> odom should restart once at the loop and increase otherwise";
 }
 

@@ -22,15 +22,15 @@
 //   JumpBackBeforeTheClock       a frame stamped 10 s back before the clock went back: a jump
 //                                back (the filter re-initialises), not a late frame dropped
 //   MotionGating, TfBroadcastOff, SavePose, ReloadMap, SinglePoseStartAndCpuFallback
+#include <dynamic_reconfigure/Reconfigure.h>
+#include <dynamic_reconfigure/config_tools.h>
+#include <gtest/gtest.h>
+#include <image_transport/image_transport.h>
+#include <std_srvs/Empty.h>
+
 #include <cmath>
 #include <functional>
 #include <map>
-
-#include <dynamic_reconfigure/Reconfigure.h>
-#include <image_transport/image_transport.h>
-#include <dynamic_reconfigure/config_tools.h>
-#include <gtest/gtest.h>
-#include <std_srvs/Empty.h>
 
 #include "gmm_mcl/LoadMap.h"
 #include "gmm_mcl/ResetToPose.h"
@@ -41,8 +41,8 @@ using namespace gmm_mcl::lockstep;
 
 namespace {
 
-constexpr double kTrackedM = 0.05;       // converged: position error below this
-constexpr double kDiagPeriodS = 1.0;      // the launch's diagnostics_period
+constexpr double kTrackedM = 0.05;    // converged: position error below this
+constexpr double kDiagPeriodS = 1.0;  // the launch's diagnostics_period
 const std::string kGimbalFrame = "gimbal_camera_optical_frame";
 
 struct World {
@@ -51,18 +51,21 @@ struct World {
   Observer obs{nh};
   Observer start_obs{nh, "/gmm_mcl_start"};
   SyntheticRobot robot{nh, &clock};
-  ros::Publisher initialpose = nh.advertise<geometry_msgs::PoseWithCovarianceStamped>("/initialpose", 1, true);
+  ros::Publisher initialpose =
+      nh.advertise<geometry_msgs::PoseWithCovarianceStamped>("/initialpose", 1, true);
   double step = 0;  // stamp of the next frame: robot.stamp(step)
   int k = 0;        // pose index of the robot
 };
 World* w = nullptr;
 
-double positionError(const geometry_msgs::PoseWithCovarianceStamped& p, const Eigen::Isometry3d& truth) {
+double positionError(const geometry_msgs::PoseWithCovarianceStamped& p,
+                     const Eigen::Isometry3d& truth) {
   return (ros_conv::isometryFromPose(p.pose.pose).translation() - truth.translation()).norm();
 }
 
 // Sends the robot's frame at pose index k with the next stamp and waits for its ~status.
-const FilterStatus* sendFrame(int k, const SyntheticRobot::Frame& f = SyntheticRobot::Frame(), ros::Time* stamp = nullptr) {
+const FilterStatus* sendFrame(int k, const SyntheticRobot::Frame& f = SyntheticRobot::Frame(),
+                              ros::Time* stamp = nullptr) {
   const ros::Time t = w->robot.stamp(w->step++);
   if (stamp) *stamp = t;
   w->robot.send(t, w->robot.truth(k), f);
@@ -97,24 +100,35 @@ bool ensureTracking() {
 }
 
 // dynamic_reconfigure request; *out: the configuration the server answers with.
-bool reconfigure(const std::map<std::string, double>& doubles, const std::map<std::string, int>& ints = {},
-                 const std::map<std::string, bool>& bools = {}, dynamic_reconfigure::Config* out = nullptr) {
+bool reconfigure(const std::map<std::string, double>& doubles,
+                 const std::map<std::string, int>& ints = {},
+                 const std::map<std::string, bool>& bools = {},
+                 dynamic_reconfigure::Config* out = nullptr) {
   dynamic_reconfigure::Reconfigure srv;
-  for (const auto& kv : doubles) dynamic_reconfigure::ConfigTools::appendParameter(srv.request.config, kv.first, kv.second);
-  for (const auto& kv : ints) dynamic_reconfigure::ConfigTools::appendParameter(srv.request.config, kv.first, kv.second);
-  for (const auto& kv : bools) dynamic_reconfigure::ConfigTools::appendParameter(srv.request.config, kv.first, kv.second);
+  for (const auto& kv : doubles)
+    dynamic_reconfigure::ConfigTools::appendParameter(srv.request.config, kv.first, kv.second);
+  for (const auto& kv : ints)
+    dynamic_reconfigure::ConfigTools::appendParameter(srv.request.config, kv.first, kv.second);
+  for (const auto& kv : bools)
+    dynamic_reconfigure::ConfigTools::appendParameter(srv.request.config, kv.first, kv.second);
   if (!ros::service::call("/gmm_mcl/set_parameters", srv)) return false;
   if (out) *out = srv.response.config;
   return true;
 }
 void restoreDefaults() {
-  reconfigure({{"sigma_translation_m", 0.02}, {"sigma_yaw_rad", 0.01}, {"alpha_slow", 0.001}, {"lost_margin_nats", 3.0},
-               {"update_min_d", 0.0}, {"update_min_a", 0.0}},
-              {{"num_particles", 400}, {"lost_grace_frames", 30}, {"lost_frames", 10}}, {{"tf_broadcast", true}});
+  reconfigure({{"sigma_translation_m", 0.02},
+               {"sigma_yaw_rad", 0.01},
+               {"alpha_slow", 0.001},
+               {"lost_margin_nats", 3.0},
+               {"update_min_d", 0.0},
+               {"update_min_a", 0.0}},
+              {{"num_particles", 400}, {"lost_grace_frames", 30}, {"lost_frames", 10}},
+              {{"tf_broadcast", true}});
 }
 
 // Fraction of `later`'s particles that are one of `earlier`'s (position and yaw within tol).
-double fractionKept(const geometry_msgs::PoseArray& later, const geometry_msgs::PoseArray& earlier, double tol) {
+double fractionKept(const geometry_msgs::PoseArray& later, const geometry_msgs::PoseArray& earlier,
+                    double tol) {
   int kept = 0;
   for (const auto& a : later.poses) {
     const Eigen::Isometry3d A = ros_conv::isometryFromPose(a);
@@ -140,8 +154,8 @@ bool diagUntil(const std::function<bool(const Diag&)>& ok, Diag* out = nullptr, 
   const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(kWaitLimitS);
   for (int i = 0; ticks > 0 ? i < ticks : ros::WallTime::now() < end; ++i) {
     if (!w->obs.tickDiagnostics(&w->clock, kDiagPeriodS, &d, nullptr)) {
-      std::printf("[ diag ] none after moving the clock to %.3f (ros::ok %d, %zu so far)\n", w->clock.now().toSec(),
-                  ros::ok(), w->obs.diags.size());
+      std::printf("[ diag ] none after moving the clock to %.3f (ros::ok %d, %zu so far)\n",
+                  w->clock.now().toSec(), ros::ok(), w->obs.diags.size());
       return false;
     }
     std::printf("[ diag ] %d: %s\n", d.level, d.message.c_str());
@@ -165,7 +179,8 @@ TEST(NodeletTest, FirstFrameWaitsForTf) {
   const ros::Time t = w->robot.stamp(w->step++);
   w->robot.send(t, w->robot.truth(0), no_tf);
   // The nodelet has it (it counts it) before tf comes.
-  ASSERT_TRUE(diagUntil([](const Diag& d) { return d.number("frames received") >= 1; })) << "the frame never arrived";
+  ASSERT_TRUE(diagUntil([](const Diag& d) { return d.number("frames received") >= 1; }))
+      << "the frame never arrived";
   w->robot.publishStaticExtrinsics();
   w->robot.publishOdometry(t, w->robot.truth(0));
   const FilterStatus* s = w->obs.statusAt(t, 30.0);
@@ -180,11 +195,13 @@ TEST(NodeletTest, DiagnosticsNamedAndOnTime) {
   EXPECT_EQ(d.name, "gmm_mcl: localization") << "named after the manager, not the nodelet";
   // One message per period of ROS time.
   for (int i = 0; i < 4; ++i) {
-    EXPECT_TRUE(w->obs.tickDiagnostics(&w->clock, kDiagPeriodS, &d, nullptr, 30.0)) << "no diagnostics in period " << i;
+    EXPECT_TRUE(w->obs.tickDiagnostics(&w->clock, kDiagPeriodS, &d, nullptr, 30.0))
+        << "no diagnostics in period " << i;
   }
   // The clock jumps back 30 s (a looped bag): the next period still has its message.
   w->clock.set(w->robot.stamp(w->step) - ros::Duration(30.0));
-  EXPECT_TRUE(w->obs.tickDiagnostics(&w->clock, kDiagPeriodS, &d, nullptr, 30.0)) << "no diagnostics after a jump back";
+  EXPECT_TRUE(w->obs.tickDiagnostics(&w->clock, kDiagPeriodS, &d, nullptr, 30.0))
+      << "no diagnostics after a jump back";
   w->clock.set(w->robot.stamp(w->step));
 }
 
@@ -198,7 +215,12 @@ TEST(NodeletTest, MissingCameraInfoIsNamed) {
     w->robot.send(t, w->robot.truth(w->k), no_info);
   }
   Diag d;
-  EXPECT_TRUE(diagUntil([](const Diag& d) { return d.message.find("but no CameraInfo on /camera/depth/camera_info") != std::string::npos; }, &d))
+  EXPECT_TRUE(diagUntil(
+      [](const Diag& d) {
+        return d.message.find("but no CameraInfo on /camera/depth/camera_info") !=
+               std::string::npos;
+      },
+      &d))
       << d.message;
   EXPECT_EQ(d.level, diagnostic_msgs::DiagnosticStatus::WARN);
   EXPECT_TRUE(ensureTracking()) << "tracking does not resume with CameraInfo";
@@ -208,7 +230,10 @@ TEST(NodeletTest, MovingExtrinsicsKeepBelief) {
   ASSERT_TRUE(ensureTracking());
   ASSERT_TRUE(w->obs.subscribeParticles());
   // No process noise or recovery: a held robot's particles only get resampled (copies).
-  ASSERT_TRUE(reconfigure({{"sigma_translation_m", 0.0}, {"sigma_yaw_rad", 0.0}, {"alpha_slow", 0.0}, {"lost_margin_nats", 0.0}}));
+  ASSERT_TRUE(reconfigure({{"sigma_translation_m", 0.0},
+                           {"sigma_yaw_rad", 0.0},
+                           {"alpha_slow", 0.0},
+                           {"lost_margin_nats", 0.0}}));
   SyntheticRobot::Frame gimbal;
   gimbal.camera_frame = kGimbalFrame;
   gimbal.dynamic_extrinsics = true;
@@ -227,7 +252,9 @@ TEST(NodeletTest, MovingExtrinsicsKeepBelief) {
   }
   for (size_t i = 1; i < sets.size(); ++i) {
     const double kept = fractionKept(sets[i], sets[i - 1], 1e-6);
-    std::printf("[ measured ] jittered extrinsics, frame %zu: %.0f%% of the particles carried over\n", i, 100 * kept);
+    std::printf(
+        "[ measured ] jittered extrinsics, frame %zu: %.0f%% of the particles carried over\n", i,
+        100 * kept);
     EXPECT_GE(kept, 0.95) << "the belief was rebuilt at frame " << i;
   }
   restoreDefaults();
@@ -238,7 +265,8 @@ TEST(NodeletTest, MovingExtrinsicsKeepBelief) {
     ASSERT_NE(sendFrame(++w->k, gimbal, &t), nullptr);
     worst = std::max(worst, errorOfFrame(t, w->k));
   }
-  std::printf("[ measured ] jittered extrinsics while moving: worst error %.3f m over 30 frames\n", worst);
+  std::printf("[ measured ] jittered extrinsics while moving: worst error %.3f m over 30 frames\n",
+              worst);
   EXPECT_LT(worst, 0.1);
 }
 
@@ -251,12 +279,14 @@ TEST(NodeletTest, ImuBufferedDuringAnUpdate) {
   w->robot.send(t, w->robot.truth(k));
   double roll, pitch, yaw;
   rpyFromRotation(w->robot.truth(k + 1).linear(), &roll, &pitch, &yaw);
-  for (int i = 1; i <= 200; ++i) w->robot.publishImu(t + ros::Duration(i / 600.0), roll + 0.001 * i, pitch);
+  for (int i = 1; i <= 200; ++i)
+    w->robot.publishImu(t + ros::Duration(i / 600.0), roll + 0.001 * i, pitch);
   ASSERT_NE(w->obs.statusAt(t), nullptr);
   // Every IMU message reaches the buffer (none lost to a full queue behind the update).
   const long long sent = w->robot.imuPublished();
   Diag d;
-  EXPECT_TRUE(diagUntil([&](const Diag& d) { return d.number("IMU messages received") >= sent; }, &d))
+  EXPECT_TRUE(
+      diagUntil([&](const Diag& d) { return d.number("IMU messages received") >= sent; }, &d))
       << d.number("IMU messages received") << " of " << sent << " IMU messages kept";
   // Frame k + 1 (without an IMU message of its own) gets the attitude of its stamp.
   SyntheticRobot::Frame no_imu;
@@ -272,8 +302,9 @@ TEST(NodeletTest, ImuBufferedDuringAnUpdate) {
   ASSERT_NE(p, nullptr);
   double r, pt, y;
   rpyFromRotation(ros_conv::isometryFromPose(p->pose.pose).linear(), &r, &pt, &y);
-  std::printf("[ measured ] roll used %.4f rad, IMU at the frame's stamp %.4f rad, newest IMU %.4f rad\n", r,
-              roll + 0.020, roll + 0.200);
+  std::printf(
+      "[ measured ] roll used %.4f rad, IMU at the frame's stamp %.4f rad, newest IMU %.4f rad\n",
+      r, roll + 0.020, roll + 0.200);
   EXPECT_NEAR(r, roll + 0.020, 1e-6) << "the frame did not get the attitude of its own stamp";
 }
 
@@ -285,7 +316,10 @@ TEST(NodeletTest, ReconfigureKeepsParticles) {
   const geometry_msgs::PoseArray before = *w->obs.particlesAt(t0);
   // No process noise or recovery from now on: the held robot's particles are only resampled.
   dynamic_reconfigure::Config answer;
-  ASSERT_TRUE(reconfigure({{"sigma_translation_m", 0.0}, {"sigma_yaw_rad", 0.0}, {"alpha_slow", 0.0}, {"lost_margin_nats", 0.0}},
+  ASSERT_TRUE(reconfigure({{"sigma_translation_m", 0.0},
+                           {"sigma_yaw_rad", 0.0},
+                           {"alpha_slow", 0.0},
+                           {"lost_margin_nats", 0.0}},
                           {{"lost_grace_frames", 7}}, {}, &answer));
   int grace = -1;
   dynamic_reconfigure::ConfigTools::getParameter(answer, "lost_grace_frames", grace);
@@ -294,7 +328,8 @@ TEST(NodeletTest, ReconfigureKeepsParticles) {
   ASSERT_NE(s, nullptr);
   const geometry_msgs::PoseArray after = *w->obs.particlesAt(t1);
   const double kept = fractionKept(after, before, 1e-6);
-  std::printf("[ measured ] after a reconfigure %.0f%% of the particles carried over\n", 100 * kept);
+  std::printf("[ measured ] after a reconfigure %.0f%% of the particles carried over\n",
+              100 * kept);
   EXPECT_GE(kept, 0.95) << "the reconfigure re-seeded the particles";
   // A smaller particle count: resampled from the same set.
   ASSERT_TRUE(reconfigure({}, {{"num_particles", 300}}));
@@ -309,9 +344,10 @@ TEST(NodeletTest, ReconfigureKeepsParticles) {
 // update over it (budget_over_updates 1) per cut. ~status shows the choice the frame ran with.
 TEST(NodeletTest, UpdateBudgetCutsAndKeepsBelief) {
   ASSERT_TRUE(ensureTracking());
-  ASSERT_TRUE(reconfigure({{"max_update_ms", 0.001}},
-                          {{"budget_max_pixel_stride", 12}, {"budget_min_particles", 150}, {"budget_over_updates", 1}},
-                          {{"update_budget", true}}));
+  ASSERT_TRUE(reconfigure(
+      {{"max_update_ms", 0.001}},
+      {{"budget_max_pixel_stride", 12}, {"budget_min_particles", 150}, {"budget_over_updates", 1}},
+      {{"update_budget", true}}));
   const FilterStatus* s = nullptr;
   ros::Time t;
   for (int i = 0; i < 4; ++i) {  // cuts after frames 1 (stride), 2 (refinement), 3 (particles)
@@ -328,9 +364,10 @@ TEST(NodeletTest, UpdateBudgetCutsAndKeepsBelief) {
   EXPECT_GE(s->budget_cuts, 3);
   EXPECT_LT(errorOfFrame(t, w->k), kTrackedM) << "the budget's changes lost the belief";
   // Off: the configured values (nodelet.test: stride 4, 400 particles) at once.
-  ASSERT_TRUE(reconfigure({{"max_update_ms", 0.0}},
-                          {{"budget_max_pixel_stride", 16}, {"budget_min_particles", 100}, {"budget_over_updates", 3}},
-                          {{"update_budget", false}}));
+  ASSERT_TRUE(reconfigure(
+      {{"max_update_ms", 0.0}},
+      {{"budget_max_pixel_stride", 16}, {"budget_min_particles", 100}, {"budget_over_updates", 3}},
+      {{"update_budget", false}}));
   s = sendFrame(++w->k, SyntheticRobot::Frame(), &t);
   ASSERT_NE(s, nullptr);
   EXPECT_FALSE(s->budget_enabled);
@@ -350,14 +387,16 @@ TEST(NodeletTest, RequestedPoses) {
   geometry_msgs::PoseWithCovarianceStamped planar;
   planar.header.frame_id = "map";
   planar.header.stamp = w->robot.stamp(w->step - 1);
-  planar.pose.pose = ros_conv::poseFromIsometry(particleToPose(Particle{truth.x_m, truth.y_m, 0.0, truth.yaw_rad}, 0, 0));
+  planar.pose.pose = ros_conv::poseFromIsometry(
+      particleToPose(Particle{truth.x_m, truth.y_m, 0.0, truth.yaw_rad}, 0, 0));
   planar.pose.covariance[0] = planar.pose.covariance[7] = 0.25;
   planar.pose.covariance[35] = 0.0685;
   const int resets = w->obs.statuses.back().resets;
   w->initialpose.publish(planar);
   const FilterStatus* s = nullptr;
   ros::Time t;
-  for (int i = 0; i < 10 && !(s && s->resets > resets); ++i) s = sendFrame(++w->k, SyntheticRobot::Frame(), &t);
+  for (int i = 0; i < 10 && !(s && s->resets > resets); ++i)
+    s = sendFrame(++w->k, SyntheticRobot::Frame(), &t);
   ASSERT_TRUE(s && s->resets > resets) << "the planar pose was not applied";
   const auto* p = w->obs.poseAt(t);
   const double z = p->pose.pose.position.z, z_true = w->robot.truth(w->k).translation().z();
@@ -374,7 +413,8 @@ TEST(NodeletTest, RequestedPoses) {
   const int resets2 = w->obs.statuses.back().resets;
   w->initialpose.publish(in_odom);
   s = nullptr;
-  for (int i = 0; i < 10 && !(s && s->resets > resets2); ++i) s = sendFrame(++w->k, SyntheticRobot::Frame(), &t);
+  for (int i = 0; i < 10 && !(s && s->resets > resets2); ++i)
+    s = sendFrame(++w->k, SyntheticRobot::Frame(), &t);
   ASSERT_TRUE(s && s->resets > resets2) << "the odom-frame pose was not applied";
   const double err = errorOfFrame(t, w->k);
   std::printf("[ measured ] after a pose in the odom frame: error %.3f m\n", err);
@@ -388,7 +428,8 @@ TEST(NodeletTest, DiagnosticsWarn) {
   ASSERT_TRUE(ros::service::call("/gmm_mcl/global_localization", srv));
   ASSERT_NE(sendFrame(++w->k), nullptr);
   Diag d;
-  EXPECT_TRUE(diagUntil([](const Diag& d) { return d.message.find("not converged") != std::string::npos; }, &d, 3))
+  EXPECT_TRUE(diagUntil(
+      [](const Diag& d) { return d.message.find("not converged") != std::string::npos; }, &d, 3))
       << d.message;
   EXPECT_EQ(d.level, diagnostic_msgs::DiagnosticStatus::WARN);
   // Lost: frames of a wall that is not in the map score far below the reference.
@@ -397,13 +438,16 @@ TEST(NodeletTest, DiagnosticsWarn) {
   SyntheticRobot::Frame wall;
   wall.wall_depth_m = 0.6;
   for (int i = 0; i < 3; ++i) ASSERT_NE(sendFrame(w->k, wall), nullptr);
-  EXPECT_TRUE(diagUntil([](const Diag& d) { return d.message.find("lost") != std::string::npos; }, &d, 3)) << d.message;
+  EXPECT_TRUE(
+      diagUntil([](const Diag& d) { return d.message.find("lost") != std::string::npos; }, &d, 3))
+      << d.message;
   restoreDefaults();
 }
 
 TEST(NodeletTest, MarkersAgainAfterAJumpBack) {
   ASSERT_TRUE(w->obs.subscribeMarkers());
-  ASSERT_TRUE(waitFor([&] { return w->obs.marker_messages >= 1; })) << "the latched markers never came";
+  ASSERT_TRUE(waitFor([&] { return w->obs.marker_messages >= 1; }))
+      << "the latched markers never came";
   ASSERT_TRUE(ensureTracking());
   // A frame stamped 10 s earlier (a looped bag): rviz clears its displays; the markers come again.
   const int before = w->obs.marker_messages;
@@ -413,7 +457,8 @@ TEST(NodeletTest, MarkersAgainAfterAJumpBack) {
   const FilterStatus* s = w->obs.statusAt(back);
   ASSERT_NE(s, nullptr);
   EXPECT_EQ(s->step_status, "time_jump_back");
-  EXPECT_TRUE(waitFor([&] { return w->obs.marker_messages > before; }, 30.0)) << "no markers after the jump back";
+  EXPECT_TRUE(waitFor([&] { return w->obs.marker_messages > before; }, 30.0))
+      << "no markers after the jump back";
   // And periodically while subscribed (rviz's Reset drops them too): markers_period 5 s.
   const int after_jump = w->obs.marker_messages;
   EXPECT_TRUE(diagUntil([&](const Diag&) { return w->obs.marker_messages > after_jump; }));
@@ -477,17 +522,21 @@ TEST(NodeletTest, TfBroadcastOff) {
 TEST(NodeletTest, SavePose) {
   ASSERT_TRUE(ensureTracking());
   ros::Time t;
-  for (int i = 0; i < 70; ++i) ASSERT_NE(sendFrame(++w->k, SyntheticRobot::Frame(), &t), nullptr);  // > 2 s
+  for (int i = 0; i < 70; ++i)
+    ASSERT_NE(sendFrame(++w->k, SyntheticRobot::Frame(), &t), nullptr);  // > 2 s
   // save_pose_rate 0.5 Hz: the estimate of a frame of the last 2 s reaches the parameter server
   // (written by the nodelet's timer, off the update thread: waited for).
   double x = NAN, y = NAN, z = NAN, cov_xx = NAN, best = 1e9;
   waitFor([&] {
-    if (!(ros::param::get("/gmm_mcl/initial_pose_x", x) && ros::param::get("/gmm_mcl/initial_pose_y", y) &&
-          ros::param::get("/gmm_mcl/initial_pose_z", z) && ros::param::get("/gmm_mcl/initial_cov_xx", cov_xx)))
+    if (!(ros::param::get("/gmm_mcl/initial_pose_x", x) &&
+          ros::param::get("/gmm_mcl/initial_pose_y", y) &&
+          ros::param::get("/gmm_mcl/initial_pose_z", z) &&
+          ros::param::get("/gmm_mcl/initial_cov_xx", cov_xx)))
       return false;
     const Eigen::Vector3d saved(x, y, z);
     best = 1e9;
-    for (int i = 0; i <= 62; ++i) best = std::min(best, (saved - w->robot.truth(w->k - i).translation()).norm());
+    for (int i = 0; i <= 62; ++i)
+      best = std::min(best, (saved - w->robot.truth(w->k - i).translation()).norm());
     return best < kTrackedM;
   });
   std::printf("[ measured ] saved pose within %.3f m of the true pose of the last 2 s\n", best);
@@ -501,7 +550,8 @@ TEST(NodeletTest, ReloadMap) {
   srv.request.path = "/nonexistent/map.gmm";
   ASSERT_TRUE(ros::service::call("/gmm_mcl/reload_map", srv));
   EXPECT_FALSE(srv.response.success);
-  EXPECT_NE(srv.response.message.find("previous one is kept"), std::string::npos) << srv.response.message;
+  EXPECT_NE(srv.response.message.find("previous one is kept"), std::string::npos)
+      << srv.response.message;
   srv.request.path = "";
   ASSERT_TRUE(ros::service::call("/gmm_mcl/reload_map", srv));
   EXPECT_TRUE(srv.response.success) << srv.response.message;
@@ -518,24 +568,29 @@ TEST(NodeletTest, RefinedPoseAndDebugImage) {
   std::vector<geometry_msgs::PoseWithCovarianceStamped> refined;
   std::vector<sensor_msgs::Image> debug;
   ros::Subscriber refined_sub = w->nh.subscribe<geometry_msgs::PoseWithCovarianceStamped>(
-      "/gmm_mcl/refined_pose", 100, [&](const geometry_msgs::PoseWithCovarianceStampedConstPtr& m) { refined.push_back(*m); });
+      "/gmm_mcl/refined_pose", 100,
+      [&](const geometry_msgs::PoseWithCovarianceStampedConstPtr& m) { refined.push_back(*m); });
   image_transport::ImageTransport it(w->nh);
   image_transport::Subscriber debug_sub = it.subscribe(
       "/gmm_mcl/debug_image", 10, [&](const sensor_msgs::ImageConstPtr& m) { debug.push_back(*m); },
       ros::VoidPtr(), image_transport::TransportHints("raw"));
-  ASSERT_TRUE(waitFor([&] { return refined_sub.getNumPublishers() > 0 && debug_sub.getNumPublishers() > 0; }));
+  ASSERT_TRUE(waitFor(
+      [&] { return refined_sub.getNumPublishers() > 0 && debug_sub.getNumPublishers() > 0; }));
   ros::Time t;
   const FilterStatus* s = sendFrame(++w->k, SyntheticRobot::Frame(), &t);
   ASSERT_NE(s, nullptr);
   ASSERT_EQ(s->step_status, "ok");
   EXPECT_TRUE(s->refined) << "converged, yet not refined: " << s->refine_why;
   EXPECT_GE(s->refine_ms, 0.0);
-  ASSERT_TRUE(waitFor([&] { return !refined.empty() && refined.back().header.stamp == t; })) << "no ~refined_pose of the frame";
+  ASSERT_TRUE(waitFor([&] { return !refined.empty() && refined.back().header.stamp == t; }))
+      << "no ~refined_pose of the frame";
   const double err = positionError(refined.back(), w->robot.truth(w->k));
-  std::printf("[ measured ] refined pose error %.4f m, particle mean %.4f m\n", err, errorOfFrame(t, w->k));
+  std::printf("[ measured ] refined pose error %.4f m, particle mean %.4f m\n", err,
+              errorOfFrame(t, w->k));
   EXPECT_LT(err, kTrackedM);
   EXPECT_EQ(refined.back().header.frame_id, "map");
-  ASSERT_TRUE(waitFor([&] { return !debug.empty() && debug.back().header.stamp == t; })) << "no ~debug_image of the frame";
+  ASSERT_TRUE(waitFor([&] { return !debug.empty() && debug.back().header.stamp == t; }))
+      << "no ~debug_image of the frame";
   EXPECT_EQ(debug.back().width, 160u);
   EXPECT_EQ(debug.back().height, 120u);
 }
@@ -545,7 +600,8 @@ TEST(NodeletTest, RefinedPoseAndDebugImage) {
 // runs, and says so; with both (scripts/gpu_ros_check.sh on a GPU machine) CUDA runs, silently.
 TEST(NodeletTest, SinglePoseStartAndCpuFallback) {
   const FilterStatus* first = nullptr;
-  ASSERT_TRUE(waitFor([&] { return !w->start_obs.statuses.empty(); })) << "the second nodelet never updated";
+  ASSERT_TRUE(waitFor([&] { return !w->start_obs.statuses.empty(); }))
+      << "the second nodelet never updated";
   first = &w->start_obs.statuses.front();
   const auto* p = w->start_obs.poseAt(first->header.stamp);
   ASSERT_NE(p, nullptr);
@@ -559,8 +615,13 @@ TEST(NodeletTest, SinglePoseStartAndCpuFallback) {
   EXPECT_EQ(first->backend, "cpu");
   EXPECT_NE(first->backend_warning.find("CUDA"), std::string::npos) << first->backend_warning;
   Diag d;
-  EXPECT_TRUE(w->start_obs.waitDiag(0, [](const Diag& d) { return d.name == "gmm_mcl_start: localization" &&
-                                                                   d.message.find("CUDA") != std::string::npos; }, &d, 30.0))
+  EXPECT_TRUE(w->start_obs.waitDiag(
+      0,
+      [](const Diag& d) {
+        return d.name == "gmm_mcl_start: localization" &&
+               d.message.find("CUDA") != std::string::npos;
+      },
+      &d, 30.0))
       << d.message;
 }
 

@@ -4,18 +4,18 @@
 // CameraInfo, each frame stamped and sent by the test (which owns the clock).
 #pragma once
 
-#include <cstring>
-#include <limits>
-#include <random>
-#include <string>
-#include <vector>
-
 #include <geometry_msgs/TransformStamped.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/Imu.h>
 #include <tf2_ros/static_transform_broadcaster.h>
 #include <tf2_ros/transform_broadcaster.h>
+
+#include <cstring>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
 
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/ros/conversions.h"
@@ -31,15 +31,14 @@ struct RobotFrame {
   bool imu = true;
   bool camera_info = true;
   bool image = true;
-  std::string encoding = "16UC1";   // rgb8: a wrong encoding; 32FC1 with nan_depth
+  std::string encoding = "16UC1";  // rgb8: a wrong encoding; 32FC1 with nan_depth
   bool nan_depth = false;
-  int info_scale = 1;               // CameraInfo for an image this many times larger
+  int info_scale = 1;  // CameraInfo for an image this many times larger
   std::string camera_frame = "camera_depth_optical_frame";
   bool dynamic_extrinsics = false;  // base -> camera on /tf at the frame's stamp
   double extrinsics_jitter_deg = 0.0;
-  double wall_depth_m = 0.0;        // > 0: a flat wall at this depth instead of the scene
+  double wall_depth_m = 0.0;  // > 0: a flat wall at this depth instead of the scene
 };
-
 
 class SyntheticRobot {
  public:
@@ -67,14 +66,17 @@ class SyntheticRobot {
   const Eigen::Isometry3d& truth(int k) const { return truth_[k % truth_.size()]; }
   ros::Time stamp(double step) const { return t0_ + ros::Duration(step / 30.0); }
   const Eigen::Isometry3d& T_map_odom() const { return T_map_odom_; }
-  Eigen::Isometry3d T_odom_base(const Eigen::Isometry3d& T_map_base) const { return T_map_odom_.inverse() * T_map_base; }
+  Eigen::Isometry3d T_odom_base(const Eigen::Isometry3d& T_map_base) const {
+    return T_map_odom_.inverse() * T_map_base;
+  }
   static Eigen::Isometry3d extrinsics() { return sim::defaultBaseToCamera(); }
 
   // Until the nodelets (by namespace) are up: their services answer, and they advertise those
   // only once all their subscriptions are made.
   bool waitForNodelet(const std::vector<std::string>& nodelets = {"/gmm_mcl"}) {
     for (const std::string& ns : nodelets) {
-      if (!ros::service::waitForService(ns + "/reset_to_pose", ros::Duration(kWaitLimitS))) return false;
+      if (!ros::service::waitForService(ns + "/reset_to_pose", ros::Duration(kWaitLimitS)))
+        return false;
     }
     return waitFor([&] {
       return image_pub_.getNumSubscribers() > 0 && info_pub_.getNumSubscribers() > 0 &&
@@ -84,7 +86,8 @@ class SyntheticRobot {
   void publishStaticExtrinsics() {
     if (static_sent_) return;
     static_sent_ = true;
-    static_tf_.sendTransform(ros_conv::transformStamped(extrinsics(), "base_link", "camera_depth_optical_frame", ros::Time(0)));
+    static_tf_.sendTransform(ros_conv::transformStamped(
+        extrinsics(), "base_link", "camera_depth_optical_frame", ros::Time(0)));
   }
   void publishOdometry(const ros::Time& t, const Eigen::Isometry3d& T_map_base) {
     tf_.sendTransform(ros_conv::transformStamped(T_odom_base(T_map_base), "odom", "base_link", t));
@@ -93,7 +96,8 @@ class SyntheticRobot {
     sensor_msgs::Imu imu;
     imu.header.stamp = t;
     imu.header.frame_id = "base_link";
-    imu.orientation = ros_conv::poseFromIsometry(particleToPose(Particle(), roll_rad, pitch_rad)).orientation;
+    imu.orientation =
+        ros_conv::poseFromIsometry(particleToPose(Particle(), roll_rad, pitch_rad)).orientation;
     imu_pub_.publish(imu);
     ++imu_published_;
   }
@@ -106,7 +110,9 @@ class SyntheticRobot {
     if (f.dynamic_extrinsics) {
       std::normal_distribution<double> g(0.0, 1.0);
       const Eigen::Vector3d axis = Eigen::Vector3d(g(rng_), g(rng_), g(rng_)).normalized();
-      T_base_cam.linear() = T_base_cam.linear() * Eigen::AngleAxisd(f.extrinsics_jitter_deg * M_PI / 180, axis).toRotationMatrix();
+      T_base_cam.linear() =
+          T_base_cam.linear() *
+          Eigen::AngleAxisd(f.extrinsics_jitter_deg * M_PI / 180, axis).toRotationMatrix();
       tf_.sendTransform(ros_conv::transformStamped(T_base_cam, "base_link", f.camera_frame, t));
     }
     if (f.imu) {
@@ -123,8 +129,9 @@ class SyntheticRobot {
     if (f.nan_depth || f.wall_depth_m > 0) {
       img.encoding = "32FC1";
       img.step = 4 * img.width;
-      std::vector<float> z(img.width * img.height, f.nan_depth ? std::numeric_limits<float>::quiet_NaN()
-                                                               : static_cast<float>(f.wall_depth_m));
+      std::vector<float> z(img.width * img.height, f.nan_depth
+                                                       ? std::numeric_limits<float>::quiet_NaN()
+                                                       : static_cast<float>(f.wall_depth_m));
       img.data.resize(img.step * img.height);
       std::memcpy(img.data.data(), z.data(), img.data.size());
     } else if (f.encoding == "rgb8") {
@@ -132,7 +139,8 @@ class SyntheticRobot {
       img.step = 3 * img.width;
       img.data.assign(img.step * img.height, 128);
     } else {
-      const DepthImage depth = sim::renderDepth(scene_, K_, T_map_base * T_base_cam, DepthEncoding::kMono16Millimetres, 8.0);
+      const DepthImage depth = sim::renderDepth(scene_, K_, T_map_base * T_base_cam,
+                                                DepthEncoding::kMono16Millimetres, 8.0);
       img.encoding = "16UC1";
       img.step = static_cast<uint32_t>(depth.row_bytes);
       img.data = depth.data;

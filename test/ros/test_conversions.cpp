@@ -1,11 +1,11 @@
 // Message conversions, without a ROS master.
-#include <cmath>
-#include <cstring>
-#include <limits>
-
 #include <gtest/gtest.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
 #include <tf2/buffer_core.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
 
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/ros/conversions.h"
@@ -39,19 +39,23 @@ sensor_msgs::CameraInfo infoMsg(int w, int h) {
 
 TEST(RosConversionsTest, BothEncodingsGiveTheSameDepths) {
   std::vector<uint16_t> mm = {0, 1000, 2500, 65535, 1234, 4000};
-  std::vector<float> m = {std::numeric_limits<float>::quiet_NaN(), 1.0f, 2.5f,
+  std::vector<float> m = {std::numeric_limits<float>::quiet_NaN(), 1.0f,   2.5f,
                           std::numeric_limits<float>::quiet_NaN(), 1.234f, 4.0f};
   DepthImage a, b;
   std::string why;
-  ASSERT_TRUE(ros_conv::depthImageFromMsg(imageMsg(DepthImage::fromMillimetres(3, 2, mm), "16UC1"), &a, &why)) << why;
-  ASSERT_TRUE(ros_conv::depthImageFromMsg(imageMsg(DepthImage::fromMetres(3, 2, m), "32FC1"), &b, &why)) << why;
+  ASSERT_TRUE(ros_conv::depthImageFromMsg(imageMsg(DepthImage::fromMillimetres(3, 2, mm), "16UC1"),
+                                          &a, &why))
+      << why;
+  ASSERT_TRUE(
+      ros_conv::depthImageFromMsg(imageMsg(DepthImage::fromMetres(3, 2, m), "32FC1"), &b, &why))
+      << why;
   for (int v = 0; v < 2; ++v) {
     for (int u = 0; u < 3; ++u) {
       const float za = a.depthMetres(u, v), zb = b.depthMetres(u, v);
       if (std::isnan(zb)) {
         EXPECT_TRUE(std::isnan(za)) << u << "," << v;
-      }
-      else EXPECT_NEAR(za, zb, 1e-6) << u << "," << v;
+      } else
+        EXPECT_NEAR(za, zb, 1e-6) << u << "," << v;
     }
   }
 }
@@ -191,8 +195,8 @@ TEST(RosConversionsTest, OrganizedCloudGivesDepthAndIntrinsics) {
       const float a = depth.depthMetres(u, v), b = out.depthMetres(u, v);
       if (std::isfinite(a)) {
         EXPECT_NEAR(a, b, 1e-6);
-      }
-      else EXPECT_TRUE(std::isnan(b));
+      } else
+        EXPECT_TRUE(std::isnan(b));
     }
   }
   sensor_msgs::PointCloud2 flat = cloud;
@@ -224,7 +228,8 @@ TEST(RosConversionsTest, PoseRoundTripAndEstimate) {
   Eigen::Isometry3d T = particleToPose(Particle{1.0, -2.0, 0.5, 2.5}, 0.05, -0.1);
   const Eigen::Isometry3d back = ros_conv::isometryFromPose(ros_conv::poseFromIsometry(T));
   EXPECT_TRUE(back.isApprox(T, 1e-12));
-  const Eigen::Isometry3d back2 = ros_conv::isometryFromTransform(ros_conv::transformFromIsometry(T));
+  const Eigen::Isometry3d back2 =
+      ros_conv::isometryFromTransform(ros_conv::transformFromIsometry(T));
   EXPECT_TRUE(back2.isApprox(T, 1e-12));
 
   PoseEstimate e;
@@ -232,7 +237,8 @@ TEST(RosConversionsTest, PoseRoundTripAndEstimate) {
   for (int r = 0; r < 6; ++r) {
     for (int c = 0; c < 6; ++c) e.covariance(r, c) = (r == c) ? 0.01 * (r + 1) : 0.001 * (r + c);
   }
-  const geometry_msgs::PoseWithCovariance pwc = ros_conv::poseWithCovarianceFromEstimate(e, 0.05, -0.1);
+  const geometry_msgs::PoseWithCovariance pwc =
+      ros_conv::poseWithCovarianceFromEstimate(e, 0.05, -0.1);
   for (int r = 0; r < 6; ++r) {
     for (int c = 0; c < 6; ++c) EXPECT_DOUBLE_EQ(pwc.covariance[r * 6 + c], e.covariance(r, c));
   }
@@ -274,7 +280,8 @@ TEST(RosConversionsTest, CompressedDepthRoundTrip) {
   std::vector<uint16_t> mm = {0, 1000, 2500, 65534, 1234, 4000};
   sensor_msgs::CompressedImage msg;
   std::string why;
-  ASSERT_TRUE(ros_conv::compressedDepthFromImage(DepthImage::fromMillimetres(3, 2, mm), &msg, &why)) << why;
+  ASSERT_TRUE(ros_conv::compressedDepthFromImage(DepthImage::fromMillimetres(3, 2, mm), &msg, &why))
+      << why;
   EXPECT_EQ(msg.format, "16UC1; compressedDepth png");
   DepthImage out;
   ASSERT_TRUE(ros_conv::depthImageFromCompressedDepth(msg, &out, &why)) << why;
@@ -287,7 +294,8 @@ TEST(RosConversionsTest, CompressedDepthRoundTrip) {
 
   // 32FC1: quantised inverse depth; the error grows with z^2 (about 1 mm at 1 m with the defaults).
   std::vector<float> m = {std::numeric_limits<float>::quiet_NaN(), 0.5f, 1.0f, 2.0f, 3.0f, 4.0f};
-  ASSERT_TRUE(ros_conv::compressedDepthFromImage(DepthImage::fromMetres(3, 2, m), &msg, &why)) << why;
+  ASSERT_TRUE(ros_conv::compressedDepthFromImage(DepthImage::fromMetres(3, 2, m), &msg, &why))
+      << why;
   EXPECT_EQ(msg.format, "32FC1; compressedDepth png");
   ASSERT_TRUE(ros_conv::depthImageFromCompressedDepth(msg, &out, &why)) << why;
   EXPECT_TRUE(std::isnan(out.depthMetres(0, 0)));

@@ -21,10 +21,10 @@
 #include <sstream>
 #include <string>
 
-#include "gmm_mcl/map/gmm_map_io.h"
-#include "gmm_mcl/replay/replay.h"
 #include "gmm_mcl/datasets/sequence_writer.h"
 #include "gmm_mcl/datasets/sim_sequence.h"
+#include "gmm_mcl/map/gmm_map_io.h"
+#include "gmm_mcl/replay/replay.h"
 #include "gmm_mcl/ros/bag_writer.h"
 #include "gmm_mcl/ros/conversions.h"
 #include "gmm_mcl/ros/sequence_bag.h"
@@ -110,8 +110,9 @@ void checkImageLayout(const BagContents& c, const Sequence& seq, int n) {
     EXPECT_FLOAT_EQ(c.infos[f].K[0], seq.intrinsics().fx_px);
     EXPECT_FLOAT_EQ(c.infos[f].K[5], seq.intrinsics().cy_px);
     EXPECT_EQ(c.truth[f].header.stamp, img.header.stamp);
-    EXPECT_LT((ros_conv::isometryFromPose(c.truth[f].pose).translation() -
-               truth[f].translation()).norm(), kPoseTolM);
+    EXPECT_LT(
+        (ros_conv::isometryFromPose(c.truth[f].pose).translation() - truth[f].translation()).norm(),
+        kPoseTolM);
   }
 }
 
@@ -171,7 +172,8 @@ TEST(MakeBagTest, SeededNoise) {
   ros_bag::writeSequenceBag(s, nullptr, dir / "b.bag", o);
   o.seed = 6;
   ros_bag::writeSequenceBag(s, nullptr, dir / "c.bag", o);
-  const BagContents a = readBag(dir / "a.bag"), b = readBag(dir / "b.bag"), c = readBag(dir / "c.bag");
+  const BagContents a = readBag(dir / "a.bag"), b = readBag(dir / "b.bag"),
+                    c = readBag(dir / "c.bag");
   EXPECT_EQ(a.odom.back().pose.pose.position.x, b.odom.back().pose.pose.position.x);
   EXPECT_EQ(a.imu.back().orientation.x, b.imu.back().orientation.x);
   EXPECT_NE(a.odom.back().pose.pose.position.x, c.odom.back().pose.pose.position.x);
@@ -283,7 +285,8 @@ TEST(ReplayBagTest, ImageAndCowAndLadyBagsWithoutAMaster) {
   const std::string common = " --map " + (dir / "map.gmm") +
                              " --particles 300 --init-half-extent 0.5 --init-yaw-half-range 0.3"
                              " --max-range 8 --quiet";
-  run(std::string(GMM_MCL_REPLAY_BAG) + " " + (dir / "img.bag") + common + " --out " + (dir / "img"));
+  run(std::string(GMM_MCL_REPLAY_BAG) + " " + (dir / "img.bag") + common + " --out " +
+      (dir / "img"));
   int rows = 0;
   double err = lastError(dir / "img/frames.csv", &rows);
   std::printf("[ measured ] image bag: final error %.3f m over %d frames\n", err, rows);

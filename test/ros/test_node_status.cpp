@@ -87,14 +87,16 @@ TEST(NodeStatusTest, MissingCameraInfoIsNamed) {
   h.last_arrival_s = 49.9;
   const Diagnosis d = diagnose(h);
   EXPECT_EQ(d.level, S::WARN);
-  EXPECT_NE(d.message.find("45 so far) but no CameraInfo on /camera/depth/camera_info"), std::string::npos)
+  EXPECT_NE(d.message.find("45 so far) but no CameraInfo on /camera/depth/camera_info"),
+            std::string::npos)
       << d.message;
   // After frames were used: a CameraInfo that stopped for more than 3 s.
   NodeHealth later = tracking(100.0);
   later.now_s = 104.0;
   later.last_arrival_s = 103.9;
   const Diagnosis d2 = diagnose(later);
-  EXPECT_NE(d2.message.find("no CameraInfo on /camera/depth/camera_info for more than 3 s"), std::string::npos)
+  EXPECT_NE(d2.message.find("no CameraInfo on /camera/depth/camera_info for more than 3 s"),
+            std::string::npos)
       << d2.message;
   // Nothing at all.
   NodeHealth none;
@@ -131,7 +133,8 @@ TEST(NodeStatusTest, LostDetectorWarns) {
   recordFrame(converged(), false, true, 10.2, LostDetectionParams(), "cpu", "", 1.0, "", &h, &s);
   d = diagnose(h);
   EXPECT_NE(d.message.find("1 lost events"), std::string::npos) << d.message;
-  for (int i = 0; i < 30; ++i) recordFrame(converged(), false, true, 11.0, LostDetectionParams(), "cpu", "", 1.0, "", &h, &s);
+  for (int i = 0; i < 30; ++i)
+    recordFrame(converged(), false, true, 11.0, LostDetectionParams(), "cpu", "", 1.0, "", &h, &s);
   EXPECT_EQ(diagnose(h).level, S::OK) << diagnose(h).message;
 }
 
@@ -146,7 +149,8 @@ TEST(NodeStatusTest, BackendWarningAndErrorShown) {
   failed.status = StepStatus::kBackendError;
   failed.message = "likelihood backend: out of memory";
   FilterStatus s;
-  recordFrame(failed, false, true, 10.0, LostDetectionParams(), "cpu", h.backend_warning, 1.0, "", &h, &s);
+  recordFrame(failed, false, true, 10.0, LostDetectionParams(), "cpu", h.backend_warning, 1.0, "",
+              &h, &s);
   EXPECT_EQ(s.step_status, "backend_error");
   EXPECT_EQ(s.backend_warning, "CUDA asked for but not built: CPU backend");
   d = diagnose(h);
@@ -163,7 +167,9 @@ TEST(NodeStatusTest, RunTimeFallbackShown) {
   failed.status = StepStatus::kBackendError;
   failed.backend_fallback = true;
   failed.message = "likelihood backend: an illegal memory access; fell back to the CPU backend";
-  const std::string why = "the cuda backend failed (an illegal memory access): fell back to the CPU backend, particles kept";
+  const std::string why =
+      "the cuda backend failed (an illegal memory access): fell back to the CPU backend, particles "
+      "kept";
   FilterStatus s;
   recordFrame(failed, false, true, 10.0, LostDetectionParams(), "cpu", why, 1.0, "", &h, &s);
   EXPECT_TRUE(s.backend_fallback);
@@ -204,8 +210,10 @@ TEST(NodeStatusTest, RecentProblemsAreAllNamed) {
   h.problem("depth frame dropped: no CameraInfo with the image's stamp", 9.6);  // again: once
   Diagnosis d = diagnose(h);
   EXPECT_EQ(d.level, S::WARN);
-  EXPECT_EQ(d.message, "depth frame dropped: no CameraInfo with the image's stamp; depth frame dropped: no transform "
-                       "base_link <- 'unknown'");
+  EXPECT_EQ(d.message,
+            "depth frame dropped: no CameraInfo with the image's stamp; depth frame dropped: no "
+            "transform "
+            "base_link <- 'unknown'");
   h.now_s = 14.2;  // the first is older than 5 s now
   h.last_arrival_s = h.last_used_s = 14.2;
   d = diagnose(h);

@@ -2,12 +2,12 @@
 // dynamic_reconfigure's LocalizerConfig (cfg/Localizer.cfg) holds exactly the run-time
 // parameters with the tables' types, defaults, ranges and help; docs/parameters.md and
 // cfg/Localizer.cfg are current; a reconfigure request is checked, applied or refused whole.
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <fstream>
 #include <map>
 #include <sstream>
-
-#include <gtest/gtest.h>
 
 #include "gmm_mcl/ros/ros_params.h"
 
@@ -24,11 +24,16 @@ std::string readFile(const std::string& path) {
 
 const char* configType(ParamType t) {
   switch (t) {
-    case ParamType::kBool: return "bool";
-    case ParamType::kInt: return "int";
-    case ParamType::kDouble: return "double";
-    case ParamType::kString: return "str";
-    case ParamType::kVector3: return "none";
+    case ParamType::kBool:
+      return "bool";
+    case ParamType::kInt:
+      return "int";
+    case ParamType::kDouble:
+      return "double";
+    case ParamType::kString:
+      return "str";
+    case ParamType::kVector3:
+      return "none";
   }
   return "none";
 }
@@ -84,12 +89,14 @@ TEST(RosParamsTest, ReconfigureDescriptionEqualsTheTables) {
     if (e.type == ParamType::kInt || e.type == ParamType::kDouble) {
       const double def = e.type == ParamType::kInt ? static_cast<double>(e.def.i) : e.def.d;
       // A float field's default reads back through the cfg's text as its shortest decimal.
-      EXPECT_NEAR(configNumber(defaults, d->name), def, 1e-6 * std::max(1.0, std::abs(def))) << d->name;
+      EXPECT_NEAR(configNumber(defaults, d->name), def, 1e-6 * std::max(1.0, std::abs(def)))
+          << d->name;
       EXPECT_EQ(configNumber(mins, d->name), e.min) << d->name;
       EXPECT_EQ(configNumber(maxs, d->name), e.max) << d->name;
     }
     for (const std::string& c : e.choices) {
-      EXPECT_NE(d->edit_method.find("'value': '" + c + "'"), std::string::npos) << d->name << ": " << c;
+      EXPECT_NE(d->edit_method.find("'value': '" + c + "'"), std::string::npos)
+          << d->name << ": " << c;
     }
   }
   EXPECT_EQ(seen, entries.size()) << "a run-time parameter is missing from cfg/Localizer.cfg";
@@ -106,8 +113,10 @@ TEST(RosParamsTest, GeneratedFilesAreCurrent) {
       << "regenerate: gmm_mcl_params --markdown > docs/parameters.md";
   // Every parameter is in the reference, with its unit and whether it changes at run time.
   const std::string md = parameterReferenceMarkdown();
-  for (const auto& p : localizerParamTable()) EXPECT_NE(md.find("| `" + p.name + "` |"), std::string::npos) << p.name;
-  for (const auto& p : rosOptionsTable()) EXPECT_NE(md.find("| `" + p.name + "` |"), std::string::npos) << p.name;
+  for (const auto& p : localizerParamTable())
+    EXPECT_NE(md.find("| `" + p.name + "` |"), std::string::npos) << p.name;
+  for (const auto& p : rosOptionsTable())
+    EXPECT_NE(md.find("| `" + p.name + "` |"), std::string::npos) << p.name;
   EXPECT_NE(md.find("| `update_min_d` | double | 0 | m | [0, 10] | yes |"), std::string::npos);
 }
 
@@ -125,7 +134,9 @@ TEST(RosParamsTest, ReconfigureAppliesOrRefusesWhole) {
   config.tf_broadcast = false;
   std::string changes;
   LocalizerParams applied;
-  EXPECT_EQ(reconfigure(&config, &core, &ros, [&](const LocalizerParams& p) { applied = p; }, &changes), "");
+  EXPECT_EQ(reconfigure(
+                &config, &core, &ros, [&](const LocalizerParams& p) { applied = p; }, &changes),
+            "");
   EXPECT_EQ(core.filter.sigma_translation_m, 0.05);
   EXPECT_EQ(applied.lost.margin_nats, 5.0);
   EXPECT_EQ(ros.update_min_d_m, 0.2);
@@ -137,14 +148,18 @@ TEST(RosParamsTest, ReconfigureAppliesOrRefusesWhole) {
   config.alpha_slow = 0.5;
   config.alpha_fast = 0.1;
   config.temperature = 3.0;
-  const std::string why = reconfigure(&config, &core, &ros, [](const LocalizerParams&) {}, &changes);
+  const std::string why = reconfigure(
+      &config, &core, &ros, [](const LocalizerParams&) {}, &changes);
   EXPECT_NE(why.find("alpha_slow"), std::string::npos) << why;
   EXPECT_EQ(core.filter.temperature, 1.0);
   EXPECT_EQ(config.temperature, 1.0) << "the server keeps the previous values";
   EXPECT_EQ(config.alpha_slow, core.filter.alpha_slow);
   // The core refusing (e.g. Localizer::setParams throwing): refused too.
   config.temperature = 2.0;
-  EXPECT_EQ(reconfigure(&config, &core, &ros, [](const LocalizerParams&) { throw std::invalid_argument("no"); }, &changes), "no");
+  EXPECT_EQ(reconfigure(
+                &config, &core, &ros,
+                [](const LocalizerParams&) { throw std::invalid_argument("no"); }, &changes),
+            "no");
   EXPECT_EQ(core.filter.temperature, 1.0);
 }
 

@@ -1,12 +1,12 @@
 // PLY mesh reader: ascii and both binary byte orders give the same mesh; each fault class is a
 // MeshError naming the file and the fault; write-read round trip.
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "gmm_mcl/sim/mesh.h"
 #include "gmm_mcl/sim/mesh_scene.h"
@@ -41,7 +41,8 @@ void put(std::string* s, T v, bool big) {
 }
 
 std::string binaryPly(bool big, int vertices_written = 5) {
-  std::string s = std::string("ply\nformat ") + (big ? "binary_big_endian" : "binary_little_endian") +
+  std::string s = std::string("ply\nformat ") +
+                  (big ? "binary_big_endian" : "binary_little_endian") +
                   " 1.0\nelement vertex 5\nproperty double x\nproperty float y\nproperty float z\n"
                   "property uchar red\nelement face 2\nproperty list uchar uint vertex_indices\n"
                   "element extra 1\nproperty list int short stuff\nend_header\n";
@@ -111,12 +112,15 @@ TEST(PlyMeshTest, EachFaultIsAClearError) {
   expectFault("magic.ply", "plx\n" + h.substr(4) + b, "not a PLY file");
   expectFault("format.ply", "ply\nformat binary_middle_endian 1.0\nend_header\n", "unknown format");
   expectFault("noformat.ply", "ply\nelement vertex 0\nend_header\n", "no format line");
-  expectFault("noend.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n", "no end_header");
-  expectFault("proptype.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty quad x\nend_header\n",
+  expectFault("noend.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n",
+              "no end_header");
+  expectFault("proptype.ply",
+              "ply\nformat ascii 1.0\nelement vertex 1\nproperty quad x\nend_header\n",
               "unknown type");
   expectFault("propfirst.ply", "ply\nformat ascii 1.0\nproperty float x\nend_header\n",
               "property before any element");
-  expectFault("count.ply", "ply\nformat ascii 1.0\nelement vertex -3\nend_header\n", "bad element count");
+  expectFault("count.ply", "ply\nformat ascii 1.0\nelement vertex -3\nend_header\n",
+              "bad element count");
   expectFault("huge.ply", "ply\nformat ascii 1.0\nelement vertex 99999999999\nend_header\n",
               "implausibly large");
   expectFault("noxyz.ply",

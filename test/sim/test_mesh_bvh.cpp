@@ -1,10 +1,10 @@
 // The BVH ray caster against brute force on a random triangle soup, and the mesh renderer
 // against the analytic box-scene ray caster (same geometry, two independent implementations).
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <limits>
 #include <random>
-
-#include <gtest/gtest.h>
 
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/sim/box_scene.h"
@@ -17,7 +17,7 @@ namespace gmm_mcl {
 namespace sim {
 namespace {
 
-constexpr double kRelTolT = 1e-4;          // float BVH vs double brute force, relative t
+constexpr double kRelTolT = 1e-4;              // float BVH vs double brute force, relative t
 constexpr double kMaxMismatchFraction = 1e-3;  // rays grazing an edge may disagree
 
 // Double-precision Moller-Trumbore over every triangle.
@@ -55,7 +55,8 @@ TEST(MeshBvhTest, MatchesBruteForceOnATriangleSoup) {
   for (int i = 0; i < 3000; ++i) {
     const Eigen::Vector3f c(pos(rng), pos(rng), pos(rng));
     const uint32_t k = static_cast<uint32_t>(m.vertices_m.size());
-    for (int j = 0; j < 3; ++j) m.vertices_m.push_back(c + Eigen::Vector3f(off(rng), off(rng), off(rng)));
+    for (int j = 0; j < 3; ++j)
+      m.vertices_m.push_back(c + Eigen::Vector3f(off(rng), off(rng), off(rng)));
     m.triangles.push_back({k, k + 1, k + 2});
   }
   const MeshBvh bvh(m);
@@ -128,7 +129,8 @@ TEST(MeshRendererTest, AgreesWithTheAnalyticBoxScene) {
       for (int u = 0; u < K.width_px; ++u) {
         const float za = a.depthMetres(u, v), zb = b.depthMetres(u, v);
         ++pixels;
-        if (std::isfinite(za) != std::isfinite(zb) || (std::isfinite(za) && std::abs(za - zb) > 1e-3)) {
+        if (std::isfinite(za) != std::isfinite(zb) ||
+            (std::isfinite(za) && std::abs(za - zb) > 1e-3)) {
           ++disagree;
         } else if (std::isfinite(za)) {
           max_err = std::max(max_err, static_cast<double>(std::abs(za - zb)));
@@ -159,8 +161,8 @@ TEST(MeshSceneTest, DefaultSceneHasCylindersAndAValidMap) {
       const float z = d.z_m[static_cast<size_t>(v) * K.width_px + u];
       if (!std::isfinite(z)) continue;
       ++valid;
-      const Eigen::Vector3d p = T * Eigen::Vector3d((u - K.cx_px) / K.fx_px * z,
-                                                    (v - K.cy_px) / K.fy_px * z, z);
+      const Eigen::Vector3d p =
+          T * Eigen::Vector3d((u - K.cx_px) / K.fx_px * z, (v - K.cy_px) / K.fy_px * z, z);
       const Eigen::Vector3d free_space = T * Eigen::Vector3d(0, 0, 0.5 * z);
       if (map.logDensity(p) > map.logDensity(free_space) + 5.0) ++on;
     }

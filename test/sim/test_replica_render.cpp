@@ -1,13 +1,13 @@
 // The renderer's conventions against Replica office0's reference depth frames (rendered from
 // the full-resolution mesh): pixel centres at integer (u, v), z-depth, traj.txt as
 // camera-to-world, no axis flip. Skips with a printed reason when the data set is absent.
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "gmm_mcl/sim/mesh_renderer.h"
 #include "gmm_mcl/sim/trajectory_io.h"
@@ -36,7 +36,8 @@ Comparison compare(const DepthImage& ref, double units_per_m, const IdealDepth& 
   size_t ref_valid = 0;
   for (int v = 0; v < ref.height_px; ++v) {
     for (int u = 0; u < ref.width_px; ++u) {
-      const uint16_t raw = reinterpret_cast<const uint16_t*>(ref.data.data() + v * ref.row_bytes)[u];
+      const uint16_t raw =
+          reinterpret_cast<const uint16_t*>(ref.data.data() + v * ref.row_bytes)[u];
       if (raw == 0) continue;
       ++ref_valid;
       const float z = ours.z_m[static_cast<size_t>(v) * ours.width_px + u];

@@ -1,10 +1,10 @@
 // The structured-light sensor model: axial noise statistics, disparity quantisation, grazing
 // incidence, projector shadow, depth edges, range window, determinism and validation.
-#include <cmath>
-#include <vector>
-
 #include <gtest/gtest.h>
 #include <omp.h>
+
+#include <cmath>
+#include <vector>
 
 #include "gmm_mcl/sim/mesh_renderer.h"
 #include "gmm_mcl/sim/sensor_noise.h"
@@ -122,7 +122,8 @@ TEST(SensorNoiseTest, GrazingIncidenceIsMissing) {
 
 TEST(SensorNoiseTest, ProjectorShadowLiesLeftOfAForegroundPlateWithTheExpectedWidth) {
   Mesh m = wallAt(3.f);
-  m.append(quad({-0.2f, -0.2f, 1.5f}, {0.2f, -0.2f, 1.5f}, {0.2f, 0.2f, 1.5f}, {-0.2f, 0.2f, 1.5f}));
+  m.append(
+      quad({-0.2f, -0.2f, 1.5f}, {0.2f, -0.2f, 1.5f}, {0.2f, 0.2f, 1.5f}, {-0.2f, 0.2f, 1.5f}));
   const MeshBvh bvh(m);
   const Intrinsics K = test::smallCamera();
   const double b = 0.075;

@@ -1,10 +1,10 @@
 // main() of the CUDA test programs: exit status 77 (a skip for ctest) with the reason when this
 // machine has no CUDA device, else every case.
+#include <gtest/gtest.h>
+
 #include <cstdio>
 #include <cstring>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "gmm_mcl/backend/cuda_backend.h"
 

@@ -1,7 +1,8 @@
 #include "test_utils/synthetic_fixtures.h"
 
-#include <cstdlib>
 #include <sys/stat.h>
+
+#include <cstdlib>
 
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/sim/mesh_scene.h"

@@ -23,7 +23,7 @@ class CpuBackend : public LikelihoodBackend {
  private:
   int num_threads_;
   std::vector<ComponentF> components_;
-  std::vector<EvalComponentF> eval_;  // the likelihood kernel's form of components_ (nats)
+  std::vector<EvalComponentF> eval_;        // the likelihood kernel's form of components_ (nats)
   std::vector<LikelihoodScratch> scratch_;  // one per thread
   // Per update: the poses' inverses, the view cull's list and the compact tables it selects.
   std::vector<RigidTransformF> T_cam_map_;

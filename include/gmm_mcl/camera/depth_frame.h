@@ -11,9 +11,9 @@
 namespace gmm_mcl {
 
 struct FrameParams {
-  int pixel_stride = 4;        // use every stride-th pixel along u and v
-  int patch_size_px = 32;      // square patches for component membership
-  float min_range_m = 0.1f;    // valid depth window [min_range_m, max_range_m]
+  int pixel_stride = 4;      // use every stride-th pixel along u and v
+  int patch_size_px = 32;    // square patches for component membership
+  float min_range_m = 0.1f;  // valid depth window [min_range_m, max_range_m]
   float max_range_m = 4.0f;
 
   // Empty when valid, otherwise a description of every fault found.
@@ -37,11 +37,11 @@ struct PatchGrid {
 struct DepthFrame {
   Intrinsics intrinsics;
   PatchGrid grid;
-  std::vector<float> x_m, y_m, z_m;   // camera optical frame
-  std::vector<int> patch_begin;       // size grid.count() + 1
-  int total_pixels_sampled = 0;       // pixels on the stride grid
-  int invalid_pixels = 0;             // of those: no measurement (0, NaN, Inf, 65535)
-  int out_of_range_pixels = 0;        // of those: valid but outside the range window
+  std::vector<float> x_m, y_m, z_m;  // camera optical frame
+  std::vector<int> patch_begin;      // size grid.count() + 1
+  int total_pixels_sampled = 0;      // pixels on the stride grid
+  int invalid_pixels = 0;            // of those: no measurement (0, NaN, Inf, 65535)
+  int out_of_range_pixels = 0;       // of those: valid but outside the range window
 
   size_t size() const { return x_m.size(); }
   bool empty() const { return x_m.empty(); }

@@ -36,7 +36,7 @@ bool decodeCompressedDepth(const std::string& format, const uint8_t* data, size_
                            DepthImage* out, std::string* error);
 // The inverse, with the transport's default quantisation (depth_quantization 100, depth_max
 // 10 m) for 32FC1.
-bool encodeCompressedDepth(const DepthImage& image, std::string* format,
-                           std::vector<uint8_t>* data, std::string* error);
+bool encodeCompressedDepth(const DepthImage& image, std::string* format, std::vector<uint8_t>* data,
+                           std::string* error);
 
 }  // namespace gmm_mcl

@@ -45,10 +45,10 @@ GMM_MCL_HD RigidTransformF invertRigid(const RigidTransformF& T) {
 // Symmetric 3x3 matrices are stored as their upper triangle: xx, xy, xz, yy, yz, zz.
 struct ComponentF {
   float mean_m[3];
-  float cov_m2[6];        // covariance Sigma
-  float precision[6];     // Sigma^-1
-  float log_norm;         // ln(lambda) - 1.5 ln(2 pi) - 0.5 ln det(Sigma): ln of the peak of lambda*N
-  float log_weight;       // ln(lambda) - 1.5 ln(2 pi) (the normaliser without the covariance)
+  float cov_m2[6];     // covariance Sigma
+  float precision[6];  // Sigma^-1
+  float log_norm;      // ln(lambda) - 1.5 ln(2 pi) - 0.5 ln det(Sigma): ln of the peak of lambda*N
+  float log_weight;    // ln(lambda) - 1.5 ln(2 pi) (the normaliser without the covariance)
 };
 
 // Log of lambda * N(p; mu, Sigma) for a point p in the map frame (nats, density per m^3).

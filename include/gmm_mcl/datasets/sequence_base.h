@@ -5,12 +5,11 @@
 // on demand; bad input throws std::runtime_error naming the file and the fault.
 #pragma once
 
+#include <Eigen/Geometry>
 #include <memory>
 #include <string>
 #include <utility>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "gmm_mcl/camera/depth_image.h"
 

@@ -8,8 +8,8 @@
 #include <string>
 #include <vector>
 
-#include "gmm_mcl/map/gmm_map.h"
 #include "gmm_mcl/datasets/sequence_base.h"
+#include "gmm_mcl/map/gmm_map.h"
 #include "gmm_mcl/sim/box_scene.h"
 
 namespace gmm_mcl {

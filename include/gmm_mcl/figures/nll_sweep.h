@@ -3,10 +3,9 @@
 // the exact sum over all components.
 #pragma once
 
+#include <Eigen/Geometry>
 #include <string>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "gmm_mcl/camera/depth_frame.h"
 #include "gmm_mcl/map/gmm_map.h"
@@ -21,11 +20,11 @@ constexpr SweepAxis kAllSweepAxes[4] = {SweepAxis::kX, SweepAxis::kY, SweepAxis:
                                         SweepAxis::kYaw};
 
 struct NllSweepParams {
-  double half_range_m = 0.5;    // x, y, z offsets in [-half_range_m, half_range_m]
+  double half_range_m = 0.5;  // x, y, z offsets in [-half_range_m, half_range_m]
   double step_m = 0.025;
   double half_range_rad = 0.5;  // yaw offsets
   double step_rad = 0.025;
-  bool exact = true;            // also evaluate the exact likelihood (all components, double)
+  bool exact = true;  // also evaluate the exact likelihood (all components, double)
   MeasurementParams measurement;
 
   // Empty when valid, otherwise every fault found.
@@ -34,9 +33,9 @@ struct NllSweepParams {
 
 struct NllSweepRow {
   SweepAxis axis = SweepAxis::kX;
-  double offset = 0.0;          // m (x, y, z) or rad (yaw)
-  double approx_nll = 0.0;      // nats, whole frame
-  double exact_nll = 0.0;       // nats; NaN when not evaluated
+  double offset = 0.0;      // m (x, y, z) or rad (yaw)
+  double approx_nll = 0.0;  // nats, whole frame
+  double exact_nll = 0.0;   // nats; NaN when not evaluated
   int pixels = 0;
   int approx_floor_hits = 0;
   int exact_floor_hits = 0;

@@ -3,11 +3,10 @@
 // odometry and attitude (DESIGN.md), identical for every filter run that shares a data seed.
 #pragma once
 
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <string>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "gmm_mcl/camera/depth_image.h"
 #include "gmm_mcl/map/gmm_map.h"

@@ -34,7 +34,7 @@ struct FilterRunParams {
   InitMode init = InitMode::kLocal;
   double local_sigma_m = 0.2;
   double local_sigma_yaw_rad = 0.2;
-  double global_half_extent_m = 2.0;              // also the recovery region in both modes
+  double global_half_extent_m = 2.0;  // also the recovery region in both modes
   double global_yaw_half_range_rad = 0.5 * M_PI;
 };
 
@@ -63,12 +63,12 @@ struct KlSummary {
   std::string sweep;
   int value = 0;
   int runs = 0;
-  int frames = 0;               // evaluated frames
-  double variance_kl = 0.0;     // across-run variance per frame, mean over frames (the measure)
+  int frames = 0;                   // evaluated frames
+  double variance_kl = 0.0;         // across-run variance per frame, mean over frames (the measure)
   double pooled_variance_kl = 0.0;  // variance over all (run, frame) samples
   double mean_kl = 0.0;
   double median_kl = 0.0;
-  double mean_error_m = 0.0;    // over evaluated frames and runs
+  double mean_error_m = 0.0;  // over evaluated frames and runs
   double mean_step_ms = 0.0;
 };
 
@@ -76,16 +76,16 @@ struct KlSummary {
 KlSummary summarise(const std::vector<KlSample>& samples, const std::string& sweep, int value);
 
 // KL samples of runs against a reference trace over frames [eval_from_frame, size).
-void collectKl(const RunTrace& reference, const RunTrace& run, const std::string& sweep,
-               int value, int run_index, uint64_t seed, int eval_from_frame,
-               double regularisation, std::vector<KlSample>* out);
+void collectKl(const RunTrace& reference, const RunTrace& run, const std::string& sweep, int value,
+               int run_index, uint64_t seed, int eval_from_frame, double regularisation,
+               std::vector<KlSample>* out);
 
 struct SweepParams {
   int runs = 5;
-  uint64_t first_seed = 1;        // runs use seeds first_seed .. first_seed + runs - 1
+  uint64_t first_seed = 1;  // runs use seeds first_seed .. first_seed + runs - 1
   uint64_t reference_seed = 1000003;
-  int eval_from_frame = 30;       // the paper evaluates after convergence
-  double regularisation = 1e-8;   // added to covariance diagonals (m^2, rad^2) before KL
+  int eval_from_frame = 30;      // the paper evaluates after convergence
+  double regularisation = 1e-8;  // added to covariance diagonals (m^2, rad^2) before KL
 };
 
 using SweepProgress = std::function<void(const std::string& what)>;

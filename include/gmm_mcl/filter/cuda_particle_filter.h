@@ -75,7 +75,7 @@ class CudaParticleFilter : public ParticleFilterBase {
                               const std::vector<int>& floor_hits);
   std::vector<double> frameLogLikelihoods() const;
   std::vector<std::pair<double, Particle>> candidatePool() const;  // scored
-  std::vector<Particle> candidateParticles() const;                 // all, in pool order
+  std::vector<Particle> candidateParticles() const;                // all, in pool order
   void setCandidatePool(const std::vector<std::pair<double, Particle>>& scored);
   std::vector<Particle> candidateCentres() const;
 

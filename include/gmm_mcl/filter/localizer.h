@@ -48,24 +48,24 @@ struct StepTimings {
 
 struct StepResult {
   StepStatus status = StepStatus::kOk;
-  std::string message;        // why, for any status but kOk
+  std::string message;         // why, for any status but kOk
   bool odometry_jump = false;  // an odometry step over max_odometry_step_m was ignored
   // The backend failed on this frame and the localizer switched to the CPU backend (the
   // particles kept); Localizer::backendWarning() says why from now on.
   bool backend_fallback = false;
   bool resampled = false;
-  int reinitialised = 0;      // augmented-MCL reinitialised particles
-  bool lost = false;          // the LostDetector fired on this frame (see message)
-  int lost_reinitialised = 0;  // particles redrawn because of it
+  int reinitialised = 0;        // augmented-MCL reinitialised particles
+  bool lost = false;            // the LostDetector fired on this frame (see message)
+  int lost_reinitialised = 0;   // particles redrawn because of it
   int screened_candidates = 0;  // uniform candidates scored on this frame (redraws, start)
   double reference_loglik_per_pixel = 0.0;  // the LostDetector's reference level
   PoseEstimate estimate;
   // The estimate refined by local maximisation of the likelihood (pose_refinement.h), when the
   // filter has converged and refinement is on; refinement.refined says whether it is usable.
   RefinementResult refinement;
-  double neff = 0.0;          // effective sample size after the update (before resampling)
-  int particles = 0;          // particle count of this step
-  int pixels = 0;             // used pixels
+  double neff = 0.0;  // effective sample size after the update (before resampling)
+  int particles = 0;  // particle count of this step
+  int pixels = 0;     // used pixels
   double best_loglik_per_pixel = 0.0;
   double mean_loglik_per_pixel = 0.0;  // weighted mean over particles
   double floor_hit_fraction = 0.0;     // of used pixels, at the best particle

@@ -8,6 +8,7 @@
 // layer describes its own options with the same type (gmm_mcl/ros/ros_params.h).
 #pragma once
 
+#include <Eigen/Core>
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -15,8 +16,6 @@
 #include <string>
 #include <type_traits>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "gmm_mcl/filter/params.h"
 

@@ -2,10 +2,9 @@
 // Table 1 desktop values). Every struct has validate(): empty when valid, else every fault.
 #pragma once
 
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <string>
-
-#include <Eigen/Geometry>
 
 #include "gmm_mcl/camera/depth_frame.h"
 #include "gmm_mcl/filter/pose_refinement.h"
@@ -65,12 +64,12 @@ struct ParticleFilterParams {
   // w_slow. 1 = Thrun's rule.
   double recovery_threshold = 0.9;
   WeightingMode weighting = WeightingMode::kTempered;
-  double temperature = 1.0;               // kTempered
-  double neff_floor_fraction = 0.2;       // kTempered: adaptive tempering floor (0 = off)
-  double paper_min_nll_per_pixel = 1.0;   // kPaper guard, nats per pixel
-  int resample_groups = 4;                // stratified groups, low-variance sampling inside each
-  double resample_neff_fraction = 0.5;    // resample when Neff < fraction * N
-  double attitude_sigma_rad = 0.0087;     // roll/pitch standard deviation for the covariance
+  double temperature = 1.0;              // kTempered
+  double neff_floor_fraction = 0.2;      // kTempered: adaptive tempering floor (0 = off)
+  double paper_min_nll_per_pixel = 1.0;  // kPaper guard, nats per pixel
+  int resample_groups = 4;               // stratified groups, low-variance sampling inside each
+  double resample_neff_fraction = 0.5;   // resample when Neff < fraction * N
+  double attitude_sigma_rad = 0.0087;    // roll/pitch standard deviation for the covariance
   uint64_t seed = 1;
 
   bool adaptive() const { return min_particles > 0 && min_particles < num_particles; }
@@ -91,9 +90,9 @@ void defaultParticleRange(const std::string& backend, int* min_particles, int* m
 // recovery region. The reference starts at the map's own expected per-point log-density and
 // follows the best score (rate up, rate down per frame).
 struct LostDetectionParams {
-  double margin_nats = 3.0;          // per pixel; 0 = off
-  int frames = 10;                   // consecutive frames below (1/3 s at 30 Hz)
-  int grace_frames = 30;             // after any (re)initialisation, before judging
+  double margin_nats = 3.0;  // per pixel; 0 = off
+  int frames = 10;           // consecutive frames below (1/3 s at 30 Hz)
+  int grace_frames = 30;     // after any (re)initialisation, before judging
   double reference_rate_up = 0.05;
   double reference_rate_down = 0.005;
   // The reference never follows the best score further down than this below the level the map
@@ -102,7 +101,7 @@ struct LostDetectionParams {
   // long it stays there, while a scene whose true pose scores somewhat below the map's own level
   // (clutter, an older map) still lowers the reference that far.
   double reference_max_drop_nats = 0.5;
-  double reinit_fraction = 0.9;      // the best (1 - fraction) particles are kept
+  double reinit_fraction = 0.9;  // the best (1 - fraction) particles are kept
   // Redrawn particles (here and at a uniform (re)initialisation) are the best-scoring of this
   // many uniform candidates per particle, scored on the current frame: a denser search of the
   // region for the same particle count (1 = plain uniform draws).

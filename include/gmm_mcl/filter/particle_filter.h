@@ -3,12 +3,11 @@
 // implementation of ParticleFilterBase.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <random>
 #include <utility>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "gmm_mcl/filter/params.h"
 #include "gmm_mcl/filter/particle_filter_base.h"
@@ -98,7 +97,9 @@ class ParticleFilter : public ParticleFilterBase {
                               const std::vector<int>& floor_hits);
   // The scored candidate pool (score, candidate) in the order scored.
   const std::vector<std::pair<double, Particle>>& candidatePool() const { return scored_; }
-  void setCandidatePool(const std::vector<std::pair<double, Particle>>& scored) { scored_ = scored; }
+  void setCandidatePool(const std::vector<std::pair<double, Particle>>& scored) {
+    scored_ = scored;
+  }
 
  private:
   Particle sampleUniform(const InitRegion& region);

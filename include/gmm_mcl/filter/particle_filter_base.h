@@ -5,12 +5,11 @@
 // and a pool of scored candidates (uniform or local draws whose best replace particles).
 #pragma once
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 #include "gmm_mcl/backend/likelihood_backend_base.h"
 #include "gmm_mcl/camera/depth_image.h"

@@ -2,9 +2,8 @@
 // Roll and pitch come from the attitude input and are shared by all particles (DESIGN.md).
 #pragma once
 
-#include <string>
-
 #include <Eigen/Geometry>
+#include <string>
 
 #include "gmm_mcl/common/types.h"
 
@@ -43,6 +42,7 @@ struct PlanarDelta {
   Eigen::Vector3d translation_m = Eigen::Vector3d::Zero();
   double yaw_rad = 0.0;
 };
-PlanarDelta odometryDelta(const Eigen::Isometry3d& T_odom_prev, const Eigen::Isometry3d& T_odom_cur);
+PlanarDelta odometryDelta(const Eigen::Isometry3d& T_odom_prev,
+                          const Eigen::Isometry3d& T_odom_cur);
 
 }  // namespace gmm_mcl

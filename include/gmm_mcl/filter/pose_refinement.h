@@ -86,8 +86,8 @@ inline RefinementResult refinePose(const std::vector<ComponentF>& components,
                                    const MeasurementParams& params,
                                    const RefinementParams& refinement,
                                    NormalEquationsEvaluator* sums = nullptr) {
-  return refinePose(components, RefinementFrame::of(frame), start, roll_rad, pitch_rad,
-                    T_base_cam, params, refinement, sums);
+  return refinePose(components, RefinementFrame::of(frame), start, roll_rad, pitch_rad, T_base_cam,
+                    params, refinement, sums);
 }
 
 }  // namespace gmm_mcl

@@ -4,9 +4,8 @@
 // stamp carried forward by odometry, and a planar tool's pose keeping the current height.
 #pragma once
 
-#include <string>
-
 #include <Eigen/Geometry>
+#include <string>
 
 #include "gmm_mcl/filter/particle_filter.h"
 

@@ -4,11 +4,10 @@
 // reads; the lock is held only to insert or to look up.
 #pragma once
 
+#include <Eigen/Geometry>
 #include <map>
 #include <mutex>
 #include <string>
-
-#include <Eigen/Geometry>
 
 namespace gmm_mcl {
 

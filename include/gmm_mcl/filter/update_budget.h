@@ -5,8 +5,9 @@
 // over budget, first a coarser pixel stride (up to max_pixel_stride), then no pose refinement
 // (it does not change the particles' belief, and costs about a third of a CPU update at a
 // coarse stride: measured on 7-Scenes, docs/ros.md), then fewer particles (down to
-// min_particles); with headroom for a while, the same steps back in reverse order. It is a plain function of the numbers it is given (durations,
-// stamps, clock readings): no clock of its own, so tests drive it with synthetic numbers.
+// min_particles); with headroom for a while, the same steps back in reverse order. It is a plain
+// function of the numbers it is given (durations, stamps, clock readings): no clock of its own, so
+// tests drive it with synthetic numbers.
 #pragma once
 
 #include <cstdint>

@@ -92,11 +92,11 @@ GMM_MCL_HD T logFromReduced(T m, T fe) {
 // [e^-85, e^85] (test_likelihood checks it).
 GMM_MCL_HD float logPositive(float x) {
   const int32_t bits = floatToBits(x);
-  int32_t e = ((bits >> 23) & 0xff) - 126;                     // x = m 2^e, m in [0.5, 1)
+  int32_t e = ((bits >> 23) & 0xff) - 126;  // x = m 2^e, m in [0.5, 1)
   float m = bitsToFloat((bits & 0x007fffff) | 0x3f000000);
   const bool low = m < 0.70710678118654752f;
   e -= low ? 1 : 0;
-  m = low ? (m + m - 1.0f) : (m - 1.0f);                       // m - 1 in [-0.29, 0.41)
+  m = low ? (m + m - 1.0f) : (m - 1.0f);  // m - 1 in [-0.29, 0.41)
   return logFromReduced(m, static_cast<float>(e));
 }
 

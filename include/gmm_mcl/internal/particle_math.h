@@ -6,8 +6,8 @@
 #include <math.h>
 #include <stdint.h>
 
-#include "gmm_mcl/internal/host_device.h"
 #include "gmm_mcl/common/types.h"
+#include "gmm_mcl/internal/host_device.h"
 
 namespace gmm_mcl {
 
@@ -60,9 +60,12 @@ GMM_MCL_HD ParticleState regionPoint(const RegionBox& r, const double u[4]) {
 
 // KLD-sampling bin of a particle: 16 bits per dimension (bins apart within +-6.5 km at 0.2 m).
 GMM_MCL_HD uint64_t kldBinKey(const ParticleState& p, double inv_bin_m, double inv_bin_rad) {
-  const uint64_t qx = static_cast<uint64_t>(static_cast<int64_t>(floor(p.x_m * inv_bin_m)) & 0xffff);
-  const uint64_t qy = static_cast<uint64_t>(static_cast<int64_t>(floor(p.y_m * inv_bin_m)) & 0xffff);
-  const uint64_t qz = static_cast<uint64_t>(static_cast<int64_t>(floor(p.z_m * inv_bin_m)) & 0xffff);
+  const uint64_t qx =
+      static_cast<uint64_t>(static_cast<int64_t>(floor(p.x_m * inv_bin_m)) & 0xffff);
+  const uint64_t qy =
+      static_cast<uint64_t>(static_cast<int64_t>(floor(p.y_m * inv_bin_m)) & 0xffff);
+  const uint64_t qz =
+      static_cast<uint64_t>(static_cast<int64_t>(floor(p.z_m * inv_bin_m)) & 0xffff);
   const uint64_t qa = static_cast<uint64_t>(
       static_cast<int64_t>(floor((p.yaw_rad + kParticlePi) * inv_bin_rad)) & 0xffff);
   return qx | (qy << 16) | (qz << 32) | (qa << 48);
@@ -92,8 +95,8 @@ GMM_MCL_HD RigidTransformF cameraPoseOf(const ParticleState& p, const CameraMoun
   RigidTransformF out;
   for (int r = 0; r < 3; ++r) {
     for (int k = 0; k < 3; ++k) {
-      out.R[r * 3 + k] =
-          static_cast<float>(R[r * 3 + 0] * B[0 + k] + R[r * 3 + 1] * B[3 + k] + R[r * 3 + 2] * B[6 + k]);
+      out.R[r * 3 + k] = static_cast<float>(R[r * 3 + 0] * B[0 + k] + R[r * 3 + 1] * B[3 + k] +
+                                            R[r * 3 + 2] * B[6 + k]);
     }
   }
   out.t[0] = static_cast<float>(R[0] * t[0] + R[1] * t[1] + R[2] * t[2] + p.x_m);

@@ -1,11 +1,10 @@
 // Spatial Gaussian-mixture map of the environment (paper Eq. gmm), in the map frame, metres.
 #pragma once
 
+#include <Eigen/Core>
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "gmm_mcl/common/types.h"
 
@@ -18,9 +17,9 @@ class MapError : public std::runtime_error {
 };
 
 struct GaussianComponent {
-  double weight = 0.0;                                      // lambda_i > 0
-  Eigen::Vector3d mean_m = Eigen::Vector3d::Zero();         // mu_i
-  Eigen::Matrix3d cov_m2 = Eigen::Matrix3d::Identity();     // Sigma_i, symmetric positive-definite
+  double weight = 0.0;                                   // lambda_i > 0
+  Eigen::Vector3d mean_m = Eigen::Vector3d::Zero();      // mu_i
+  Eigen::Matrix3d cov_m2 = Eigen::Matrix3d::Identity();  // Sigma_i, symmetric positive-definite
 };
 
 // Tolerance on |sum of weights - 1| accepted from a map (float32 storage of ~1000 weights).

@@ -6,8 +6,8 @@
 #include <vector>
 
 #include "gmm_mcl/camera/depth_frame.h"
-#include "gmm_mcl/map/gmm_map.h"
 #include "gmm_mcl/internal/eval_component.h"
+#include "gmm_mcl/map/gmm_map.h"
 #include "gmm_mcl/measurement/membership.h"
 
 namespace gmm_mcl {
@@ -24,8 +24,8 @@ struct LikelihoodScratch {
   std::vector<ProjectedComponent> projected;
   std::vector<char> valid;
   PatchMembership membership;
-  std::vector<float> values;  // unused (kept for source compatibility)
-  std::vector<EvalComponentF> eval;  // evaluation form of the components (nats)
+  std::vector<float> values;          // unused (kept for source compatibility)
+  std::vector<EvalComponentF> eval;   // evaluation form of the components (nats)
   std::vector<EvalComponentF> noisy;  // the same convolved with the depth noise, per pose
 };
 

@@ -12,9 +12,8 @@
 // out of H and g.
 #pragma once
 
-#include <vector>
-
 #include <Eigen/Geometry>
+#include <vector>
 
 #include "gmm_mcl/internal/eval_component.h"
 #include "gmm_mcl/measurement/membership.h"

@@ -4,19 +4,19 @@
 
 #include <math.h>
 
-#include "gmm_mcl/internal/host_device.h"
 #include "gmm_mcl/common/types.h"
+#include "gmm_mcl/internal/host_device.h"
 
 namespace gmm_mcl {
 
 // 2D Gaussian of a projected component plus its inflated membership ellipse in the form
 // (c - mean)^T Q (c - mean) <= 1, and the half-extent of that ellipse's bounding box.
 struct ProjectedComponent {
-  float u_px, v_px;        // pi(T_cam_map mu)
+  float u_px, v_px;              // pi(T_cam_map mu)
   float cov_uu, cov_uv, cov_vv;  // J R Sigma R^T J^T (px^2)
-  float q_uu, q_uv, q_vv;  // quadratic form of the inflated ellipse (1/px^2)
-  float half_w_px, half_h_px;  // bounding-box half extent of the inflated ellipse
-  float depth_m;           // z of the mean in the camera frame
+  float q_uu, q_uv, q_vv;        // quadratic form of the inflated ellipse (1/px^2)
+  float half_w_px, half_h_px;    // bounding-box half extent of the inflated ellipse
+  float depth_m;                 // z of the mean in the camera frame
 };
 
 // Projects component c (map frame) seen from a camera at T_cam_map. Returns false when the

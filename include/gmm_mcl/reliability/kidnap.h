@@ -45,7 +45,7 @@ std::unique_ptr<FrameSource> makeSequenceSource(const std::string& format,
                                                 const std::string& map_path);
 
 struct KidnapParams {
-  LocalizerParams localizer;     // T_base_cam and init are set per trial
+  LocalizerParams localizer;  // T_base_cam and init are set per trial
   // Tracked frames before the kidnap (the filter starts at the truth). 0: a global
   // localisation trial instead: the filter starts uniform over the recovery region around a
   // random start frame and the recovery time is the convergence time.
@@ -53,12 +53,12 @@ struct KidnapParams {
   // With track_frames 0: start uniform over the whole map's bounds and the full yaw circle
   // (Localizer::mapBounds()) instead of the recovery region around the start.
   bool whole_map_start = false;
-  int after_frames = 180;        // frames after it
-  int start_frame = -1;          // -1: drawn per seed
-  double region_half_extent_m = 2.0;          // recovery region: the protocol's 4 m cube ...
+  int after_frames = 180;                         // frames after it
+  int start_frame = -1;                           // -1: drawn per seed
+  double region_half_extent_m = 2.0;              // recovery region: the protocol's 4 m cube ...
   double region_yaw_half_range_rad = 0.5 * M_PI;  // ... and yaw range pi around the true start
-  double min_jump_m = 1.0;       // the teleport moves at least this far
-  double odom_sigma_m = 0.005;   // per frame (DESIGN.md protocol)
+  double min_jump_m = 1.0;                        // the teleport moves at least this far
+  double odom_sigma_m = 0.005;                    // per frame (DESIGN.md protocol)
   double odom_sigma_yaw_rad = 0.002;
   double attitude_sigma_rad = 0.5 * M_PI / 180.0;
   double recovered_below_m = 0.10;
@@ -69,13 +69,13 @@ struct KidnapParams {
 // One frame of a trial, for the per-frame CSV (gmm_mcl_kidnap --out).
 struct KidnapFrame {
   int source_frame = 0;
-  double error_m = 0.0;             // particle mean vs truth
-  double refined_error_m = -1.0;    // refined pose vs truth; -1: not refined
+  double error_m = 0.0;           // particle mean vs truth
+  double refined_error_m = -1.0;  // refined pose vs truth; -1: not refined
   double best_loglik_px = 0.0;
   double reference_px = 0.0;
   int particles = 0;
   int lost_redrawn = 0;
-  double position_sigma_m = 0.0;    // largest standard deviation of x, y, z
+  double position_sigma_m = 0.0;  // largest standard deviation of x, y, z
   double neff = 0.0;
 };
 
@@ -83,14 +83,14 @@ struct KidnapResult {
   uint64_t seed = 0;
   int start_frame = 0, from_frame = 0, to_frame = 0;  // source indices
   double jump_m = 0.0, jump_yaw_rad = 0.0;
-  double error_before_m = 0.0;   // at the last frame before the kidnap
-  bool recovered = false;        // back within max_recovery_s and under the threshold at the end
-  double recovery_s = -1.0;      // from the kidnap to the first frame of the holding window
+  double error_before_m = 0.0;  // at the last frame before the kidnap
+  bool recovered = false;       // back within max_recovery_s and under the threshold at the end
+  double recovery_s = -1.0;     // from the kidnap to the first frame of the holding window
   double final_error_m = 0.0;
-  double ate_after_m = 0.0;      // RMSE from the recovery on
-  int lost_events = 0;           // LostDetector firings
+  double ate_after_m = 0.0;  // RMSE from the recovery on
+  int lost_events = 0;       // LostDetector firings
   int augmented_reinitialised = 0;
-  bool any_non_finite = false;   // a NaN/inf in any estimate or covariance
+  bool any_non_finite = false;  // a NaN/inf in any estimate or covariance
   double mean_step_ms = 0.0;
   // At the last frame: the best particle's per-pixel log-likelihood and the LostDetector's
   // reference (a settled wrong mode shows as a best score within the margin of the reference).

@@ -25,8 +25,8 @@ struct EvaluationParams {
 struct TrialMetrics {
   int frames = 0;
   bool converged = false;
-  int converge_frame = -1;        // first frame after which the error stays below for hold_frames
-  double converge_time_s = 0.0;   // its stamp minus the first stamp
+  int converge_frame = -1;         // first frame after which the error stays below for hold_frames
+  double converge_time_s = 0.0;    // its stamp minus the first stamp
   double ate_translation_m = 0.0;  // RMSE over frames from converge_frame on
   double ate_yaw_rad = 0.0;
   bool success = false;

@@ -4,11 +4,10 @@
 // the ground-truth -> odometry node all draw from it, so one seed gives one noise sequence.
 #pragma once
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <cstdint>
 #include <random>
-
-#include <Eigen/Geometry>
 
 namespace gmm_mcl {
 

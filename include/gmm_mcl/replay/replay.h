@@ -7,18 +7,18 @@
 #include <string>
 #include <vector>
 
+#include "gmm_mcl/datasets/seven_scenes_sequence.h"
 #include "gmm_mcl/filter/localizer.h"
 #include "gmm_mcl/replay/evaluation.h"
 #include "gmm_mcl/replay/odometry_synthesizer.h"
-#include "gmm_mcl/datasets/seven_scenes_sequence.h"
 
 namespace gmm_mcl {
 
 struct ReplayParams {
-  LocalizerParams localizer;         // init region is set per trial around the true start
-  int max_frames = -1;               // all
-  ProtocolNoise noise;               // odometry and attitude noise (DESIGN.md protocol)
-  double init_half_extent_m = 2.0;   // 4 m cube
+  LocalizerParams localizer;        // init region is set per trial around the true start
+  int max_frames = -1;              // all
+  ProtocolNoise noise;              // odometry and attitude noise (DESIGN.md protocol)
+  double init_half_extent_m = 2.0;  // 4 m cube
   double init_yaw_half_range_rad = 0.5 * M_PI;  // yaw range pi
   // Global localisation: start uniform over the whole map's bounds (Localizer::mapBounds(), the
   // full yaw circle) instead of the cube around the true start.
@@ -29,7 +29,7 @@ struct ReplayParams {
 struct ReplayFrame {
   double stamp_s = 0.0;
   Particle estimate;
-  Particle refined;  // the refined pose, or the estimate where the frame was not refined
+  Particle refined;       // the refined pose, or the estimate where the frame was not refined
   bool has_truth = true;  // false: truth and error are unknown (a bag without ground truth)
   Particle truth;
   FrameError error;

@@ -5,13 +5,13 @@
 // gmm_mcl_make_sim_bag writes the same layout by hand and can adopt it.
 #pragma once
 
-#include <string>
-
-#include <Eigen/Geometry>
 #include <rosbag/bag.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/PointCloud2.h>
+
+#include <Eigen/Geometry>
+#include <string>
 
 #include "gmm_mcl/camera/depth_image.h"
 #include "gmm_mcl/filter/pose.h"
@@ -54,8 +54,8 @@ class SensorBagWriter {
   void writeStaticTransform(const ros::Time& stamp, const std::string& parent,
                             const std::string& child, const Eigen::Isometry3d& T_parent_child);
   // IMU orientation from roll, pitch, yaw with roll/pitch variance sigma^2 (yaw unknown: 1).
-  void writeImu(const ros::Time& stamp, const ros::Time& receipt, double roll_rad,
-                double pitch_rad, double yaw_rad, double attitude_sigma_rad);
+  void writeImu(const ros::Time& stamp, const ros::Time& receipt, double roll_rad, double pitch_rad,
+                double yaw_rad, double attitude_sigma_rad);
   // nav_msgs/Odometry and tf odom -> base.
   void writeOdometry(const ros::Time& stamp, const ros::Time& receipt,
                      const Eigen::Isometry3d& T_odom_base);
@@ -76,8 +76,8 @@ class SensorBagWriter {
 
 // The localizer's initial-region parameters (init_centre, init_half_extent, init_yaw_centre,
 // init_yaw_half_range) around `start`; throws naming the file when it cannot be written.
-void writeInitRegionYaml(const std::string& path, const std::string& comment,
-                         const Particle& start, double half_extent_m, double yaw_half_range_rad);
+void writeInitRegionYaml(const std::string& path, const std::string& comment, const Particle& start,
+                         double half_extent_m, double yaw_half_range_rad);
 
 // "x,y,z,qx,qy,qz,qw" -> transform; false when malformed or the quaternion is not unit-ish.
 bool parseTransform(const std::string& text, Eigen::Isometry3d* out);

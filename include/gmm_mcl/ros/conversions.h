@@ -2,10 +2,6 @@
 // that they are unit-tested on their own (test/ros/test_conversions.cpp).
 #pragma once
 
-#include <string>
-#include <vector>
-
-#include <Eigen/Geometry>
 #include <geometry_msgs/Pose.h>
 #include <geometry_msgs/PoseArray.h>
 #include <geometry_msgs/PoseWithCovariance.h>
@@ -19,6 +15,10 @@
 #include <sensor_msgs/PointCloud2.h>
 #include <tf2/buffer_core.h>
 #include <visualization_msgs/MarkerArray.h>
+
+#include <Eigen/Geometry>
+#include <string>
+#include <vector>
 
 #include "gmm_mcl/camera/depth_image.h"
 #include "gmm_mcl/filter/particle_filter.h"

@@ -2,8 +2,9 @@
 // components, and the 3-sigma ellipses of the projected components, all at one camera pose.
 #pragma once
 
-#include <Eigen/Geometry>
 #include <sensor_msgs/Image.h>
+
+#include <Eigen/Geometry>
 
 #include "gmm_mcl/camera/depth_frame.h"
 #include "gmm_mcl/map/gmm_map.h"

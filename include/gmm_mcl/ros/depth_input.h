@@ -6,11 +6,6 @@
 // intrinsics. Every message that arrives is reported, and every drop with its reason.
 #pragma once
 
-#include <functional>
-#include <map>
-#include <memory>
-#include <string>
-
 #include <image_transport/image_transport.h>
 #include <image_transport/subscriber_filter.h>
 #include <message_filters/subscriber.h>
@@ -23,6 +18,11 @@
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/message_filter.h>
 
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+
 #include "gmm_mcl/camera/depth_image.h"
 #include "gmm_mcl/ros/node_status.h"
 #include "gmm_mcl/ros/ros_params.h"
@@ -32,7 +32,7 @@ namespace gmm_mcl {
 class DepthInput {
  public:
   struct Callbacks {
-    std::function<void(const std_msgs::Header&)> arrived;  // every depth message
+    std::function<void(const std_msgs::Header&)> arrived;      // every depth message
     std::function<void(const std_msgs::Header&)> camera_info;  // every CameraInfo
     // Every message that times the camera: each CameraInfo (their queue holds a second of them
     // while an update runs; depth images beyond the newest are dropped before they arrive), or

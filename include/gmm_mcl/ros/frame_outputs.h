@@ -2,12 +2,12 @@
 // map -> base) transform, ~particles and ~debug_image while someone listens, and ~status.
 #pragma once
 
-#include <memory>
-#include <string>
-
 #include <image_transport/image_transport.h>
 #include <ros/ros.h>
 #include <tf2_ros/transform_broadcaster.h>
+
+#include <memory>
+#include <string>
 
 #include "gmm_mcl/FilterStatus.h"
 #include "gmm_mcl/filter/localizer.h"

@@ -13,11 +13,6 @@
 // update (they only take the buffers' and the health snapshot's own locks).
 #pragma once
 
-#include <memory>
-#include <mutex>
-#include <string>
-
-#include <boost/thread/recursive_mutex.hpp>
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <dynamic_reconfigure/server.h>
 #include <geometry_msgs/PoseWithCovarianceStamped.h>
@@ -28,6 +23,11 @@
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
 #include <visualization_msgs/MarkerArray.h>
+
+#include <boost/thread/recursive_mutex.hpp>
+#include <memory>
+#include <mutex>
+#include <string>
 
 #include "gmm_mcl/LoadMap.h"
 #include "gmm_mcl/LocalizerConfig.h"

@@ -3,11 +3,11 @@
 // markers on a jump back or a Reset and a latched message is not sent twice. Thread-safe.
 #pragma once
 
-#include <mutex>
-#include <string>
-
 #include <ros/ros.h>
 #include <visualization_msgs/MarkerArray.h>
+
+#include <mutex>
+#include <string>
 
 #include "gmm_mcl/map/gmm_map.h"
 #include "gmm_mcl/ros/node_status.h"

@@ -5,15 +5,15 @@
 // gmm_mcl_params --markdown) and the startup log.
 #pragma once
 
+#include <dynamic_reconfigure/Config.h>
+#include <ros/node_handle.h>
+
 #include <functional>
 #include <limits>
 #include <memory>
 #include <mutex>
 #include <string>
 #include <vector>
-
-#include <dynamic_reconfigure/Config.h>
-#include <ros/node_handle.h>
 
 #include "gmm_mcl/LocalizerConfig.h"
 #include "gmm_mcl/filter/localizer.h"

@@ -10,14 +10,13 @@
 //    (world -> kinect); no odometry, IMU or tf: gmm_mcl_ground_truth_odometry makes them.
 #pragma once
 
+#include <Eigen/Geometry>
 #include <functional>
 #include <string>
 
-#include <Eigen/Geometry>
-
+#include "gmm_mcl/datasets/sequence_base.h"
 #include "gmm_mcl/map/gmm_map.h"
 #include "gmm_mcl/replay/odometry_synthesizer.h"
-#include "gmm_mcl/datasets/sequence_base.h"
 
 namespace gmm_mcl {
 namespace ros_bag {
@@ -26,7 +25,7 @@ struct SequenceBagOptions {
   std::string layout = "image";  // "image" or "cow_and_lady"
   uint64_t seed = 1;             // odometry and attitude noise
   ProtocolNoise noise;
-  double start_s = 1000.0;       // bag time of the first frame (stamps keep their spacing)
+  double start_s = 1000.0;  // bag time of the first frame (stamps keep their spacing)
   int max_frames = -1;
   // cow_and_lady: marker (kinect body) -> camera optical frame, the fixed calibration.
   Eigen::Isometry3d T_marker_cam = Eigen::Isometry3d::Identity();

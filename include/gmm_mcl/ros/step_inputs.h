@@ -4,12 +4,12 @@
 // while an update runs; a frame takes what belongs to its own stamp.
 #pragma once
 
-#include <string>
-
 #include <nav_msgs/Odometry.h>
 #include <sensor_msgs/Imu.h>
 #include <std_msgs/Header.h>
 #include <tf2_ros/buffer.h>
+
+#include <string>
 
 #include "gmm_mcl/filter/localizer.h"
 #include "gmm_mcl/filter/stamped_buffer.h"

@@ -3,10 +3,9 @@
 // drone-like trajectory. Deliberately asymmetric so that the pose is observable.
 #pragma once
 
+#include <Eigen/Geometry>
 #include <random>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "gmm_mcl/camera/depth_image.h"
 #include "gmm_mcl/map/gmm_map.h"
@@ -43,7 +42,8 @@ DepthImage renderDepth(const BoxScene& scene, const Intrinsics& K,
                        std::mt19937_64* rng = nullptr);
 
 // Tiles every visible face with flat Gaussians on a grid of about spacing_m (in-plane sigma
-// 0.3 x the cell size, about what EM fits to a uniform tile, normal sigma normal_sigma_m), weights proportional to cell area.
+// 0.3 x the cell size, about what EM fits to a uniform tile, normal sigma normal_sigma_m), weights
+// proportional to cell area.
 GmmMap tileScene(const BoxScene& scene, double spacing_m, double normal_sigma_m);
 
 // A smooth 6-DoF trajectory of the base through the room (x forward, z up; small roll/pitch),

@@ -2,14 +2,13 @@
 // input; map frame, metres) and its one PLY reader/writer (ascii, binary little- and big-endian).
 #pragma once
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <array>
 #include <cstdint>
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 namespace gmm_mcl {
 namespace sim {
@@ -37,8 +36,8 @@ class MeshError : public std::runtime_error {
 // What a PLY file holds: its vertices in file order and, with a face element, its triangles.
 struct PlyContents {
   Mesh mesh;
-  bool has_faces = false;            // a face element (possibly with no faces)
-  long long first_bad_vertex = -1;   // the first vertex with a non-finite or huge (> 1e9) coordinate
+  bool has_faces = false;           // a face element (possibly with no faces)
+  long long first_bad_vertex = -1;  // the first vertex with a non-finite or huge (> 1e9) coordinate
 };
 
 // The package's one PLY reader, for meshes and point clouds: a `vertex` element with x, y, z

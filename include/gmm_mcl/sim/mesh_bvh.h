@@ -2,10 +2,9 @@
 // binned surface-area heuristic, traversed nearest child first. No external ray tracer.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "gmm_mcl/sim/mesh.h"
 
@@ -13,9 +12,9 @@ namespace gmm_mcl {
 namespace sim {
 
 struct RayHit {
-  float t = 0.f;              // ray parameter of the hit (distance in units of |dir|)
-  uint32_t triangle = 0;      // index into the mesh's triangles
-  Eigen::Vector3f normal;     // unit geometric normal of the triangle (either side)
+  float t = 0.f;           // ray parameter of the hit (distance in units of |dir|)
+  uint32_t triangle = 0;   // index into the mesh's triangles
+  Eigen::Vector3f normal;  // unit geometric normal of the triangle (either side)
 };
 
 class MeshBvh {

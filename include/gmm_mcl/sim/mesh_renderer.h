@@ -2,9 +2,8 @@
 // (x right, y down, z forward), pixel centres at integer (u, v), OpenMP over rows.
 #pragma once
 
-#include <cstdint>
-
 #include <Eigen/Geometry>
+#include <cstdint>
 
 #include "gmm_mcl/camera/depth_image.h"
 #include "gmm_mcl/sim/mesh_bvh.h"
@@ -27,10 +26,9 @@ DepthImage toDepthImage(int width_px, int height_px, const std::vector<float>& z
 // Renders a depth image like the box scene's renderDepth: without noise, every hit with
 // z-depth up to max_range_m; with noise, the sensor model (its own range window, further
 // limited by max_range_m) with the given seed.
-DepthImage renderDepth(const MeshBvh& bvh, const Intrinsics& K,
-                       const Eigen::Isometry3d& T_map_cam, DepthEncoding encoding,
-                       double max_range_m, const SensorNoiseParams* noise = nullptr,
-                       uint64_t seed = 0);
+DepthImage renderDepth(const MeshBvh& bvh, const Intrinsics& K, const Eigen::Isometry3d& T_map_cam,
+                       DepthEncoding encoding, double max_range_m,
+                       const SensorNoiseParams* noise = nullptr, uint64_t seed = 0);
 
 }  // namespace sim
 }  // namespace gmm_mcl

@@ -25,9 +25,9 @@ struct Cylinder {
 };
 
 struct PrimitiveScene {
-  Box room;                          // seen from inside
-  std::vector<Box> boxes;            // solid, seen from outside
-  std::vector<Cylinder> cylinders;   // solid, seen from outside
+  Box room;                         // seen from inside
+  std::vector<Box> boxes;           // solid, seen from outside
+  std::vector<Cylinder> cylinders;  // solid, seen from outside
 };
 
 // The box scene's room and ten blocks plus five cylinders (8 m x 6 m x 3 m).

@@ -1,10 +1,9 @@
 // Camera trajectories and cameras of mesh data sets (Replica / NICE-SLAM layout).
 #pragma once
 
+#include <Eigen/Geometry>
 #include <string>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "gmm_mcl/common/types.h"
 

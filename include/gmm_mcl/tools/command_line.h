@@ -5,13 +5,12 @@
 // its usage and exits with status 2; --help prints the usage and every flag and exits 0.
 #pragma once
 
+#include <boost/program_options.hpp>
 #include <initializer_list>
 #include <map>
 #include <set>
 #include <string>
 #include <vector>
-
-#include <boost/program_options.hpp>
 
 #include "gmm_mcl/common/number_list.h"
 #include "gmm_mcl/filter/parameter_table.h"

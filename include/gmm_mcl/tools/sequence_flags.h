@@ -9,9 +9,12 @@ namespace gmm_mcl {
 namespace cli {
 
 inline void addSequenceFlags(CommandLine* cl, SequenceOptions* so) {
-  cl->flags({{"intrinsics", &so->intrinsics}, {"depth-scale", &so->depth_units_per_m},
-             {"tolerance", &so->association_tolerance_s}, {"gravity", &so->gravity},
-             {"trajectory", &so->trajectory}, {"rate", &so->frame_rate_hz}});
+  cl->flags({{"intrinsics", &so->intrinsics},
+             {"depth-scale", &so->depth_units_per_m},
+             {"tolerance", &so->association_tolerance_s},
+             {"gravity", &so->gravity},
+             {"trajectory", &so->trajectory},
+             {"rate", &so->frame_rate_hz}});
 }
 
 }  // namespace cli

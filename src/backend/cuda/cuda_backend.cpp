@@ -126,13 +126,11 @@ void CudaBackend::setMap(const GmmMap& map) {
   if (m > 0) {
     GMM_MCL_CUDA_CHECK(cudaMemcpy(d.components.data(), packed.data(), m * sizeof(ComponentF),
                                   cudaMemcpyHostToDevice));
-    GMM_MCL_CUDA_CHECK(cudaMemcpy(d.eval_components.data(), ev.data(),
-                                  m * sizeof(EvalComponentF), cudaMemcpyHostToDevice));
+    GMM_MCL_CUDA_CHECK(cudaMemcpy(d.eval_components.data(), ev.data(), m * sizeof(EvalComponentF),
+                                  cudaMemcpyHostToDevice));
   }
   d.num_components = m;
 }
-
-
 
 namespace {
 // The checks of prepareFrame, with its messages.
@@ -270,7 +268,6 @@ void CudaBackend::evaluateImage(const DepthImage& image, const Intrinsics& K,
   d.last_transfer_ms += d.upload_end.msSince(d.upload_start);
   d.last_frame_prep_ms = d.prep_end.msSince(d.upload_end);
 }
-
 
 namespace {
 // Layout of the device frame block (offsets in bytes): points, patch starts, per-patch counts.

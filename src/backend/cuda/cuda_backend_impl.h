@@ -134,8 +134,7 @@ struct CudaBackend::Impl {
     const EvalComponentF* eval;
     const int* index;
   };
-  ComponentSet cullView(const cuda::MembershipConfig& cfg, const RigidTransformF* T_cam_map,
-                        int n);
+  ComponentSet cullView(const cuda::MembershipConfig& cfg, const RigidTransformF* T_cam_map, int n);
 
   // Raises the membership kernel's shared-memory limit for this grid and bitmask; throws when
   // the device cannot hold it.

@@ -194,13 +194,12 @@ int CudaBackend::Impl::launchBatches(const DeviceFrameView& f, int n,
   ensureMembershipShared(patches, passes == 1 ? words : pass_words, m);
   // Particles in batches whose masks (and per-particle evaluation forms) fit the budget.
   const bool noise = params.depth_noise.enabled();
-  const size_t bytes_per_particle = sizeof(uint32_t) * size_t(patches) * words +
-                                    (noise ? sizeof(EvalComponentF) * size_t(m) : 0);
+  const size_t bytes_per_particle =
+      sizeof(uint32_t) * size_t(patches) * words + (noise ? sizeof(EvalComponentF) * size_t(m) : 0);
   const size_t max_by_threads = size_t(0x7fffffff) / (size_t(patches) * 32);  // int indices
   const size_t budget = std::min(kMaskBudgetBytes, info.total_memory_bytes / 16);
-  const int batch = static_cast<int>(
-      std::max<size_t>(1, std::min<size_t>(std::min<size_t>(n, max_by_threads),
-                                           budget / bytes_per_particle)));
+  const int batch = static_cast<int>(std::max<size_t>(
+      1, std::min<size_t>(std::min<size_t>(n, max_by_threads), budget / bytes_per_particle)));
   // Earlier evaluations may still be queued on the stream (the device filter does not wait):
   // scratch grows only after them.
   mask.reserve(size_t(batch) * patches * words, s);
@@ -224,9 +223,17 @@ int CudaBackend::Impl::launchBatches(const DeviceFrameView& f, int n,
         count, m, words, pass_words, cfg, set.components, set.eval, f.T_cam_map + first,
         mask.data(), shift.data(), noise ? noisy_eval.data() : nullptr, s));
     events[3 * bi + 1].record(s);
-    const cuda::LikelihoodInputs in{patches,   words, f.x, f.y, f.z, f.patch_begin,
-                                    noise ? noisy_eval.data() : set.eval, noise ? m : 0,
-                                    f.T_map_cam + first, mask.data(), shift.data()};
+    const cuda::LikelihoodInputs in{patches,
+                                    words,
+                                    f.x,
+                                    f.y,
+                                    f.z,
+                                    f.patch_begin,
+                                    noise ? noisy_eval.data() : set.eval,
+                                    noise ? m : 0,
+                                    f.T_map_cam + first,
+                                    mask.data(),
+                                    shift.data()};
     GMM_MCL_CUDA_CHECK(
         cuda::launchLikelihood(count, in, shape, params.floor_log_density, partials, s));
     GMM_MCL_CUDA_CHECK(cuda::launchReduce(count, items, partials, ll + first, hits + first,
@@ -260,9 +267,9 @@ void CudaBackend::membership(const DepthFrame& frame, const RigidTransformF& T_m
   cuda::DeviceBuffer<uint32_t> mask(size_t(patches) * words);
   cuda::DeviceBuffer<float> shift(cuda::membershipShiftFloats(1, patches, passes));
   cuda::DeviceBuffer<EvalComponentF> noisy(std::max(set.count, 1));
-  GMM_MCL_CUDA_CHECK(cuda::launchMembership(1, set.count, words, pass_words, cfg,
-                                            set.components, set.eval, pose.data(), mask.data(),
-                                            shift.data(), noisy.data(), s));
+  GMM_MCL_CUDA_CHECK(cuda::launchMembership(1, set.count, words, pass_words, cfg, set.components,
+                                            set.eval, pose.data(), mask.data(), shift.data(),
+                                            noisy.data(), s));
   std::vector<uint32_t> h(size_t(patches) * words);
   std::vector<int> index(set.count);
   GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(h.data(), mask.data(), h.size() * sizeof(uint32_t),

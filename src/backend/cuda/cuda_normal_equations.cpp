@@ -1,8 +1,7 @@
 #include "cuda/cuda_normal_equations.h"
 
-#include <stdexcept>
-
 #include <Eigen/Core>
+#include <stdexcept>
 
 #include "cuda/normal_equations_kernel.cuh"
 
@@ -36,8 +35,8 @@ void CudaNormalEquations::setPoints(const std::vector<double>& x_m, const std::v
   GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(points_.data(), host_points_.data(),
                                      host_points_.size() * sizeof(float), cudaMemcpyHostToDevice,
                                      stream_));
-  GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(pixel_patch_dev_.data(), pixel_patch_.data(),
-                                     n * sizeof(int), cudaMemcpyHostToDevice, stream_));
+  GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(pixel_patch_dev_.data(), pixel_patch_.data(), n * sizeof(int),
+                                     cudaMemcpyHostToDevice, stream_));
   // The host vectors are read by the copies until the stream passes them.
   GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(stream_));
   x_ = points_.data();
@@ -126,11 +125,9 @@ void CudaNormalEquations::evaluate(const PoseDerivatives& pose, float floor_log_
   const size_t values = static_cast<size_t>(blocks) * kNormalEquationValues;
   partials_.reserve(values);
   h_partials_.reserve(values);
-  GMM_MCL_CUDA_CHECK(launchNormalEquations(num_pixels_, p, floor_log_density, linearise ? 1 : 0, x_,
-                                           y_, z_,
-                                           pixel_patch_dev_.data(), member_begin_.data(),
-                                           members_.data(), eval_.data(), partials_.data(),
-                                           stream_));
+  GMM_MCL_CUDA_CHECK(launchNormalEquations(
+      num_pixels_, p, floor_log_density, linearise ? 1 : 0, x_, y_, z_, pixel_patch_dev_.data(),
+      member_begin_.data(), members_.data(), eval_.data(), partials_.data(), stream_));
   GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(h_partials_.data(), partials_.data(), values * sizeof(double),
                                      cudaMemcpyDeviceToHost, stream_));
   GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(stream_));

@@ -54,7 +54,7 @@ class CudaNormalEquations : public NormalEquationsEvaluator {
   Eigen::Isometry3d T_base_points_ = Eigen::Isometry3d::Identity();
   std::vector<float> host_points_;  // x, then y, then z
   std::vector<int> pixel_patch_;
-  DeviceBuffer<float> points_;      // [3][num_pixels_]
+  DeviceBuffer<float> points_;  // [3][num_pixels_]
   DeviceBuffer<int> pixel_patch_dev_;
   DeviceBuffer<int> member_begin_, members_;
   DeviceBuffer<EvalComponentF> eval_;

@@ -42,12 +42,10 @@ cudaError_t launchUniform(int n, RandomCall rc, const RegionBox& region, Particl
                           double* weights, double weight, cudaStream_t stream);
 // out[i] Gaussian around mean (sigma[0..3] for x, y, z, yaw); weights[i] = weight.
 cudaError_t launchGaussian(int n, RandomCall rc, const ParticleState& mean, const double sigma[4],
-                           ParticleState* out, double* weights, double weight,
-                           cudaStream_t stream);
+                           ParticleState* out, double* weights, double weight, cudaStream_t stream);
 // out[i] Gaussian around centres[i % num_centres].
 cudaError_t launchAround(int n, RandomCall rc, const ParticleState* centres, int num_centres,
-                         double sigma_m, double sigma_rad, ParticleState* out,
-                         cudaStream_t stream);
+                         double sigma_m, double sigma_rad, ParticleState* out, cudaStream_t stream);
 // Camera poses T_map_cam and T_cam_map of every particle.
 cudaError_t launchCameraPoses(int n, const ParticleState* particles, const CameraMount& mount,
                               RigidTransformF* T_map_cam, RigidTransformF* T_cam_map,
@@ -56,25 +54,25 @@ cudaError_t launchFill(int n, double value, double* out, cudaStream_t stream);
 
 // ---- weights --------------------------------------------------------------------------------
 struct WeightConfig {
-  int tempered;           // 1: WeightingMode::kTempered, 0: kPaper
+  int tempered;  // 1: WeightingMode::kTempered, 0: kPaper
   int pixels;
-  double beta_max;        // 1 / (temperature * pixels)
-  double neff_floor;      // neff_floor_fraction * N
-  double paper_margin;    // paper_min_nll_per_pixel * pixels
+  double beta_max;      // 1 / (temperature * pixels)
+  double neff_floor;    // neff_floor_fraction * N
+  double paper_margin;  // paper_min_nll_per_pixel * pixels
 };
 // WeightState::bisect: the exponent at beta_max, found by bisection (the Neff floor binds), or 0
 // (beta_max and 0 both fall below the floor: the prior weights kept, as ParticleFilter does).
 constexpr int kExponentMax = 0, kExponentBisected = 1, kExponentZero = 2;
 // Device-resident state of one weight update, read back twice.
 struct WeightState {
-  double best;         // largest finite log-likelihood
-  double argmax_ll;    // log-likelihood of the best particle (the first of the largest)
+  double best;       // largest finite log-likelihood
+  double argmax_ll;  // log-likelihood of the best particle (the first of the largest)
   int argmax;
-  int finite;          // particles with a finite log-likelihood
-  int bisect;          // kExponentMax, kExponentBisected or kExponentZero
-  int ok;              // the weights were updated
-  double neff_prior;   // Neff of the prior weights over the finite entries (beta = 0)
-  double neff_max;     // Neff at beta_max
+  int finite;         // particles with a finite log-likelihood
+  int bisect;         // kExponentMax, kExponentBisected or kExponentZero
+  int ok;             // the weights were updated
+  double neff_prior;  // Neff of the prior weights over the finite entries (beta = 0)
+  double neff_max;    // Neff at beta_max
   double lo, hi, beta;
   double beta_fraction;
   double recover_sum;  // sum over finite entries of exp(ll / pixels - best / pixels)
@@ -91,9 +89,9 @@ struct WeightState {
 cudaError_t launchWeightStart(int n, const WeightConfig& cfg, const double* ll,
                               const double* weights, WeightState* state, ReduceScratch scratch,
                               cudaStream_t stream);
-cudaError_t launchWeightBisection(int n, const WeightConfig& cfg, int iterations,
-                                  const double* ll, const double* weights, WeightState* state,
-                                  ReduceScratch scratch, cudaStream_t stream);
+cudaError_t launchWeightBisection(int n, const WeightConfig& cfg, int iterations, const double* ll,
+                                  const double* weights, WeightState* state, ReduceScratch scratch,
+                                  cudaStream_t stream);
 cudaError_t launchWeightFinish(int n, const WeightConfig& cfg, const double* ll,
                                const int* floor_hits, double* weights, double* w_new,
                                WeightState* state, ReduceScratch scratch, cudaStream_t stream);
@@ -112,8 +110,8 @@ cudaError_t launchSum(int n, const double* w, double* total, ReduceScratch scrat
                       cudaStream_t stream);
 cudaError_t launchDivide(int n, const double* total, double* w, cudaStream_t stream);
 // sums[0] = sum of a, sums[1] = sum of b (evaluation counts).
-cudaError_t launchSumCounts(int n, const long long* a, const long long* b,
-                            unsigned long long* sums, cudaStream_t stream);
+cudaError_t launchSumCounts(int n, const long long* a, const long long* b, unsigned long long* sums,
+                            cudaStream_t stream);
 
 // ---- resampling -----------------------------------------------------------------------------
 // keys[i] random, values[i] = i (a random order after a sort by key).
@@ -160,8 +158,8 @@ cudaError_t sortPairsU32(void* temp, size_t* temp_bytes, const uint32_t* keys_in
 cudaError_t sortPairsDescendingF64(void* temp, size_t* temp_bytes, const double* keys_in,
                                    double* keys_out, const int* values_in, int* values_out, int n,
                                    cudaStream_t stream);
-cudaError_t sortKeysU64(void* temp, size_t* temp_bytes, const uint64_t* keys_in,
-                        uint64_t* keys_out, int n, cudaStream_t stream);
+cudaError_t sortKeysU64(void* temp, size_t* temp_bytes, const uint64_t* keys_in, uint64_t* keys_out,
+                        int n, cudaStream_t stream);
 cudaError_t inclusiveSumF64(void* temp, size_t* temp_bytes, const double* in, double* out, int n,
                             cudaStream_t stream);
 

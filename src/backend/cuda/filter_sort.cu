@@ -20,12 +20,12 @@ cudaError_t sortPairsU32(void* temp, size_t* temp_bytes, const uint32_t* keys_in
 cudaError_t sortPairsDescendingF64(void* temp, size_t* temp_bytes, const double* keys_in,
                                    double* keys_out, const int* values_in, int* values_out, int n,
                                    cudaStream_t stream) {
-  return cub::DeviceRadixSort::SortPairsDescending(temp, *temp_bytes, keys_in, keys_out,
-                                                   values_in, values_out, n, 0, 64, stream);
+  return cub::DeviceRadixSort::SortPairsDescending(temp, *temp_bytes, keys_in, keys_out, values_in,
+                                                   values_out, n, 0, 64, stream);
 }
 
-cudaError_t sortKeysU64(void* temp, size_t* temp_bytes, const uint64_t* keys_in,
-                        uint64_t* keys_out, int n, cudaStream_t stream) {
+cudaError_t sortKeysU64(void* temp, size_t* temp_bytes, const uint64_t* keys_in, uint64_t* keys_out,
+                        int n, cudaStream_t stream) {
   return cub::DeviceRadixSort::SortKeys(temp, *temp_bytes, keys_in, keys_out, n, 0, 64, stream);
 }
 

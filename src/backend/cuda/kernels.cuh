@@ -57,11 +57,11 @@ cudaError_t launchMembership(int num_particles, int num_components, int words, i
 // the poses, in ascending order (all others are culled by the membership kernel for every pose,
 // so membership and likelihood on this compact list give the same sets and sums).
 struct ViewCullBuffers {
-  int* visible;                // [M + 1] scratch flags
-  int* index;                  // [M] compact -> map index
-  ComponentF* components;      // [M] compact copy
-  EvalComponentF* eval;        // [M] compact copy (log2 form)
-  int* count;                  // [1] visible count
+  int* visible;            // [M + 1] scratch flags
+  int* index;              // [M] compact -> map index
+  ComponentF* components;  // [M] compact copy
+  EvalComponentF* eval;    // [M] compact copy (log2 form)
+  int* count;              // [1] visible count
 };
 cudaError_t launchViewCull(int num_particles, int num_components, const MembershipConfig& cfg,
                            const ComponentF* components, const EvalComponentF* eval,
@@ -72,9 +72,9 @@ cudaError_t launchViewCull(int num_particles, int num_components, const Membersh
 // `band_patches` consecutive patches of one particle); `lanes` pixel groups of
 // `pixels_per_lane` pixels each, and 32 / lanes component slices.
 struct LikelihoodShape {
-  int lanes = 32;           // pixel groups: 4, 8, 16 or 32
-  int pixels_per_lane = 2;  // 1, 2 or 4
-  int band_patches = 10;    // patches per item
+  int lanes = 32;              // pixel groups: 4, 8, 16 or 32
+  int pixels_per_lane = 2;     // 1, 2 or 4
+  int band_patches = 10;       // patches per item
   bool stage_members = false;  // copy the members' records to shared memory per patch (32 x 4)
 };
 // The shape for the largest patch of a frame (pixels).
@@ -96,9 +96,9 @@ struct ItemPartials {
 // One batch's inputs of the likelihood kernel (device pointers).
 struct LikelihoodInputs {
   int num_patches;
-  int words;                      // bitmask words per patch
-  const float *x_m, *y_m, *z_m;   // [pixels] camera frame
-  const int* patch_begin;         // [patches + 1]
+  int words;                     // bitmask words per patch
+  const float *x_m, *y_m, *z_m;  // [pixels] camera frame
+  const int* patch_begin;        // [patches + 1]
   // The log2 evaluation form (makeEvalComponentF with kEvalScaleLog2): one table for all
   // particles (components_per_particle 0) or one of that many entries per particle
   // (launchMembership's eval_out).

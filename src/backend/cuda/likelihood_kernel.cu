@@ -84,9 +84,9 @@ __device__ __forceinline__ int buildMemberList(const uint32_t* __restrict__ row,
 // sum[q] += exp2(log2(lambda N(p_q)) - S2) for one member's record (ra, rb, rc).
 template <int PX>
 __device__ __forceinline__ void accumulateRecord(const float4& ra, const float4& rb,
-                                                 const float2& rc, float S2,
-                                                 const float (&px)[PX], const float (&py)[PX],
-                                                 const float (&pz)[PX], float (&sum)[PX]) {
+                                                 const float2& rc, float S2, const float (&px)[PX],
+                                                 const float (&py)[PX], const float (&pz)[PX],
+                                                 float (&sum)[PX]) {
   const float base = ra.w - S2;
 #pragma unroll
   for (int q = 0; q < PX; ++q) {
@@ -104,10 +104,9 @@ __device__ __forceinline__ void accumulateRecord(const float4& ra, const float4&
 // global memory through the L1 cache).
 template <int PX, int C>
 __device__ __forceinline__ void accumulateListed(const uint16_t* list, int k, int slice,
-                                                  const EvalComponentF* __restrict__ comps,
-                                                  float S2, const float (&px)[PX],
-                                                  const float (&py)[PX], const float (&pz)[PX],
-                                                  float (&sum)[PX]) {
+                                                 const EvalComponentF* __restrict__ comps, float S2,
+                                                 const float (&px)[PX], const float (&py)[PX],
+                                                 const float (&pz)[PX], float (&sum)[PX]) {
   for (int t = slice; t < k; t += C) {
     const int j = list[t];
     const float4 ra = __ldg(reinterpret_cast<const float4*>(comps + j));
@@ -134,8 +133,8 @@ __device__ __forceinline__ void stageMembers(const uint16_t* list, int n,
 // accumulateRecord over the staged members slice, slice + C, ...
 template <int PX, int C>
 __device__ __forceinline__ void accumulateStaged(const float4* rec, int n, int slice, float S2,
-                                                  const float (&px)[PX], const float (&py)[PX],
-                                                  const float (&pz)[PX], float (&sum)[PX]) {
+                                                 const float (&px)[PX], const float (&py)[PX],
+                                                 const float (&pz)[PX], float (&sum)[PX]) {
   for (int t = slice; t < n; t += C) {
     const float4 ra = rec[3 * t];
     const float4 rb = rec[3 * t + 1];
@@ -161,7 +160,7 @@ __global__ void __launch_bounds__(kThreads, LikelihoodMinBlocks<PX>::value)
                      int* __restrict__ item_hits,                    // [N * bands]
                      int* __restrict__ item_evals,                   // [N * bands]
                      int* __restrict__ item_relevant) {              // [N * bands]
-  constexpr int C = 32 / PXG;  // component slices
+  constexpr int C = 32 / PXG;                                        // component slices
   constexpr int kChunk = PXG * PX;
   // [kWarps][kStage * 3] member records, then [kWarps][min(words, 32) * 32] member lists.
   extern __shared__ float4 s_rec[];
@@ -171,15 +170,15 @@ __global__ void __launch_bounds__(kThreads, LikelihoodMinBlocks<PX>::value)
   if (item >= num_items) return;  // whole warps leave together
   const int list_cap = min(words, 32) * 32;
   float4* rec = s_rec + warp * (3 * kStage);  // only when STAGE
-  uint16_t* list = reinterpret_cast<uint16_t*>(s_rec + (STAGE ? kWarps * 3 * kStage : 0)) +
-                   warp * list_cap;
+  uint16_t* list =
+      reinterpret_cast<uint16_t*>(s_rec + (STAGE ? kWarps * 3 * kStage : 0)) + warp * list_cap;
   const int particle = item / bands;
   const EvalComponentF* __restrict__ comps =
       all_comps + static_cast<size_t>(particle) * comps_per_particle;
   const float4* comps4 = reinterpret_cast<const float4*>(comps);
   const int p0 = (item - particle * bands) * band_patches;
   const int p1 = min(p0 + band_patches, num_patches);
-  const int g = lane % PXG;  // pixel group
+  const int g = lane % PXG;   // pixel group
   const int sl = lane / PXG;  // component slice
   const RigidTransformF T = T_map_cam[particle];
   const float floor2 = floor_log_density * kLog2e;
@@ -345,29 +344,51 @@ cudaError_t launchLikelihood(int num_particles, const LikelihoodInputs& in,
   const int band = shape.band_patches > 0 ? shape.band_patches : 1;
   const dim3 grid(static_cast<unsigned>((items + kWarps - 1) / kWarps)), block(kThreads);
   const size_t smem = likelihoodSharedBytes(shape, in.words);
-#define GMM_MCL_LAUNCH(PXG, PX, STAGE)                                                       \
-  likelihoodKernel<PXG, PX, STAGE><<<grid, block, smem, stream>>>(                           \
-      static_cast<int>(items), bands, band, in.num_patches, in.words, floor_log_density,      \
-      in.x_m, in.y_m, in.z_m, in.patch_begin, in.components, in.components_per_particle,     \
-      in.T_map_cam, in.mask, in.shift, partials.log_likelihood, partials.floor_hits,         \
-      partials.evaluations, partials.relevant)
+#define GMM_MCL_LAUNCH(PXG, PX, STAGE)                                                           \
+  likelihoodKernel<PXG, PX, STAGE><<<grid, block, smem, stream>>>(                               \
+      static_cast<int>(items), bands, band, in.num_patches, in.words, floor_log_density, in.x_m, \
+      in.y_m, in.z_m, in.patch_begin, in.components, in.components_per_particle, in.T_map_cam,   \
+      in.mask, in.shift, partials.log_likelihood, partials.floor_hits, partials.evaluations,     \
+      partials.relevant)
   if (shape.stage_members) {
     if (shape.lanes != 32 || shape.pixels_per_lane != 4) return cudaErrorInvalidValue;
     GMM_MCL_LAUNCH(32, 4, true);
     return cudaGetLastError();
   }
   switch (shape.lanes * 10 + shape.pixels_per_lane) {
-    case 324: GMM_MCL_LAUNCH(32, 4, false); break;
-    case 322: GMM_MCL_LAUNCH(32, 2, false); break;
-    case 321: GMM_MCL_LAUNCH(32, 1, false); break;
-    case 164: GMM_MCL_LAUNCH(16, 4, false); break;
-    case 162: GMM_MCL_LAUNCH(16, 2, false); break;
-    case 161: GMM_MCL_LAUNCH(16, 1, false); break;
-    case 84: GMM_MCL_LAUNCH(8, 4, false); break;
-    case 82: GMM_MCL_LAUNCH(8, 2, false); break;
-    case 81: GMM_MCL_LAUNCH(8, 1, false); break;
-    case 44: GMM_MCL_LAUNCH(4, 4, false); break;
-    case 42: GMM_MCL_LAUNCH(4, 2, false); break;
+    case 324:
+      GMM_MCL_LAUNCH(32, 4, false);
+      break;
+    case 322:
+      GMM_MCL_LAUNCH(32, 2, false);
+      break;
+    case 321:
+      GMM_MCL_LAUNCH(32, 1, false);
+      break;
+    case 164:
+      GMM_MCL_LAUNCH(16, 4, false);
+      break;
+    case 162:
+      GMM_MCL_LAUNCH(16, 2, false);
+      break;
+    case 161:
+      GMM_MCL_LAUNCH(16, 1, false);
+      break;
+    case 84:
+      GMM_MCL_LAUNCH(8, 4, false);
+      break;
+    case 82:
+      GMM_MCL_LAUNCH(8, 2, false);
+      break;
+    case 81:
+      GMM_MCL_LAUNCH(8, 1, false);
+      break;
+    case 44:
+      GMM_MCL_LAUNCH(4, 4, false);
+      break;
+    case 42:
+      GMM_MCL_LAUNCH(4, 2, false);
+      break;
     default:
       return cudaErrorInvalidValue;
   }
@@ -382,10 +403,9 @@ cudaError_t launchReduce(int num_particles, int items_per_particle, const ItemPa
   const long long threads = static_cast<long long>(num_particles) * 32;
   const dim3 grid(static_cast<unsigned>((threads + kThreads - 1) / kThreads)), block(kThreads);
   reduceKernel<<<grid, block, 0, stream>>>(num_particles, items_per_particle,
-                                           partials.log_likelihood,
-                                           partials.floor_hits, partials.evaluations,
-                                           partials.relevant, log_likelihood, floor_hits,
-                                           evaluations, relevant_pairs);
+                                           partials.log_likelihood, partials.floor_hits,
+                                           partials.evaluations, partials.relevant, log_likelihood,
+                                           floor_hits, evaluations, relevant_pairs);
   return cudaGetLastError();
 }
 

@@ -69,15 +69,15 @@ __global__ void __launch_bounds__(kMembershipThreads, kMembershipMinBlocks)
   // instead of the few lanes whose component survived the cull.
   const int lane = threadIdx.x & 31;
   int* queue = shift_key + patches + (threadIdx.x >> 5) * kQueuePerWarp;  // [kQueuePerWarp]
-  int queued = 0;  // warp-uniform
+  int queued = 0;                                                         // warp-uniform
   const int rounds = (c_end - c_begin + blockDim.x - 1) / blockDim.x;
   for (int round = 0; round < rounds; ++round) {
     const int i = c_begin + round * blockDim.x + threadIdx.x;
     // Conservative cull (as the view cull): no patch centre within reach, no projection.
-    const bool keep = i < c_end &&
-                      componentMayTouchGrid(components[i], T, cfg.K, cfg.patch_size_px,
-                                            cfg.patch_cols, cfg.patch_rows, cfg.min_depth_m,
-                                            cfg.sigma_bound, cfg.inflate_px);
+    const bool keep =
+        i < c_end &&
+        componentMayTouchGrid(components[i], T, cfg.K, cfg.patch_size_px, cfg.patch_cols,
+                              cfg.patch_rows, cfg.min_depth_m, cfg.sigma_bound, cfg.inflate_px);
     const uint32_t ballot = __ballot_sync(0xffffffffu, keep);
     if (keep) queue[queued + __popc(ballot & ((1u << lane) - 1u))] = i;
     queued += __popc(ballot);
@@ -180,9 +180,8 @@ __global__ void __launch_bounds__(kCullThreads)
     if (i >= num_components || *reinterpret_cast<volatile int*>(visible + i)) continue;
     const ComponentF c = components[i];
     for (int k = 0; k < count; ++k) {
-      if (componentMayTouchGrid(c, s_T[k], cfg.K, cfg.patch_size_px, cfg.patch_cols,
-                                cfg.patch_rows, cfg.min_depth_m, cfg.sigma_bound,
-                                cfg.inflate_px)) {
+      if (componentMayTouchGrid(c, s_T[k], cfg.K, cfg.patch_size_px, cfg.patch_cols, cfg.patch_rows,
+                                cfg.min_depth_m, cfg.sigma_bound, cfg.inflate_px)) {
         visible[i] = 1;
         break;
       }
@@ -195,8 +194,8 @@ __global__ void __launch_bounds__(kCullThreads)
 constexpr int kCompactThreads = 1024;
 
 __global__ void __launch_bounds__(kCompactThreads)
-    compactKernel(int num_components, const int* __restrict__ visible,
-                  int* __restrict__ index_out, int* __restrict__ count_out) {
+    compactKernel(int num_components, const int* __restrict__ visible, int* __restrict__ index_out,
+                  int* __restrict__ count_out) {
   __shared__ int warp_sums[kCompactThreads / 32];
   __shared__ int base;
   const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
@@ -290,8 +289,8 @@ cudaError_t launchMembership(int num_particles, int num_components, int words, i
       pass_shift, noise ? eval_out : nullptr);
   if (passes > 1) {
     const int count = static_cast<int>(combined);
-    combineShiftKernel<<<(count + 255) / 256, 256, 0, stream>>>(count, patches, passes,
-                                                                pass_shift, shift_out);
+    combineShiftKernel<<<(count + 255) / 256, 256, 0, stream>>>(count, patches, passes, pass_shift,
+                                                                shift_out);
   }
   return cudaGetLastError();
 }

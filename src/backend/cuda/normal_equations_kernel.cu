@@ -24,9 +24,8 @@ __global__ void __launch_bounds__(kNormalEquationThreads)
     normalEquationsKernel(int num_pixels, NormalEquationPose pose, float floor_log_density,
                           int linearise, const float* __restrict__ x_m,
                           const float* __restrict__ y_m, const float* __restrict__ z_m,
-                          const int* __restrict__ pixel_patch,
-                          const int* __restrict__ member_begin, const int* __restrict__ members,
-                          const EvalComponentF* __restrict__ eval,
+                          const int* __restrict__ pixel_patch, const int* __restrict__ member_begin,
+                          const int* __restrict__ members, const EvalComponentF* __restrict__ eval,
                           double* __restrict__ partials_out) {
   float acc[kNormalEquationValues];
 #pragma unroll

@@ -35,11 +35,11 @@ inline int normalEquationBlocks(int num_pixels) {
 // pixel; member_begin: [patches + 1], members: [member_begin[patches]] component indices;
 // eval: [components] evaluation forms in nats.
 cudaError_t launchNormalEquations(int num_pixels, const NormalEquationPose& pose,
-                                  float floor_log_density, int linearise,
-                                  const float* x_m, const float* y_m, const float* z_m,
-                                  const int* pixel_patch, const int* member_begin,
-                                  const int* members, const EvalComponentF* eval,
-                                  double* partials_out, cudaStream_t stream);
+                                  float floor_log_density, int linearise, const float* x_m,
+                                  const float* y_m, const float* z_m, const int* pixel_patch,
+                                  const int* member_begin, const int* members,
+                                  const EvalComponentF* eval, double* partials_out,
+                                  cudaStream_t stream);
 
 // pixel_patch[i] = p for every pixel i of patch p (patch_begin: [patches + 1]).
 cudaError_t launchFillPixelPatch(int patches, const int* patch_begin, int* pixel_patch,
