@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Every test: installs what is missing (apt), builds the core, the backends, the tools, the ROS
-# nodelet and all tests, and runs them with ctest (gtest suites, rostests, the sources' clang-format check, the package installed
-# into a temporary prefix and run from there, fuzz corpus replays);
+# nodelet and all tests, and runs them with ctest (gtest suites, rostests, the sources'
+# clang-format check, the package installed into a temporary prefix and run from there, fuzz
+# corpus replays);
 # then compiles the CUDA backend with nvcc (its tests skip without a GPU); then the Jetson TX2
 # proxies (docs/tx2.md); then builds the core's unit tests with ASan and UBSan in their own
 # folder and runs them. Data-set tests read
