@@ -9,6 +9,7 @@
 
 #include "gmm_mcl/filter/localizer.h"
 #include "gmm_mcl/filter/pose.h"
+#include "gmm_mcl/sim/step_input.h"
 
 namespace gmm_mcl {
 namespace figures {
@@ -51,16 +52,10 @@ RunTrace runFilter(const Scenario& scenario, const SensorInputs& inputs, const G
   }
   double total_ms = 0.0;
   for (int f = 0; f < n; ++f) {
-    StepInput in;
-    in.stamp_s = f / scenario.frame_rate_hz;
-    in.has_odometry = true;
-    in.T_odom_base = inputs.T_odom_base[f];
-    in.has_attitude = true;
-    in.roll_rad = inputs.roll_rad[f];
-    in.pitch_rad = inputs.pitch_rad[f];
-    in.depth = &scenario.depth[f];
-    in.intrinsics = scenario.intrinsics;
-    const StepResult r = loc.step(in);
+    const StepResult r =
+        loc.step(sim::frameInput(f / scenario.frame_rate_hz, inputs.T_odom_base[f],
+                                 inputs.roll_rad[f], inputs.pitch_rad[f], scenario.depth[f],
+                                 scenario.intrinsics));
     total_ms += r.timings.total_ms;
     trace.posterior.push_back(stateGaussian(r.estimate));
     const Particle truth = poseToParticle(scenario.T_map_base[f]);
