@@ -8,18 +8,15 @@
 #include <stdexcept>
 #include <utility>
 
+#include "gmm_mcl/common/enum_names.h"
+
 namespace gmm_mcl {
 
 bool parseDepthEncoding(const std::string& encoding, DepthEncoding* out) {
-  if (encoding == "16UC1" || encoding == "mono16") {
-    *out = DepthEncoding::kMono16Millimetres;
-    return true;
-  }
-  if (encoding == "32FC1") {
-    *out = DepthEncoding::kFloat32Metres;
-    return true;
-  }
-  return false;
+  static const EnumName<DepthEncoding> kNames[] = {{"16UC1", DepthEncoding::kMono16Millimetres},
+                                                   {"mono16", DepthEncoding::kMono16Millimetres},
+                                                   {"32FC1", DepthEncoding::kFloat32Metres}};
+  return parseEnumName(encoding, kNames, out);
 }
 
 const char* depthEncodingName(DepthEncoding encoding) {

@@ -7,6 +7,7 @@
 #include <map>
 #include <stdexcept>
 
+#include "gmm_mcl/common/enum_names.h"
 #include "gmm_mcl/filter/localizer.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/sim/step_input.h"
@@ -15,14 +16,9 @@ namespace gmm_mcl {
 namespace figures {
 
 bool parseInitMode(const std::string& name, InitMode* out) {
-  if (name == "local") {
-    *out = InitMode::kLocal;
-  } else if (name == "global") {
-    *out = InitMode::kGlobal;
-  } else {
-    return false;
-  }
-  return true;
+  static const EnumName<InitMode> kNames[] = {{"local", InitMode::kLocal},
+                                              {"global", InitMode::kGlobal}};
+  return parseEnumName(name, kNames, out);
 }
 
 const char* initModeName(InitMode mode) {

@@ -3,18 +3,14 @@
 #include <cmath>
 #include <sstream>
 
+#include "gmm_mcl/common/enum_names.h"
+
 namespace gmm_mcl {
 
 bool parseWeightingMode(const std::string& name, WeightingMode* out) {
-  if (name == "paper") {
-    *out = WeightingMode::kPaper;
-    return true;
-  }
-  if (name == "tempered") {
-    *out = WeightingMode::kTempered;
-    return true;
-  }
-  return false;
+  static const EnumName<WeightingMode> kNames[] = {{"paper", WeightingMode::kPaper},
+                                                   {"tempered", WeightingMode::kTempered}};
+  return parseEnumName(name, kNames, out);
 }
 
 const char* weightingModeName(WeightingMode mode) {
