@@ -12,15 +12,21 @@
 
 namespace gmm_mcl {
 
+namespace {
+
+// Names as sensor_msgs/Image writes them; the first of a value is its name.
+const EnumName<DepthEncoding> kEncodingNames[] = {{"16UC1", DepthEncoding::kMono16Millimetres},
+                                          {"mono16", DepthEncoding::kMono16Millimetres},
+                                          {"32FC1", DepthEncoding::kFloat32Metres}};
+
+}  // namespace
+
 bool parseDepthEncoding(const std::string& encoding, DepthEncoding* out) {
-  static const EnumName<DepthEncoding> kNames[] = {{"16UC1", DepthEncoding::kMono16Millimetres},
-                                                   {"mono16", DepthEncoding::kMono16Millimetres},
-                                                   {"32FC1", DepthEncoding::kFloat32Metres}};
-  return parseEnumName(encoding, kNames, out);
+  return parseEnumName(encoding, kEncodingNames, out);
 }
 
 const char* depthEncodingName(DepthEncoding encoding) {
-  return encoding == DepthEncoding::kMono16Millimetres ? "16UC1" : "32FC1";
+  return enumNameOf(encoding, kEncodingNames);
 }
 
 namespace {

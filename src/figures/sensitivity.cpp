@@ -15,14 +15,18 @@
 namespace gmm_mcl {
 namespace figures {
 
+namespace {
+
+const EnumName<InitMode> kInitModeNames[] = {{"local", InitMode::kLocal}, {"global", InitMode::kGlobal}};
+
+}  // namespace
+
 bool parseInitMode(const std::string& name, InitMode* out) {
-  static const EnumName<InitMode> kNames[] = {{"local", InitMode::kLocal},
-                                              {"global", InitMode::kGlobal}};
-  return parseEnumName(name, kNames, out);
+  return parseEnumName(name, kInitModeNames, out);
 }
 
 const char* initModeName(InitMode mode) {
-  return mode == InitMode::kLocal ? "local" : "global";
+  return enumNameOf(mode, kInitModeNames);
 }
 
 RunTrace runFilter(const Scenario& scenario, const SensorInputs& inputs, const GmmMap& map,

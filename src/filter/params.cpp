@@ -7,14 +7,19 @@
 
 namespace gmm_mcl {
 
+namespace {
+
+const EnumName<WeightingMode> kWeightingNames[] = {{"paper", WeightingMode::kPaper},
+                                          {"tempered", WeightingMode::kTempered}};
+
+}  // namespace
+
 bool parseWeightingMode(const std::string& name, WeightingMode* out) {
-  static const EnumName<WeightingMode> kNames[] = {{"paper", WeightingMode::kPaper},
-                                                   {"tempered", WeightingMode::kTempered}};
-  return parseEnumName(name, kNames, out);
+  return parseEnumName(name, kWeightingNames, out);
 }
 
 const char* weightingModeName(WeightingMode mode) {
-  return mode == WeightingMode::kPaper ? "paper" : "tempered";
+  return enumNameOf(mode, kWeightingNames);
 }
 
 std::string InitRegion::validate() const {

@@ -24,4 +24,13 @@ bool parseEnumName(const std::string& name, const EnumName<Enum> (&table)[N], En
   return false;
 }
 
+// The name of the table's first entry with value `value`; "" when none has it.
+template <class Enum, std::size_t N>
+const char* enumNameOf(Enum value, const EnumName<Enum> (&table)[N]) {
+  for (const EnumName<Enum>& e : table) {
+    if (e.value == value) return e.name;
+  }
+  return "";
+}
+
 }  // namespace gmm_mcl
