@@ -10,6 +10,7 @@
 #include "gmm_mcl/datasets/sim_sequence.h"
 #include "gmm_mcl/ros/bag_writer.h"
 #include "gmm_mcl/ros/sequence_bag.h"
+#include "gmm_mcl/tools/report_errors.h"
 #include "gmm_mcl/tools/sequence_flags.h"
 
 namespace gmm_mcl {
@@ -62,7 +63,7 @@ int run(int argc, char** argv) {
                  marker_to_camera.c_str());
     return 2;
   }
-  try {
+  return cli::reportErrors("gmm_mcl_make_bag", [&] {
     std::unique_ptr<Sequence> seq;
     std::unique_ptr<GmmMap> map;
     if (format == "sim") {
@@ -92,11 +93,8 @@ int run(int argc, char** argv) {
                 seq->format(), seq->source().c_str(), r.duration_s,
                 seq->gravitySource().c_str(), r.map_path.empty() ? "" : ", map ",
                 r.map_path.c_str(), r.init_path.c_str());
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "gmm_mcl_make_bag: %s\n", e.what());
-    return 1;
-  }
-  return 0;
+    return 0;
+  });
 }
 
 }  // namespace gmm_mcl
