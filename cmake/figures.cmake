@@ -19,6 +19,5 @@ if(TARGET gmm_mcl_fit)
   target_compile_definitions(gmm_mcl_experiments PUBLIC GMM_MCL_FIGURES_HAVE_FIT=1)
 endif()
 
-add_executable(gmm_mcl_figures_tool src/tools/figures_main.cpp)
-set_target_properties(gmm_mcl_figures_tool PROPERTIES OUTPUT_NAME gmm_mcl_figures)
-target_link_libraries(gmm_mcl_figures_tool PRIVATE gmm_mcl_experiments gmm_mcl_cli)
+gmm_mcl_add_tool(gmm_mcl_figures_tool src/tools/figures_main.cpp OUTPUT_NAME gmm_mcl_figures
+                 LIBS gmm_mcl_experiments)

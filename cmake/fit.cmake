@@ -14,8 +14,5 @@ add_library(gmm_mcl_fit STATIC
 target_link_libraries(gmm_mcl_fit PUBLIC gmm_mcl_datasets)
 
 # The tool's target has another name than the library's; the program is gmm_mcl_fit.
-add_executable(gmm_mcl_fit_tool src/tools/gmm_fit_main.cpp)
-set_target_properties(gmm_mcl_fit_tool PROPERTIES OUTPUT_NAME gmm_mcl_fit)
-target_link_libraries(gmm_mcl_fit_tool PRIVATE gmm_mcl_fit gmm_mcl_cli)
-add_executable(gmm_mcl_inspect src/tools/gmm_inspect_main.cpp)
-target_link_libraries(gmm_mcl_inspect PRIVATE gmm_mcl_fit gmm_mcl_cli)
+gmm_mcl_add_tool(gmm_mcl_fit_tool src/tools/gmm_fit_main.cpp OUTPUT_NAME gmm_mcl_fit LIBS gmm_mcl_fit)
+gmm_mcl_add_tool(gmm_mcl_inspect src/tools/gmm_inspect_main.cpp LIBS gmm_mcl_fit)

@@ -1,3 +1,2 @@
 # Reliability: the kidnapped-robot tool over the trials in gmm_mcl_experiments (cmake/figures.cmake).
-add_executable(gmm_mcl_kidnap src/tools/kidnap_main.cpp)
-target_link_libraries(gmm_mcl_kidnap PRIVATE gmm_mcl_experiments gmm_mcl_cli)
+gmm_mcl_add_tool(gmm_mcl_kidnap src/tools/kidnap_main.cpp LIBS gmm_mcl_experiments)

@@ -19,8 +19,6 @@ add_library(gmm_mcl_replay STATIC
   src/replay/replay.cpp
 )
 target_link_libraries(gmm_mcl_replay PUBLIC gmm_mcl_datasets)
-add_executable(gmm_mcl_replay_tool src/tools/replay_main.cpp)
-set_target_properties(gmm_mcl_replay_tool PROPERTIES OUTPUT_NAME gmm_mcl_replay)
-target_link_libraries(gmm_mcl_replay_tool PRIVATE gmm_mcl_replay gmm_mcl_cli)
-add_executable(gmm_mcl_score src/tools/score_main.cpp)
-target_link_libraries(gmm_mcl_score PRIVATE gmm_mcl_replay gmm_mcl_cli)
+gmm_mcl_add_tool(gmm_mcl_replay_tool src/tools/replay_main.cpp OUTPUT_NAME gmm_mcl_replay
+                 LIBS gmm_mcl_replay)
+gmm_mcl_add_tool(gmm_mcl_score src/tools/score_main.cpp LIBS gmm_mcl_replay)

@@ -1,5 +1,14 @@
 """Shared by the plotting scripts (plot_figures.py, plot_replay.py)."""
+import math
 import sys
+
+
+def to_float(text):
+    """float(text), NaN for an empty or non-numeric CSV field."""
+    try:
+        return float(text)
+    except (TypeError, ValueError):
+        return math.nan
 
 
 def import_pyplot(tool):

@@ -19,16 +19,9 @@ import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from plot_common import import_pyplot  # noqa: E402
+from plot_common import import_pyplot, to_float  # noqa: E402
 
 AXES = ("x", "y", "z", "yaw")
-
-
-def _float(text):
-    try:
-        return float(text)
-    except (TypeError, ValueError):
-        return math.nan
 
 
 def read_csv(path):
@@ -53,15 +46,15 @@ def plot_nll_sweep(plt, directory, dpi):
     fig, axes = plt.subplots(2, 4, figsize=(16, 6.5), sharey="row",
                              gridspec_kw={"height_ratios": [3, 1.2]})
     for k, axis in enumerate(AXES):
-        sel = sorted((r for r in rows if r["axis"] == axis), key=lambda r: _float(r["offset"]))
+        sel = sorted((r for r in rows if r["axis"] == axis), key=lambda r: to_float(r["offset"]))
         if not sel:
             continue
         unit = sel[0]["unit"]
         scale = 100.0 if unit == "m" else 180.0 / math.pi
         xlabel = "%s offset (%s)" % (axis, "cm" if unit == "m" else "deg")
-        off = [_float(r["offset"]) * scale for r in sel]
-        apx = [_float(r["approx_nll_per_px"]) for r in sel]
-        ex = [_float(r["exact_nll_per_px"]) for r in sel]
+        off = [to_float(r["offset"]) * scale for r in sel]
+        apx = [to_float(r["approx_nll_per_px"]) for r in sel]
+        ex = [to_float(r["exact_nll_per_px"]) for r in sel]
         ax = axes[0][k]
         ax.plot(off, ex, "-", color="black", lw=2.2, label="exact (all components)")
         ax.plot(off, apx, "--", color="tab:orange", lw=1.6, label="approximate (patch membership)")
@@ -107,13 +100,13 @@ def plot_sensitivity(plt, directory, dpi):
         ref = [r for r in rows if r["sweep"] == sweep and r["log10_variance_kl"] == ""]
         sel.sort(key=lambda r: int(r["value"]))
         xs = [int(r["value"]) for r in sel]
-        ax.semilogx(xs, [_float(r["log10_variance_kl"]) for r in sel], "o-", color="tab:blue",
+        ax.semilogx(xs, [to_float(r["log10_variance_kl"]) for r in sel], "o-", color="tab:blue",
                     label="log10 Var(KL)")
         ax.set_xlabel("particles N" if sweep == "particles" else "components M")
         ax.set_ylabel("log10 variance of KL divergence", color="tab:blue")
         ax.grid(True, which="both", alpha=0.3)
         ax2 = ax.twinx()
-        ax2.semilogx(xs, [_float(r["mean_kl"]) for r in sel], "s--", color="tab:gray", ms=4,
+        ax2.semilogx(xs, [to_float(r["mean_kl"]) for r in sel], "s--", color="tab:gray", ms=4,
                      label="mean KL")
         ax2.set_yscale("log")
         ax2.set_ylabel("mean KL (nats)", color="tab:gray")

@@ -25,18 +25,11 @@ import re
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from plot_common import import_pyplot  # noqa: E402
+from plot_common import import_pyplot, to_float  # noqa: E402
 
 CONVERGED_BELOW_M = 0.10
 HOLD_FRAMES = 30
 TAIL_FRAMES = 100
-
-
-def _float(text):
-    try:
-        return float(text)
-    except (TypeError, ValueError):
-        return math.nan
 
 
 def read_trial_csv(path):
@@ -50,7 +43,7 @@ def read_trial_csv(path):
                 cols[name].append(row.get(name, ""))
     out = {}
     for name, values in cols.items():
-        out[name] = values if name == "status" else [_float(v) for v in values]
+        out[name] = values if name == "status" else [to_float(v) for v in values]
     return out
 
 

@@ -8,22 +8,25 @@
 #include <stdexcept>
 #include <utility>
 
+#include "gmm_mcl/common/enum_names.h"
+
 namespace gmm_mcl {
 
+namespace {
+
+// Names as sensor_msgs/Image writes them; the first of a value is its name.
+const EnumName<DepthEncoding> kEncodingNames[] = {{"16UC1", DepthEncoding::kMono16Millimetres},
+                                          {"mono16", DepthEncoding::kMono16Millimetres},
+                                          {"32FC1", DepthEncoding::kFloat32Metres}};
+
+}  // namespace
+
 bool parseDepthEncoding(const std::string& encoding, DepthEncoding* out) {
-  if (encoding == "16UC1" || encoding == "mono16") {
-    *out = DepthEncoding::kMono16Millimetres;
-    return true;
-  }
-  if (encoding == "32FC1") {
-    *out = DepthEncoding::kFloat32Metres;
-    return true;
-  }
-  return false;
+  return parseEnumName(encoding, kEncodingNames, out);
 }
 
 const char* depthEncodingName(DepthEncoding encoding) {
-  return encoding == DepthEncoding::kMono16Millimetres ? "16UC1" : "32FC1";
+  return enumNameOf(encoding, kEncodingNames);
 }
 
 namespace {

@@ -50,21 +50,6 @@ std::vector<std::string> listDirectory(const std::string& dir) {
   return names;
 }
 
-bool parseNumberLine(const std::string& line, std::vector<double>* out, std::string* bad) {
-  std::istringstream ls(line);
-  std::string tok;
-  while (ls >> tok) {
-    char* end = nullptr;
-    const double v = std::strtod(tok.c_str(), &end);
-    if (end == tok.c_str() || *end != '\0' || !std::isfinite(v)) {
-      *bad = tok;
-      return false;
-    }
-    out->push_back(v);
-  }
-  return true;
-}
-
 bool readNumberFile(const std::string& path, std::vector<double>* out, std::string* why) {
   std::ifstream in(path);
   if (!in) {
@@ -72,19 +57,9 @@ bool readNumberFile(const std::string& path, std::vector<double>* out, std::stri
     return false;
   }
   out->clear();
-  std::string line;
-  int line_no = 0;
-  while (std::getline(in, line)) {
-    ++line_no;
-    const size_t hash = line.find('#');
-    if (hash != std::string::npos) line.resize(hash);
-    std::string tok;
-    if (!parseNumberLine(line, out, &tok)) {
-      *why = "line " + std::to_string(line_no) + ": '" + tok + "' is not a finite number";
-      return false;
-    }
-  }
-  return true;
+  return forEachNumberLine(
+      in, [out](int, const std::vector<double>& v) { out->insert(out->end(), v.begin(), v.end()); },
+      why);
 }
 
 Eigen::Matrix3d orthonormalise(const Eigen::Matrix3d& M, const std::string& where) {

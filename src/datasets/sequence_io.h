@@ -15,9 +15,6 @@ bool fileExists(const std::string& path);
 bool isDirectory(const std::string& path);
 // Names of the entries of a folder (no "." or ".."), sorted; throws when it cannot be read.
 std::vector<std::string> listDirectory(const std::string& dir);
-// Appends the whitespace-separated numbers of `line` to *out; false at the first token that is
-// not a finite number (then *bad is that token).
-bool parseNumberLine(const std::string& line, std::vector<double>* out, std::string* bad);
 // The numbers of a text file, skipping '#' comments; false when unreadable or not all numbers
 // are finite (then *why says what).
 bool readNumberFile(const std::string& path, std::vector<double>* out, std::string* why);

@@ -6,6 +6,7 @@
 #include <map>
 #include <stdexcept>
 
+#include "gmm_mcl/common/number_list.h"
 #include "sequence_io.h"
 
 namespace gmm_mcl {
@@ -22,7 +23,7 @@ bool nextNumbers(std::ifstream& in, const std::string& path, int* line_no,
     if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
     out->clear();
     std::string tok;
-    if (!seqio::parseNumberLine(line, out, &tok)) {
+    if (!parseNumberLine(line, out, &tok)) {
       seqio::fail(where(path, *line_no), "'" + tok + "' is not a finite number");
     }
     return true;

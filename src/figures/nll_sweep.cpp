@@ -8,6 +8,7 @@
 
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/measurement/likelihood.h"
+#include "csv_file.h"
 
 namespace gmm_mcl {
 namespace figures {
@@ -106,20 +107,19 @@ std::vector<NllSweepRow> nllSweep(const GmmMap& map, const DepthFrame& frame,
 }
 
 void writeNllSweepCsv(const std::vector<NllSweepRow>& rows, const std::string& path) {
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error(path + ": cannot open for writing");
-  out << "axis,offset,unit,pixels,approx_nll,exact_nll,approx_nll_per_px,exact_nll_per_px,"
-         "approx_floor_hits,exact_floor_hits,approx_evaluations,exact_evaluations\n";
-  out.precision(10);
-  for (const NllSweepRow& r : rows) {
-    const double px = r.pixels > 0 ? r.pixels : 1;
-    out << sweepAxisName(r.axis) << ',' << r.offset << ','
-        << (r.axis == SweepAxis::kYaw ? "rad" : "m") << ',' << r.pixels << ',' << r.approx_nll
-        << ',' << r.exact_nll << ',' << r.approx_nll / px << ',' << r.exact_nll / px << ','
-        << r.approx_floor_hits << ',' << r.exact_floor_hits << ',' << r.approx_evaluations << ','
-        << r.exact_evaluations << '\n';
-  }
-  if (!out) throw std::runtime_error(path + ": write failed");
+  const char* header =
+      "axis,offset,unit,pixels,approx_nll,exact_nll,approx_nll_per_px,exact_nll_per_px,"
+      "approx_floor_hits,exact_floor_hits,approx_evaluations,exact_evaluations";
+  writeCsvFile(path, header, 10, [&rows](std::ostream& out) {
+    for (const NllSweepRow& r : rows) {
+      const double px = r.pixels > 0 ? r.pixels : 1;
+      out << sweepAxisName(r.axis) << ',' << r.offset << ','
+          << (r.axis == SweepAxis::kYaw ? "rad" : "m") << ',' << r.pixels << ',' << r.approx_nll
+          << ',' << r.exact_nll << ',' << r.approx_nll / px << ',' << r.exact_nll / px << ','
+          << r.approx_floor_hits << ',' << r.exact_floor_hits << ',' << r.approx_evaluations
+          << ',' << r.exact_evaluations << '\n';
+    }
+  });
 }
 
 }  // namespace figures

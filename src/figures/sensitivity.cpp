@@ -7,24 +7,28 @@
 #include <map>
 #include <stdexcept>
 
+#include "gmm_mcl/common/enum_names.h"
 #include "gmm_mcl/filter/localizer.h"
 #include "gmm_mcl/filter/pose.h"
+#include "gmm_mcl/sim/step_input.h"
+#include "csv_file.h"
 
 namespace gmm_mcl {
 namespace figures {
 
+namespace {
+
+const EnumName<InitMode> kInitModeNames[] = {{"local", InitMode::kLocal}, {"global", InitMode::kGlobal}};
+
+}  // namespace
+
 bool parseInitMode(const std::string& name, InitMode* out) {
-  if (name == "local") {
-    *out = InitMode::kLocal;
-  } else if (name == "global") {
-    *out = InitMode::kGlobal;
-  } else {
-    return false;
-  }
-  return true;
+  return parseEnumName(name, kInitModeNames, out);
 }
 
-const char* initModeName(InitMode mode) { return mode == InitMode::kLocal ? "local" : "global"; }
+const char* initModeName(InitMode mode) {
+  return enumNameOf(mode, kInitModeNames);
+}
 
 RunTrace runFilter(const Scenario& scenario, const SensorInputs& inputs, const GmmMap& map,
                    const FilterRunParams& params, uint64_t filter_seed) {
@@ -49,16 +53,10 @@ RunTrace runFilter(const Scenario& scenario, const SensorInputs& inputs, const G
   }
   double total_ms = 0.0;
   for (int f = 0; f < n; ++f) {
-    StepInput in;
-    in.stamp_s = f / scenario.frame_rate_hz;
-    in.has_odometry = true;
-    in.T_odom_base = inputs.T_odom_base[f];
-    in.has_attitude = true;
-    in.roll_rad = inputs.roll_rad[f];
-    in.pitch_rad = inputs.pitch_rad[f];
-    in.depth = &scenario.depth[f];
-    in.intrinsics = scenario.intrinsics;
-    const StepResult r = loc.step(in);
+    const StepResult r =
+        loc.step(sim::frameInput(f / scenario.frame_rate_hz, inputs.T_odom_base[f],
+                                 inputs.roll_rad[f], inputs.pitch_rad[f], scenario.depth[f],
+                                 scenario.intrinsics));
     total_ms += r.timings.total_ms;
     trace.posterior.push_back(stateGaussian(r.estimate));
     const Particle truth = poseToParticle(scenario.T_map_base[f]);
@@ -225,35 +223,31 @@ std::vector<KlSummary> componentSweep(const Scenario& scenario, const SensorInpu
 }
 
 void writeKlSamplesCsv(const std::vector<KlSample>& samples, const std::string& path) {
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error(path + ": cannot open for writing");
-  out << "sweep,value,run,seed,frame,kl,error_m\n";
-  out.precision(10);
-  for (const KlSample& s : samples) {
-    out << s.sweep << ',' << s.value << ',' << s.run << ',' << s.seed << ',' << s.frame << ','
-        << s.kl << ',' << s.error_m << '\n';
-  }
-  if (!out) throw std::runtime_error(path + ": write failed");
+  writeCsvFile(path, "sweep,value,run,seed,frame,kl,error_m", 10, [&samples](std::ostream& out) {
+    for (const KlSample& s : samples) {
+      out << s.sweep << ',' << s.value << ',' << s.run << ',' << s.seed << ',' << s.frame << ','
+          << s.kl << ',' << s.error_m << '\n';
+    }
+  });
 }
 
 void writeKlSummaryCsv(const std::vector<KlSummary>& rows, const std::string& path) {
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error(path + ": cannot open for writing");
-  out << "sweep,value,runs,frames,variance_kl,log10_variance_kl,pooled_variance_kl,mean_kl,"
-         "median_kl,mean_error_m,mean_step_ms\n";
-  out.precision(8);
-  for (const KlSummary& r : rows) {
-    const bool has_kl = r.runs > 1 && r.variance_kl > 0.0;
-    out << r.sweep << ',' << r.value << ',' << r.runs << ',' << r.frames << ',';
-    if (has_kl) {
-      out << r.variance_kl << ',' << std::log10(r.variance_kl) << ',' << r.pooled_variance_kl << ','
-          << r.mean_kl << ',' << r.median_kl;
-    } else {
-      out << ",,,,";  // the reference row, or a single run: no variance
+  const char* header =
+      "sweep,value,runs,frames,variance_kl,log10_variance_kl,pooled_variance_kl,mean_kl,"
+      "median_kl,mean_error_m,mean_step_ms";
+  writeCsvFile(path, header, 8, [&rows](std::ostream& out) {
+    for (const KlSummary& r : rows) {
+      const bool has_kl = r.runs > 1 && r.variance_kl > 0.0;
+      out << r.sweep << ',' << r.value << ',' << r.runs << ',' << r.frames << ',';
+      if (has_kl) {
+        out << r.variance_kl << ',' << std::log10(r.variance_kl) << ',' << r.pooled_variance_kl
+            << ',' << r.mean_kl << ',' << r.median_kl;
+      } else {
+        out << ",,,,";  // the reference row, or a single run: no variance
+      }
+      out << ',' << r.mean_error_m << ',' << r.mean_step_ms << '\n';
     }
-    out << ',' << r.mean_error_m << ',' << r.mean_step_ms << '\n';
-  }
-  if (!out) throw std::runtime_error(path + ": write failed");
+  });
 }
 
 std::string klSummaryMarkdown(const std::vector<KlSummary>& rows) {

@@ -3,22 +3,23 @@
 #include <cmath>
 #include <sstream>
 
+#include "gmm_mcl/common/enum_names.h"
+
 namespace gmm_mcl {
 
+namespace {
+
+const EnumName<WeightingMode> kWeightingNames[] = {{"paper", WeightingMode::kPaper},
+                                          {"tempered", WeightingMode::kTempered}};
+
+}  // namespace
+
 bool parseWeightingMode(const std::string& name, WeightingMode* out) {
-  if (name == "paper") {
-    *out = WeightingMode::kPaper;
-    return true;
-  }
-  if (name == "tempered") {
-    *out = WeightingMode::kTempered;
-    return true;
-  }
-  return false;
+  return parseEnumName(name, kWeightingNames, out);
 }
 
 const char* weightingModeName(WeightingMode mode) {
-  return mode == WeightingMode::kPaper ? "paper" : "tempered";
+  return enumNameOf(mode, kWeightingNames);
 }
 
 std::string InitRegion::validate() const {

@@ -12,6 +12,7 @@
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/ros/sequence_bag.h"
 #include "gmm_mcl/tools/command_line.h"
+#include "gmm_mcl/tools/report_errors.h"
 
 namespace gmm_mcl {
 
@@ -38,18 +39,15 @@ int run(int argc, char** argv) {
   if (data_dir.empty() || map_in.empty() || bag_path.empty()) {
     cl.fail("need DATA_DIR, --map and --bag");
   }
-  try {
+  return cli::reportErrors("gmm_mcl_make_7scenes_bag", [&] {
     const SevenScenesSequence seq(data_dir, frames);
     const GmmMap map = loadMap(map_in);
     const ros_bag::SequenceBagResult r = ros_bag::writeSequenceBag(seq, &map, bag_path, bo);
     std::printf("wrote %s (%d frames, %.1f s), %s (%zu components, gravity-aligned), %s\n",
                 bag_path.c_str(), r.frames, r.duration_s + 1.0 / seq.frameRateHz(),
                 r.map_path.c_str(), map.size(), r.init_path.c_str());
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "gmm_mcl_make_7scenes_bag: %s\n", e.what());
-    return 1;
-  }
-  return 0;
+    return 0;
+  });
 }
 
 }  // namespace gmm_mcl

@@ -10,6 +10,7 @@
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/ros/bag_writer.h"
 #include "gmm_mcl/ros/sequence_bag.h"
+#include "gmm_mcl/tools/report_errors.h"
 #include "gmm_mcl/tools/sequence_flags.h"
 
 namespace gmm_mcl {
@@ -69,7 +70,7 @@ int run(int argc, char** argv) {
                  marker_to_camera.c_str());
     return 2;
   }
-  try {
+  return cli::reportErrors("gmm_mcl_make_bag", [&] {
     std::unique_ptr<Sequence> seq;
     std::unique_ptr<GmmMap> map;
     if (format == "sim") {
@@ -96,13 +97,11 @@ int run(int argc, char** argv) {
     const Intrinsics& K = seq->intrinsics();
     std::printf("wrote %s (%s layout, %d frames %dx%d from %s %s, %.1f s; gravity: %s)%s%s, %s\n",
                 bag_path.c_str(), bo.layout.c_str(), r.frames, K.width_px, K.height_px,
-                seq->format(), seq->source().c_str(), r.duration_s, seq->gravitySource().c_str(),
-                r.map_path.empty() ? "" : ", map ", r.map_path.c_str(), r.init_path.c_str());
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "gmm_mcl_make_bag: %s\n", e.what());
-    return 1;
-  }
-  return 0;
+                seq->format(), seq->source().c_str(), r.duration_s,
+                seq->gravitySource().c_str(), r.map_path.empty() ? "" : ", map ",
+                r.map_path.c_str(), r.init_path.c_str());
+    return 0;
+  });
 }
 
 }  // namespace gmm_mcl

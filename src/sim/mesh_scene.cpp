@@ -248,26 +248,23 @@ MeshScene makeDefaultMeshScene() {
   return s;
 }
 
-Intrinsics defaultCamera(int width_px) {
+Intrinsics pinholeCamera(int width_px, int height_px, float f_px, float cx_px, float cy_px) {
   Intrinsics K;
-  const float scale = width_px / 640.f;
-  K.fx_px = K.fy_px = 585.f * scale;
+  K.fx_px = K.fy_px = f_px;
+  K.cx_px = cx_px;
+  K.cy_px = cy_px;
   K.width_px = width_px;
-  K.height_px = width_px * 3 / 4;
-  K.cx_px = 0.5f * (K.width_px - 1);
-  K.cy_px = 0.5f * (K.height_px - 1);
+  K.height_px = height_px;
   return K;
 }
 
-Intrinsics sevenScenesCamera() {
-  Intrinsics K;
-  K.fx_px = K.fy_px = 585.f;
-  K.cx_px = 320.f;
-  K.cy_px = 240.f;
-  K.width_px = 640;
-  K.height_px = 480;
-  return K;
+Intrinsics defaultCamera(int width_px) {
+  const int height_px = width_px * 3 / 4;
+  return pinholeCamera(width_px, height_px, 585.f * (width_px / 640.f), 0.5f * (width_px - 1),
+                       0.5f * (height_px - 1));
 }
+
+Intrinsics sevenScenesCamera() { return pinholeCamera(640, 480, 585.f, 320.f, 240.f); }
 
 uint64_t frameSeed(uint64_t seed, int frame) {
   return seed * 0x9e3779b97f4a7c15ull + static_cast<uint64_t>(frame) + 1;

@@ -8,6 +8,10 @@
 #include <sstream>
 #include <stdexcept>
 
+#include <Eigen/SVD>
+
+#include "gmm_mcl/common/number_list.h"
+
 namespace gmm_mcl {
 namespace sim {
 
@@ -15,29 +19,12 @@ std::vector<Eigen::Isometry3d> readMatrixTrajectory(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw std::runtime_error(path + ": cannot open trajectory");
   std::vector<Eigen::Isometry3d> poses;
-  std::string line;
-  int line_no = 0;
-  while (std::getline(in, line)) {
-    ++line_no;
-    const size_t hash = line.find('#');
-    if (hash != std::string::npos) line.resize(hash);
-    std::istringstream ls(line);
-    std::vector<double> v;
-    std::string tok;
+  auto onLine = [&](int line_no, const std::vector<double>& v) {
     auto fail = [&](const std::string& what) {
       throw std::runtime_error(path + ": line " + std::to_string(line_no) + ": " + what);
     };
-    while (ls >> tok) {
-      char* end = nullptr;
-      const double x = std::strtod(tok.c_str(), &end);
-      if (end == tok.c_str() || *end != '\0' || !std::isfinite(x)) {
-        fail("'" + tok + "' is not a finite number");
-      }
-      v.push_back(x);
-    }
-    if (v.empty()) continue;
-    if (v.size() != 16)
-      fail("expected 16 numbers (a row-major 4x4), found " + std::to_string(v.size()));
+    if (v.empty()) return;
+    if (v.size() != 16) fail("expected 16 numbers (a row-major 4x4), found " + std::to_string(v.size()));
     Eigen::Matrix4d M;
     for (int r = 0; r < 4; ++r) {
       for (int c = 0; c < 4; ++c) M(r, c) = v[r * 4 + c];
@@ -55,7 +42,9 @@ std::vector<Eigen::Isometry3d> readMatrixTrajectory(const std::string& path) {
     T.linear() = svd.matrixU() * svd.matrixV().transpose();
     T.translation() = M.topRightCorner<3, 1>();
     poses.push_back(T);
-  }
+  };
+  std::string why;
+  if (!forEachNumberLine(in, onLine, &why)) throw std::runtime_error(path + ": " + why);
   if (poses.empty()) throw std::runtime_error(path + ": no poses");
   return poses;
 }

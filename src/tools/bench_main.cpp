@@ -23,6 +23,7 @@
 #include "gmm_mcl/backend/cpu_backend.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/tools/command_line.h"
+#include "gmm_mcl/tools/report_errors.h"
 #if defined(GMM_MCL_HAVE_CUDA)
 #include "gmm_mcl/backend/cuda_backend.h"
 #endif
@@ -285,10 +286,6 @@ int run(int argc, char** argv) {
 }  // namespace gmm_mcl
 
 int main(int argc, char** argv) {
-  try {
-    return gmm_mcl::bench::run(argc, argv);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "gmm_mcl_bench: %s\n", e.what());
-    return 1;
-  }
+  return gmm_mcl::cli::reportErrors("gmm_mcl_bench",
+                                     [&] { return gmm_mcl::bench::run(argc, argv); });
 }

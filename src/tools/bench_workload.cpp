@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <random>
 #include <string>
 #include <vector>
 
@@ -12,6 +11,7 @@
 #include "gmm_mcl/common/timing.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/measurement/likelihood.h"
+#include "gmm_mcl/sim/pose_scatter.h"
 #if defined(GMM_MCL_HAVE_CUDA)
 #include "gmm_mcl/backend/cuda_backend.h"
 #endif
@@ -19,24 +19,6 @@
 namespace gmm_mcl {
 namespace bench {
 namespace {
-
-// Particles uniform within +-spread_m per axis and +-spread_rad of yaw (about the map's z axis,
-// through the camera centre) around the true camera pose.
-std::vector<RigidTransformF> makeParticles(const Eigen::Isometry3d& T_true, int n, double spread_m,
-                                           double spread_rad, unsigned seed) {
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> um(-spread_m, spread_m), ur(-spread_rad, spread_rad);
-  std::vector<RigidTransformF> out(n);
-  out[0] = toRigidF(T_true);
-  for (int i = 1; i < n; ++i) {
-    Eigen::Isometry3d T = T_true;
-    T.linear() =
-        Eigen::AngleAxisd(ur(rng), Eigen::Vector3d::UnitZ()).toRotationMatrix() * T_true.linear();
-    T.translation() += Eigen::Vector3d(um(rng), um(rng), um(rng));
-    out[i] = toRigidF(T);
-  }
-  return out;
-}
 
 // CPU time of the whole process (all threads), milliseconds.
 double processCpuMs() {
@@ -128,8 +110,8 @@ Row runWorkload(LikelihoodBackend* backend, double fp32_peak_gflops, const Workl
   for (TimedLoop loop(opt); loop.next(timed_s);) {
     const int f = loop.iteration() % nf;
     const std::vector<RigidTransformF> particles =
-        makeParticles(frames.T_map_cam[f], row.particles, opt.spread_m, opt.spread_rad,
-                      opt.seed * 7919u + static_cast<unsigned>(f));
+        sim::scatterPoses(frames.T_map_cam[f], row.particles, opt.spread_m, opt.spread_rad,
+                          opt.seed * 7919u + static_cast<unsigned>(f));
     double prep = 0.0, total = 0.0, used_pixels = 0.0;
     const double cpu0 = processCpuMs();
 #if defined(GMM_MCL_HAVE_CUDA)

@@ -25,6 +25,7 @@
 #include "gmm_mcl/tools/command_line.h"
 #if defined(GMM_MCL_FIGURES_HAVE_FIT)
 #include "gmm_mcl/figures/map_series.h"
+#include "gmm_mcl/tools/report_errors.h"
 #endif
 
 namespace gmm_mcl {
@@ -388,15 +389,12 @@ int runSensitivity(const Options& o, const char* argv0) {
 int run(int argc, char** argv) {
   Options o;
   parseArgs(argc, argv, &o);
-  try {
+  return cli::reportErrors("gmm_mcl_figures", [&] {
     if (o.command == "nll-sweep") return runNllSweep(o, argv[0]);
     if (o.command == "sensitivity") return runSensitivity(o, argv[0]);
     std::fprintf(stderr, "gmm_mcl_figures: unknown command '%s'\n\n%s", o.command.c_str(), kUsage);
     return 2;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "gmm_mcl_figures: %s\n", e.what());
-    return 1;
-  }
+  });
 }
 
 }  // namespace figures

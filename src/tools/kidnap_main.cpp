@@ -13,6 +13,7 @@
 #include "gmm_mcl/reliability/kidnap.h"
 #include "gmm_mcl/sim/mesh_scene.h"
 #include "gmm_mcl/tools/command_line.h"
+#include "gmm_mcl/tools/report_errors.h"
 
 namespace gmm_mcl {
 namespace reliability {
@@ -80,7 +81,7 @@ int run(int argc, char** argv) {
   if (cl.given("attitude-noise")) kp.attitude_sigma_rad = attitude_noise_deg * M_PI / 180.0;
   if (init != "region" && init != "map") cl.fail("--init: region or map (got '" + init + "')");
   kp.whole_map_start = init == "map";
-  try {
+  return cli::reportErrors("gmm_mcl_kidnap", [&] {
     std::unique_ptr<FrameSource> src;
     if (scene == "synthetic" || scene == "box") {
       const Intrinsics K = sim::defaultCamera(width);  // f = 585 px at 640 px, scaled
@@ -162,15 +163,12 @@ int run(int argc, char** argv) {
         }
       }
     }
-    std::printf(
-        "\n%d/%d recovered within %.0f s; mean recovery %.2f s, worst %.2f s; "
-        "mean step %.1f ms\n",
-        ok, trials, kp.max_recovery_s, ok > 0 ? sum_s / ok : 0.0, worst_s, step_ms / trials);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "gmm_mcl_kidnap: %s\n", e.what());
-    return 1;
-  }
-  return 0;
+    std::printf("\n%d/%d recovered within %.0f s; mean recovery %.2f s, worst %.2f s; "
+                "mean step %.1f ms\n",
+                ok, trials, kp.max_recovery_s, ok > 0 ? sum_s / ok : 0.0, worst_s,
+                step_ms / trials);
+    return 0;
+  });
 }
 
 }  // namespace reliability

@@ -23,6 +23,7 @@
 #include "gmm_mcl/sim/mesh_scene.h"
 #include "gmm_mcl/sim/trajectory_io.h"
 #include "gmm_mcl/tools/command_line.h"
+#include "gmm_mcl/tools/report_errors.h"
 
 namespace gmm_mcl {
 
@@ -249,12 +250,9 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int toolMain(int argc, char** argv) {
-  try {
+  return cli::reportErrors("gmm_mcl_render", [&] {
     return run(argc, argv);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "gmm_mcl_render: %s\n", e.what());
-    return 1;
-  }
+  });
 }
 
 }  // namespace gmm_mcl

@@ -15,8 +15,7 @@
 
 #include "gmm_mcl/datasets/sequence_writer.h"
 #include "gmm_mcl/datasets/sim_sequence.h"
-#include "gmm_mcl/map/gmm_map_io.h"
-#include "gmm_mcl/replay/replay.h"
+#include "gmm_mcl/tools/report_errors.h"
 #include "gmm_mcl/tools/sequence_flags.h"
 
 namespace gmm_mcl {
@@ -366,10 +365,5 @@ int run(Options o, const cli::CommandLine& cl) {
 int main(int argc, char** argv) {
   gmm_mcl::cli::CommandLine cl("gmm_mcl_replay", gmm_mcl::kUsage);
   const gmm_mcl::Options o = gmm_mcl::parseOptions(argc, argv, &cl);
-  try {
-    return gmm_mcl::run(o, cl);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "gmm_mcl_replay: %s\n", e.what());
-    return 1;
-  }
+  return gmm_mcl::cli::reportErrors("gmm_mcl_replay", [&] { return gmm_mcl::run(o, cl); });
 }

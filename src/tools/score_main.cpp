@@ -22,6 +22,7 @@
 #include "gmm_mcl/measurement/likelihood.h"
 #include "gmm_mcl/replay/replay.h"
 #include "gmm_mcl/tools/command_line.h"
+#include "gmm_mcl/tools/report_errors.h"
 
 namespace gmm_mcl {
 namespace {
@@ -266,7 +267,7 @@ int run(int argc, char** argv) {
   Options o = parseOptions(argc, argv);
   const MeasurementParams& measurement = o.lp.measurement;
   const FrameParams& fp = o.lp.frame;
-  try {
+  return cli::reportErrors("gmm_mcl_score", [&] {
     const std::string err = measurement.validate() + fp.validate();
     if (!err.empty()) throw std::invalid_argument(err);
     if (o.dataset.empty()) {
@@ -289,11 +290,8 @@ int run(int argc, char** argv) {
                         o.range_step, o.refine, o.attitude_noise_rad);
     }
     scoreFrame(*seq, map, T_base_cam, o);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "gmm_mcl_score: %s\n", e.what());
-    return 1;
-  }
-  return 0;
+    return 0;
+  });
 }
 
 }  // namespace

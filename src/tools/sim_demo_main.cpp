@@ -17,6 +17,7 @@
 #include "gmm_mcl/sim/box_scene.h"
 #include "gmm_mcl/sim/mesh_renderer.h"
 #include "gmm_mcl/sim/mesh_scene.h"
+#include "gmm_mcl/sim/step_input.h"
 #include "gmm_mcl/tools/command_line.h"
 
 namespace gmm_mcl {
@@ -114,21 +115,11 @@ int run(int argc, char** argv) {
     motion.attitude(truth[f], &roll, &pitch);
     const Eigen::Isometry3d T_map_cam = truth[f] * T_base_cam;
     const DepthImage depth =
-        mesh_scene
-            ? sim::renderDepth(*scene.bvh, K, T_map_cam, DepthEncoding::kMono16Millimetres, 8.0,
-                               sensor_noise ? &sensor : nullptr, sim::frameSeed(seed, f))
-            : sim::renderDepth(box_scene, K, T_map_cam, DepthEncoding::kMono16Millimetres, 8.0,
-                               sensor_noise ? box_noise : sim::DepthNoise(), &rng);
-    StepInput in;
-    in.stamp_s = f / 30.0;
-    in.has_odometry = true;
-    in.T_odom_base = odom;
-    in.has_attitude = true;
-    in.roll_rad = roll;
-    in.pitch_rad = pitch;
-    in.depth = &depth;
-    in.intrinsics = K;
-    const StepResult r = localizer.step(in);
+        mesh_scene ? sim::renderDepth(*scene.bvh, K, T_map_cam, DepthEncoding::kMono16Millimetres,
+                                      8.0, sensor_noise ? &sensor : nullptr, sim::frameSeed(seed, f))
+                   : sim::renderDepth(box_scene, K, T_map_cam, DepthEncoding::kMono16Millimetres,
+                                      8.0, sensor_noise ? box_noise : sim::DepthNoise(), &rng);
+    const StepResult r = localizer.step(sim::frameInput(f / 30.0, odom, roll, pitch, depth, K));
     total_ms += r.timings.total_ms;
     const Particle est = r.estimate.mean;
     const Particle gt = poseToParticle(truth[f]);

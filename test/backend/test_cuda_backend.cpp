@@ -19,6 +19,8 @@
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/measurement/likelihood.h"
 #include "gmm_mcl/measurement/normal_equations.h"
+#include "gmm_mcl/map/gmm_map_io.h"
+#include "gmm_mcl/sim/pose_scatter.h"
 #include "test_utils/synthetic_fixtures.h"
 
 namespace gmm_mcl {
@@ -53,19 +55,9 @@ DepthImage noisyImage(const Intrinsics& K, const Eigen::Isometry3d& T_map_cam, D
   return sim::renderDepth(test::world().scene, K, T_map_cam, enc, 6.0, noise, rng);
 }
 
+// The true pose and n - 1 poses within +-0.5 m and +-0.3 rad of yaw about it.
 std::vector<RigidTransformF> perturbedPoses(const Eigen::Isometry3d& T_true, int n, unsigned seed) {
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> um(-0.5, 0.5), ur(-0.3, 0.3);
-  std::vector<RigidTransformF> out(n);
-  out[0] = toRigidF(T_true);
-  for (int i = 1; i < n; ++i) {
-    Eigen::Isometry3d T = T_true;
-    T.linear() =
-        Eigen::AngleAxisd(ur(rng), Eigen::Vector3d::UnitZ()).toRotationMatrix() * T_true.linear();
-    T.translation() += Eigen::Vector3d(um(rng), um(rng), um(rng));
-    out[i] = toRigidF(T);
-  }
-  return out;
+  return sim::scatterPoses(T_true, n, 0.5, 0.3, seed);
 }
 
 // Compares membership of every pose; returns mismatching pairs (all must be borderline).

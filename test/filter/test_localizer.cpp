@@ -6,6 +6,7 @@
 
 #include "gmm_mcl/backend/cpu_backend.h"
 #include "gmm_mcl/filter/localizer.h"
+#include "gmm_mcl/sim/step_input.h"
 #include "test_utils/synthetic_fixtures.h"
 
 namespace gmm_mcl {
@@ -61,16 +62,7 @@ RunResult runSynthetic(const LocalizerParams& params, int frames, uint64_t noise
                          9.0, sim::DepthNoise{0.0015, 0.02}, &rng);
     double roll, pitch, yaw;
     rpyFromRotation(truth[f].linear(), &roll, &pitch, &yaw);
-    StepInput in;
-    in.stamp_s = f / 30.0;
-    in.has_odometry = true;
-    in.T_odom_base = odom;
-    in.has_attitude = true;
-    in.roll_rad = roll;
-    in.pitch_rad = pitch;
-    in.depth = &depth;
-    in.intrinsics = K;
-    const StepResult res = loc.step(in);
+    const StepResult res = loc.step(sim::frameInput(f / 30.0, odom, roll, pitch, depth, K));
     EXPECT_EQ(res.status, StepStatus::kOk) << res.message;
     const Particle gt = poseToParticle(truth[f]);
     const Particle est = res.estimate.mean;
@@ -174,16 +166,7 @@ StepInput syntheticInput(const std::vector<Eigen::Isometry3d>& truth, int f,
                          const DepthImage& depth) {
   double roll, pitch, yaw;
   rpyFromRotation(truth[f].linear(), &roll, &pitch, &yaw);
-  StepInput in;
-  in.stamp_s = f / 30.0;
-  in.has_odometry = true;
-  in.T_odom_base = truth[f];
-  in.has_attitude = true;
-  in.roll_rad = roll;
-  in.pitch_rad = pitch;
-  in.depth = &depth;
-  in.intrinsics = test::smallCamera();
-  return in;
+  return sim::frameInput(f / 30.0, truth[f], roll, pitch, depth, test::smallCamera());
 }
 
 // Steps a localizer along the synthetic trajectory at frame f (odometry = truth).

@@ -10,15 +10,7 @@
 namespace gmm_mcl {
 namespace test {
 
-Intrinsics smallCamera() {
-  Intrinsics K;
-  K.fx_px = K.fy_px = 290.f;
-  K.cx_px = 159.5f;
-  K.cy_px = 119.5f;
-  K.width_px = 320;
-  K.height_px = 240;
-  return K;
-}
+Intrinsics smallCamera() { return sim::pinholeCamera(320, 240, 290.f, 159.5f, 119.5f); }
 
 Intrinsics vgaCamera() { return sim::sevenScenesCamera(); }
 

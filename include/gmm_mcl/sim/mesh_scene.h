@@ -50,6 +50,9 @@ struct MeshScene {
 };
 MeshScene makeDefaultMeshScene();
 
+// A pinhole camera with equal focal lengths f_px.
+Intrinsics pinholeCamera(int width_px, int height_px, float f_px, float cx_px, float cy_px);
+
 // The synthetic scenes' camera: 7-Scenes-like (f = 585 px at 640x480) scaled to width_px,
 // height 3/4 of it, principal point at the image centre.
 Intrinsics defaultCamera(int width_px);
