@@ -16,8 +16,8 @@ namespace {
 
 // Names as sensor_msgs/Image writes them; the first of a value is its name.
 const EnumName<DepthEncoding> kEncodingNames[] = {{"16UC1", DepthEncoding::kMono16Millimetres},
-                                          {"mono16", DepthEncoding::kMono16Millimetres},
-                                          {"32FC1", DepthEncoding::kFloat32Metres}};
+                                                  {"mono16", DepthEncoding::kMono16Millimetres},
+                                                  {"32FC1", DepthEncoding::kFloat32Metres}};
 
 }  // namespace
 

@@ -6,9 +6,9 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "csv_file.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/measurement/likelihood.h"
-#include "csv_file.h"
 
 namespace gmm_mcl {
 namespace figures {
@@ -116,8 +116,8 @@ void writeNllSweepCsv(const std::vector<NllSweepRow>& rows, const std::string& p
       out << sweepAxisName(r.axis) << ',' << r.offset << ','
           << (r.axis == SweepAxis::kYaw ? "rad" : "m") << ',' << r.pixels << ',' << r.approx_nll
           << ',' << r.exact_nll << ',' << r.approx_nll / px << ',' << r.exact_nll / px << ','
-          << r.approx_floor_hits << ',' << r.exact_floor_hits << ',' << r.approx_evaluations
-          << ',' << r.exact_evaluations << '\n';
+          << r.approx_floor_hits << ',' << r.exact_floor_hits << ',' << r.approx_evaluations << ','
+          << r.exact_evaluations << '\n';
     }
   });
 }

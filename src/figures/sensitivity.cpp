@@ -7,18 +7,19 @@
 #include <map>
 #include <stdexcept>
 
+#include "csv_file.h"
 #include "gmm_mcl/common/enum_names.h"
 #include "gmm_mcl/filter/localizer.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/sim/step_input.h"
-#include "csv_file.h"
 
 namespace gmm_mcl {
 namespace figures {
 
 namespace {
 
-const EnumName<InitMode> kInitModeNames[] = {{"local", InitMode::kLocal}, {"global", InitMode::kGlobal}};
+const EnumName<InitMode> kInitModeNames[] = {{"local", InitMode::kLocal},
+                                             {"global", InitMode::kGlobal}};
 
 }  // namespace
 
@@ -26,9 +27,7 @@ bool parseInitMode(const std::string& name, InitMode* out) {
   return parseEnumName(name, kInitModeNames, out);
 }
 
-const char* initModeName(InitMode mode) {
-  return enumNameOf(mode, kInitModeNames);
-}
+const char* initModeName(InitMode mode) { return enumNameOf(mode, kInitModeNames); }
 
 RunTrace runFilter(const Scenario& scenario, const SensorInputs& inputs, const GmmMap& map,
                    const FilterRunParams& params, uint64_t filter_seed) {
@@ -53,10 +52,9 @@ RunTrace runFilter(const Scenario& scenario, const SensorInputs& inputs, const G
   }
   double total_ms = 0.0;
   for (int f = 0; f < n; ++f) {
-    const StepResult r =
-        loc.step(sim::frameInput(f / scenario.frame_rate_hz, inputs.T_odom_base[f],
-                                 inputs.roll_rad[f], inputs.pitch_rad[f], scenario.depth[f],
-                                 scenario.intrinsics));
+    const StepResult r = loc.step(sim::frameInput(f / scenario.frame_rate_hz, inputs.T_odom_base[f],
+                                                  inputs.roll_rad[f], inputs.pitch_rad[f],
+                                                  scenario.depth[f], scenario.intrinsics));
     total_ms += r.timings.total_ms;
     trace.posterior.push_back(stateGaussian(r.estimate));
     const Particle truth = poseToParticle(scenario.T_map_base[f]);

@@ -10,7 +10,7 @@ namespace gmm_mcl {
 namespace {
 
 const EnumName<WeightingMode> kWeightingNames[] = {{"paper", WeightingMode::kPaper},
-                                          {"tempered", WeightingMode::kTempered}};
+                                                   {"tempered", WeightingMode::kTempered}};
 
 }  // namespace
 
@@ -18,9 +18,7 @@ bool parseWeightingMode(const std::string& name, WeightingMode* out) {
   return parseEnumName(name, kWeightingNames, out);
 }
 
-const char* weightingModeName(WeightingMode mode) {
-  return enumNameOf(mode, kWeightingNames);
-}
+const char* weightingModeName(WeightingMode mode) { return enumNameOf(mode, kWeightingNames); }
 
 std::string InitRegion::validate() const {
   std::ostringstream err;

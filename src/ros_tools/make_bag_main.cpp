@@ -97,9 +97,8 @@ int run(int argc, char** argv) {
     const Intrinsics& K = seq->intrinsics();
     std::printf("wrote %s (%s layout, %d frames %dx%d from %s %s, %.1f s; gravity: %s)%s%s, %s\n",
                 bag_path.c_str(), bo.layout.c_str(), r.frames, K.width_px, K.height_px,
-                seq->format(), seq->source().c_str(), r.duration_s,
-                seq->gravitySource().c_str(), r.map_path.empty() ? "" : ", map ",
-                r.map_path.c_str(), r.init_path.c_str());
+                seq->format(), seq->source().c_str(), r.duration_s, seq->gravitySource().c_str(),
+                r.map_path.empty() ? "" : ", map ", r.map_path.c_str(), r.init_path.c_str());
     return 0;
   });
 }

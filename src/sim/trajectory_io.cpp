@@ -8,8 +8,6 @@
 #include <sstream>
 #include <stdexcept>
 
-#include <Eigen/SVD>
-
 #include "gmm_mcl/common/number_list.h"
 
 namespace gmm_mcl {
@@ -24,7 +22,8 @@ std::vector<Eigen::Isometry3d> readMatrixTrajectory(const std::string& path) {
       throw std::runtime_error(path + ": line " + std::to_string(line_no) + ": " + what);
     };
     if (v.empty()) return;
-    if (v.size() != 16) fail("expected 16 numbers (a row-major 4x4), found " + std::to_string(v.size()));
+    if (v.size() != 16)
+      fail("expected 16 numbers (a row-major 4x4), found " + std::to_string(v.size()));
     Eigen::Matrix4d M;
     for (int r = 0; r < 4; ++r) {
       for (int c = 0; c < 4; ++c) M(r, c) = v[r * 4 + c];

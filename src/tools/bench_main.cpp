@@ -287,5 +287,5 @@ int run(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   return gmm_mcl::cli::reportErrors("gmm_mcl_bench",
-                                     [&] { return gmm_mcl::bench::run(argc, argv); });
+                                    [&] { return gmm_mcl::bench::run(argc, argv); });
 }

@@ -163,10 +163,10 @@ int run(int argc, char** argv) {
         }
       }
     }
-    std::printf("\n%d/%d recovered within %.0f s; mean recovery %.2f s, worst %.2f s; "
-                "mean step %.1f ms\n",
-                ok, trials, kp.max_recovery_s, ok > 0 ? sum_s / ok : 0.0, worst_s,
-                step_ms / trials);
+    std::printf(
+        "\n%d/%d recovered within %.0f s; mean recovery %.2f s, worst %.2f s; "
+        "mean step %.1f ms\n",
+        ok, trials, kp.max_recovery_s, ok > 0 ? sum_s / ok : 0.0, worst_s, step_ms / trials);
     return 0;
   });
 }

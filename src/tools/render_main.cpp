@@ -250,9 +250,7 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int toolMain(int argc, char** argv) {
-  return cli::reportErrors("gmm_mcl_render", [&] {
-    return run(argc, argv);
-  });
+  return cli::reportErrors("gmm_mcl_render", [&] { return run(argc, argv); });
 }
 
 }  // namespace gmm_mcl

@@ -115,10 +115,11 @@ int run(int argc, char** argv) {
     motion.attitude(truth[f], &roll, &pitch);
     const Eigen::Isometry3d T_map_cam = truth[f] * T_base_cam;
     const DepthImage depth =
-        mesh_scene ? sim::renderDepth(*scene.bvh, K, T_map_cam, DepthEncoding::kMono16Millimetres,
-                                      8.0, sensor_noise ? &sensor : nullptr, sim::frameSeed(seed, f))
-                   : sim::renderDepth(box_scene, K, T_map_cam, DepthEncoding::kMono16Millimetres,
-                                      8.0, sensor_noise ? box_noise : sim::DepthNoise(), &rng);
+        mesh_scene
+            ? sim::renderDepth(*scene.bvh, K, T_map_cam, DepthEncoding::kMono16Millimetres, 8.0,
+                               sensor_noise ? &sensor : nullptr, sim::frameSeed(seed, f))
+            : sim::renderDepth(box_scene, K, T_map_cam, DepthEncoding::kMono16Millimetres, 8.0,
+                               sensor_noise ? box_noise : sim::DepthNoise(), &rng);
     const StepResult r = localizer.step(sim::frameInput(f / 30.0, odom, roll, pitch, depth, K));
     total_ms += r.timings.total_ms;
     const Particle est = r.estimate.mean;

@@ -19,7 +19,6 @@
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/measurement/likelihood.h"
 #include "gmm_mcl/measurement/normal_equations.h"
-#include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/sim/pose_scatter.h"
 #include "test_utils/synthetic_fixtures.h"
 

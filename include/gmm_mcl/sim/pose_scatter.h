@@ -2,9 +2,8 @@
 // converged (the benchmark's workloads, the backend parity tests).
 #pragma once
 
-#include <vector>
-
 #include <Eigen/Geometry>
+#include <vector>
 
 #include "gmm_mcl/common/types.h"
 
