@@ -16,7 +16,6 @@ set -euo pipefail
 source "$(dirname "$0")/common.sh"
 source "$(dirname "$0")/ros_common.sh"
 BUILD="${GMM_MCL_ROS_BUILD_DIR:-$GMM_MCL_ROOT/build/ros}"
-DATASETS="$GMM_MCL_DATASETS_DIR"
 MAP="${MAP:-$GMM_MCL_ROOT/build/maps/7scenes_redkitchen_m1000.gmm}"
 FRAMES="${FRAMES:-1000}"
 CONFIG="${CONFIG:-$GMM_MCL_ROOT/config/desktop.yaml}"

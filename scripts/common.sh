@@ -5,6 +5,9 @@ GMM_MCL_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 export GMM_MCL_ROOT
 # The data sets: $GMM_MCL_DATASETS, else ../shared/datasets beside the package.
 GMM_MCL_DATASETS_DIR="${GMM_MCL_DATASETS:-$GMM_MCL_ROOT/../shared/datasets}"
+DATASETS="$GMM_MCL_DATASETS_DIR"
+# nvcc: on PATH, else CUDA's default folder (it may not exist: callers check).
+NVCC="$(command -v nvcc || echo /usr/local/cuda/bin/nvcc)"
 
 # apt_get ARGS...: apt-get (as root or through sudo) that waits for the apt/dpkg locks while
 # another install holds them, up to APT_LOCK_TIMEOUT_S (600 s), instead of failing at once:

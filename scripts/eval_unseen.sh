@@ -28,7 +28,6 @@ set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$ROOT/scripts/common.sh"
 OUT="${1:-$ROOT/build/eval_unseen}"
-DATASETS="$GMM_MCL_DATASETS_DIR"
 BACKEND="${BACKEND:-cpu}"
 TRIALS="${TRIALS:-10}"
 FIRST_SEED="${FIRST_SEED:-1}"

@@ -14,9 +14,7 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$ROOT/scripts/common.sh"
 BUNDLE="${BUNDLE:-$ROOT/.deps/gpu}"
 BUILD="${GMM_MCL_GPU_TOOLS_BUILD:-$ROOT/build/gpu-tools}"
-DATASETS="$GMM_MCL_DATASETS_DIR"
 ARCH="${CUDA_ARCH:-90}"
-NVCC="$(command -v nvcc || echo /usr/local/cuda/bin/nvcc)"
 TOOLS=(gmm_mcl_replay gmm_mcl_kidnap gmm_mcl_render gmm_mcl_fit gmm_mcl_bench test_cuda_backend)
 ensure_packages "${CORE_PACKAGES[@]}"
 

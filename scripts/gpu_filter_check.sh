@@ -21,9 +21,7 @@ if [[ "$mode" == bundle ]]; then
   source "$ROOT/scripts/common.sh"
   BUNDLE="${2:-$ROOT/.deps/gpufilter}"
   BUILD="${GMM_MCL_GPU_FILTER_BUILD:-$ROOT/build/gpufilter-tools}"
-  DATASETS="$GMM_MCL_DATASETS_DIR"
   MAP="${GMM_MCL_MAP:-$ROOT/build/maps/7scenes_redkitchen_m1000.gmm}"
-  NVCC="$(command -v nvcc || echo /usr/local/cuda/bin/nvcc)"
   [[ -f "$MAP" ]] || { echo "no map at $MAP (scripts/build_map_7scenes.sh)" >&2; exit 1; }
   configure_gpu_tools "$BUILD" "${CUDA_ARCH:-90}" "$NVCC" -DGMM_MCL_BUILD_FIT=OFF
   tools=(gmm_mcl_bench gmm_mcl_replay test_cuda_backend test_cuda_particle_filter

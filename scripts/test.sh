@@ -37,7 +37,6 @@ echo "== ROS tests took $(( $(date +%s) - ros_start )) s"
 echo "== tests took $(( $(date +%s) - start )) s"
 
 # CUDA backend: compiled with nvcc (one architecture); its tests skip without a GPU.
-NVCC="$(command -v nvcc || echo /usr/local/cuda/bin/nvcc)"
 if [ -x "$NVCC" ]; then
   CUDA_BUILD="${GMM_MCL_CUDA_BUILD_DIR:-$GMM_MCL_ROOT/build/test-cuda}"
   mkdir -p "$CUDA_BUILD"

@@ -7,25 +7,21 @@
 #include <stdexcept>
 
 #include "csv_file.h"
+#include "gmm_mcl/common/enum_names.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/measurement/likelihood.h"
 
 namespace gmm_mcl {
 namespace figures {
 
-const char* sweepAxisName(SweepAxis axis) {
-  switch (axis) {
-    case SweepAxis::kX:
-      return "x";
-    case SweepAxis::kY:
-      return "y";
-    case SweepAxis::kZ:
-      return "z";
-    case SweepAxis::kYaw:
-      return "yaw";
-  }
-  return "?";
-}
+namespace {
+
+const EnumName<SweepAxis> kSweepAxisNames[] = {
+    {"x", SweepAxis::kX}, {"y", SweepAxis::kY}, {"z", SweepAxis::kZ}, {"yaw", SweepAxis::kYaw}};
+
+}  // namespace
+
+const char* sweepAxisName(SweepAxis axis) { return enumNameOf(axis, kSweepAxisNames); }
 
 std::string NllSweepParams::validate() const {
   std::ostringstream err;

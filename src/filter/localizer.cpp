@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "gmm_mcl/common/enum_names.h"
 #include "gmm_mcl/common/timing.h"
 
 namespace gmm_mcl {
@@ -20,25 +21,20 @@ const LocalizerParams& validated(const LocalizerParams& p) {
 
 }  // namespace
 
-const char* stepStatusName(StepStatus status) {
-  switch (status) {
-    case StepStatus::kOk:
-      return "ok";
-    case StepStatus::kPredictOnly:
-      return "predict_only";
-    case StepStatus::kNoValidPixels:
-      return "no_valid_pixels";
-    case StepStatus::kBadFrame:
-      return "bad_frame";
-    case StepStatus::kDegenerateWeights:
-      return "degenerate_weights";
-    case StepStatus::kBackendError:
-      return "backend_error";
-    case StepStatus::kTimeJumpBack:
-      return "time_jump_back";
-  }
-  return "unknown";
-}
+namespace {
+
+const EnumName<StepStatus> kStepStatusNames[] = {
+    {"ok", StepStatus::kOk},
+    {"predict_only", StepStatus::kPredictOnly},
+    {"no_valid_pixels", StepStatus::kNoValidPixels},
+    {"bad_frame", StepStatus::kBadFrame},
+    {"degenerate_weights", StepStatus::kDegenerateWeights},
+    {"backend_error", StepStatus::kBackendError},
+    {"time_jump_back", StepStatus::kTimeJumpBack}};
+
+}  // namespace
+
+const char* stepStatusName(StepStatus status) { return enumNameOf(status, kStepStatusNames); }
 
 Localizer::Localizer(const LocalizerParams& params, GmmMap map,
                      std::unique_ptr<LikelihoodBackend> backend)

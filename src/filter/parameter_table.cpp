@@ -3,23 +3,21 @@
 #include <cstdio>
 #include <cstdlib>
 
+#include "gmm_mcl/common/enum_names.h"
+
 namespace gmm_mcl {
 
-const char* paramTypeName(ParamType type) {
-  switch (type) {
-    case ParamType::kBool:
-      return "bool";
-    case ParamType::kInt:
-      return "int";
-    case ParamType::kDouble:
-      return "double";
-    case ParamType::kString:
-      return "string";
-    case ParamType::kVector3:
-      return "vector3";
-  }
-  return "unknown";
-}
+namespace {
+
+const EnumName<ParamType> kParamTypeNames[] = {{"bool", ParamType::kBool},
+                                               {"int", ParamType::kInt},
+                                               {"double", ParamType::kDouble},
+                                               {"string", ParamType::kString},
+                                               {"vector3", ParamType::kVector3}};
+
+}  // namespace
+
+const char* paramTypeName(ParamType type) { return enumNameOf(type, kParamTypeNames); }
 
 namespace {
 

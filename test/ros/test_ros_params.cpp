@@ -9,6 +9,7 @@
 #include <map>
 #include <sstream>
 
+#include "gmm_mcl/common/enum_names.h"
 #include "gmm_mcl/ros/ros_params.h"
 
 using namespace gmm_mcl;
@@ -22,21 +23,14 @@ std::string readFile(const std::string& path) {
   return s.str();
 }
 
-const char* configType(ParamType t) {
-  switch (t) {
-    case ParamType::kBool:
-      return "bool";
-    case ParamType::kInt:
-      return "int";
-    case ParamType::kDouble:
-      return "double";
-    case ParamType::kString:
-      return "str";
-    case ParamType::kVector3:
-      return "none";
-  }
-  return "none";
-}
+// The dynamic_reconfigure type of each parameter type (none: not reconfigurable).
+const EnumName<ParamType> kConfigTypes[] = {{"bool", ParamType::kBool},
+                                            {"int", ParamType::kInt},
+                                            {"double", ParamType::kDouble},
+                                            {"str", ParamType::kString},
+                                            {"none", ParamType::kVector3}};
+
+const char* configType(ParamType t) { return enumNameOf(t, kConfigTypes); }
 
 struct Entry {
   ParamType type;
