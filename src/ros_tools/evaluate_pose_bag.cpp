@@ -49,11 +49,10 @@ int run(int argc, char** argv) {
   cli::CommandLine cl("gmm_mcl_evaluate_pose_bag",
                       "usage: gmm_mcl_evaluate_pose_bag BAG [--pose-topic T] [--truth-topic T] "
                       "[--skip S] [--out PREFIX]\n");
-  cl.flags({{"bag", &bag_path},
-            {"pose-topic", &pose_topic},
-            {"truth-topic", &gt_topic},
-            {"skip", &skip_s},
-            {"out", &out_prefix}});
+  // clang-format off
+  cl.flags({{"bag", &bag_path}, {"pose-topic", &pose_topic}, {"truth-topic", &gt_topic},
+           {"skip", &skip_s}, {"out", &out_prefix}});
+  // clang-format on
   cl.positional("bag");
   cl.parse(argc, argv);
   if (bag_path.empty()) cl.fail("no bag given");

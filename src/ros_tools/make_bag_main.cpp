@@ -43,18 +43,13 @@ int run(int argc, char** argv) {
   int frames = -1;
   std::vector<std::string> paths;
   cli::CommandLine cl("gmm_mcl_make_bag", kUsage);
-  cl.flags({{"format", &format},
-            {"map", &map_path},
-            {"frames", &frames},
-            {"seed", &bo.seed},
-            {"layout", &bo.layout},
-            {"marker-to-camera", &marker_to_camera},
-            {"init-half-extent", &bo.init_half_extent_m},
-            {"init-yaw-half-range", &bo.init_yaw_half_range_rad},
-            {"start-time", &bo.start_s},
-            {"width", &width},
-            {"quiet", &quiet},
-            {"paths", &paths}});
+  // clang-format off
+  cl.flags({{"format", &format}, {"map", &map_path}, {"frames", &frames}, {"seed", &bo.seed},
+           {"layout", &bo.layout}, {"marker-to-camera", &marker_to_camera},
+           {"init-half-extent", &bo.init_half_extent_m},
+           {"init-yaw-half-range", &bo.init_yaw_half_range_rad}, {"start-time", &bo.start_s},
+           {"width", &width}, {"quiet", &quiet}, {"paths", &paths}});
+  // clang-format on
   cli::addSequenceFlags(&cl, &so);
   cl.positional("paths", 2);
   cl.parse(argc, argv);

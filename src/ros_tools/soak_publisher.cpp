@@ -79,20 +79,15 @@ void parse(int argc, char** argv, Options* o) {
           "/tf_static base_link -> ") +
       kCameraFrame + ", /ground_truth; /soak/sent, /soak/timeouts, /soak/done.\n";
   cli::CommandLine cl("gmm_mcl_soak_publisher", usage);
-  cl.flags({{"frames", &o->frames},
-            {"render-frames", &o->render_frames},
-            {"width", &o->width_px},
-            {"period", &o->period_s},
-            {"timeout", &o->timeout_s},
-            {"first-timeout", &o->first_timeout_s},
-            {"linger", &o->linger_s},
-            {"seed", &o->seed},
-            {"status-topic", &o->status_topic},
-            {"no-wait-for-monitor", cli::Clear{&o->wait_for_monitor}},
-            {"write-map", &o->write_map},
-            {"write-params", &o->write_params},
-            {"init-half-extent", &o->init_half_extent_m},
-            {"init-yaw-half-range", &o->init_yaw_half_range_rad}});
+  // clang-format off
+  cl.flags({{"frames", &o->frames}, {"render-frames", &o->render_frames}, {"width", &o->width_px},
+           {"period", &o->period_s}, {"timeout", &o->timeout_s},
+           {"first-timeout", &o->first_timeout_s}, {"linger", &o->linger_s}, {"seed", &o->seed},
+           {"status-topic", &o->status_topic},
+           {"no-wait-for-monitor", cli::Clear{&o->wait_for_monitor}}, {"write-map", &o->write_map},
+           {"write-params", &o->write_params}, {"init-half-extent", &o->init_half_extent_m},
+           {"init-yaw-half-range", &o->init_yaw_half_range_rad}});
+  // clang-format on
   cl.parse(argc, argv);
   if (!(o->frames >= 1 && o->render_frames >= 2 && o->width_px >= 64 && o->period_s > 0.0 &&
         o->timeout_s > 0.0 && o->first_timeout_s > 0.0 && o->linger_s >= 0.0)) {

@@ -115,34 +115,20 @@ struct Options {
 void parseArgs(int argc, char** argv, Options* o) {
   std::string particle_list, component_list;
   cli::CommandLine cl("gmm_mcl_figures", kUsage);
-  cl.flags({{"command", &o->command},
-            {"scene", &o->scene},
-            {"dataset", &o->dataset},
-            {"map", &o->map_path},
-            {"out", &o->out_dir},
-            {"width", &o->width_px},
-            {"quiet", &o->quiet},
-            {"frame", &o->frame},
-            {"stride", &o->stride},
-            {"range-m", &o->sweep.half_range_m},
-            {"step-m", &o->sweep.step_m},
-            {"range-rad", &o->sweep.half_range_rad},
-            {"step-rad", &o->sweep.step_rad},
-            {"no-exact", cli::Clear{&o->sweep.exact}},
-            {"sweep", &o->which},
-            {"particles-list", &particle_list},
-            {"reference-particles", &o->reference_particles},
-            {"components-list", &component_list},
-            {"reference-components", &o->reference_components},
-            {"component-particles", &o->component_particles},
-            {"component-reference-particles", &o->component_reference_particles},
-            {"runs", &o->runs},
-            {"frames", &o->frames},
-            {"first-frame", &o->first_frame},
-            {"eval-from", &o->eval_from},
-            {"init", &o->init},
-            {"data-seed", &o->data_seed},
-            {"max-iter", &o->max_iter}});
+  // clang-format off
+  cl.flags({{"command", &o->command}, {"scene", &o->scene}, {"dataset", &o->dataset},
+           {"map", &o->map_path}, {"out", &o->out_dir}, {"width", &o->width_px},
+           {"quiet", &o->quiet}, {"frame", &o->frame}, {"stride", &o->stride},
+           {"range-m", &o->sweep.half_range_m}, {"step-m", &o->sweep.step_m},
+           {"range-rad", &o->sweep.half_range_rad}, {"step-rad", &o->sweep.step_rad},
+           {"no-exact", cli::Clear{&o->sweep.exact}}, {"sweep", &o->which},
+           {"particles-list", &particle_list}, {"reference-particles", &o->reference_particles},
+           {"components-list", &component_list}, {"reference-components", &o->reference_components},
+           {"component-particles", &o->component_particles},
+           {"component-reference-particles", &o->component_reference_particles}, {"runs", &o->runs},
+           {"frames", &o->frames}, {"first-frame", &o->first_frame}, {"eval-from", &o->eval_from},
+           {"init", &o->init}, {"data-seed", &o->data_seed}, {"max-iter", &o->max_iter}});
+  // clang-format on
   cl.positional("command");
   cl.parse(argc, argv);
   if (o->command.empty()) cl.fail("a command is needed (nll-sweep or sensitivity)");

@@ -22,12 +22,10 @@ int main(int argc, char** argv) {
   std::string map_path, ply, csv;
   EllipsoidExportParams params;
   cli::CommandLine cl("gmm_mcl_inspect", kUsage);
-  cl.flags({{"map", &map_path},
-            {"ply", &ply},
-            {"csv", &csv},
-            {"sigma", &params.sigma},
-            {"rings", &params.rings},
-            {"segments", &params.segments}});
+  // clang-format off
+  cl.flags({{"map", &map_path}, {"ply", &ply}, {"csv", &csv}, {"sigma", &params.sigma},
+           {"rings", &params.rings}, {"segments", &params.segments}});
+  // clang-format on
   cl.positional("map");
   cl.parse(argc, argv);
   if (map_path.empty()) cl.fail("no map file given");

@@ -56,23 +56,15 @@ int run(int argc, char** argv) {
   std::string out_dir, init = "region";
   double attitude_noise_deg = kp.attitude_sigma_rad * 180.0 / M_PI;
   cli::CommandLine cl("gmm_mcl_kidnap", kUsage);
-  cl.flags({{"scene", &scene},
-            {"map", &map_path},
-            {"dataset", &dataset},
-            {"trials", &trials},
-            {"first-seed", &first_seed},
-            {"stride", &stride},
-            {"width", &width},
-            {"particles", &particles},
-            {"min-particles", &min_particles},
-            {"track-frames", &kp.track_frames},
-            {"after-frames", &kp.after_frames},
-            {"start-frame", &kp.start_frame},
-            {"backend", &backend},
-            {"attitude-noise", &attitude_noise_deg},
-            {"no-lost-detector", cli::Clear{&lost_detector}},
-            {"out", &out_dir},
-            {"init", &init}});
+  // clang-format off
+  cl.flags({{"scene", &scene}, {"map", &map_path}, {"dataset", &dataset}, {"trials", &trials},
+           {"first-seed", &first_seed}, {"stride", &stride}, {"width", &width},
+           {"particles", &particles}, {"min-particles", &min_particles},
+           {"track-frames", &kp.track_frames}, {"after-frames", &kp.after_frames},
+           {"start-frame", &kp.start_frame}, {"backend", &backend},
+           {"attitude-noise", &attitude_noise_deg},
+           {"no-lost-detector", cli::Clear{&lost_detector}}, {"out", &out_dir}, {"init", &init}});
+  // clang-format on
   cl.addLocalizerParams(&kp.localizer, {"num_particles", "min_particles", "pixel_stride", "backend",
                                         "device_filter", "seed", "init_centre", "init_half_extent",
                                         "init_yaw_centre", "init_yaw_half_range"});

@@ -124,24 +124,14 @@ int run(int argc, char** argv) {
   uint64_t seed = 1;
   bool noise = true, quiet = false;
   cli::CommandLine cl("gmm_mcl_render", kUsage);
-  cl.flags({{"out", &out},
-            {"mesh", &mesh_path},
-            {"trajectory", &traj_path},
-            {"camera", &camera},
-            {"first", &first},
-            {"frames", &frames},
-            {"stride", &stride},
-            {"rate", &rate_hz},
-            {"start-time", &start_s},
-            {"seed", &seed},
-            {"no-noise", cli::Clear{&noise}},
-            {"dropout", &sensor.random_dropout},
-            {"max-range", &max_range_m},
-            {"down", &down},
-            {"width", &width_px},
-            {"save-map", &save_map},
-            {"save-mesh", &save_mesh},
-            {"quiet", &quiet}});
+  // clang-format off
+  cl.flags({{"out", &out}, {"mesh", &mesh_path}, {"trajectory", &traj_path}, {"camera", &camera},
+           {"first", &first}, {"frames", &frames}, {"stride", &stride}, {"rate", &rate_hz},
+           {"start-time", &start_s}, {"seed", &seed}, {"no-noise", cli::Clear{&noise}},
+           {"dropout", &sensor.random_dropout}, {"max-range", &max_range_m}, {"down", &down},
+           {"width", &width_px}, {"save-map", &save_map}, {"save-mesh", &save_mesh},
+           {"quiet", &quiet}});
+  // clang-format on
   cl.parse(argc, argv);
   const std::string sensor_err = sensor.validate();
   if (!sensor_err.empty()) throw std::runtime_error("sensor model: " + sensor_err);

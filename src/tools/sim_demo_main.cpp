@@ -43,19 +43,13 @@ int run(int argc, char** argv) {
   bool quiet = false, sensor_noise = true;
   LocalizerParams params;
   cli::CommandLine cl("gmm_mcl_sim_demo", kUsage);
-  cl.flags({{"frames", &frames},
-            {"particles", &particles},
-            {"seed", &seed},
-            {"stride", &stride},
-            {"map-spacing", &spacing_m},
-            {"map-normal-sigma", &normal_sigma_m},
-            {"width", &width_px},
-            {"backend", &backend},
-            {"save-map", &save_map},
-            {"scene", &scene_name},
-            {"no-sensor-noise", cli::Clear{&sensor_noise}},
-            {"save-mesh", &save_mesh},
-            {"quiet", &quiet}});
+  // clang-format off
+  cl.flags({{"frames", &frames}, {"particles", &particles}, {"seed", &seed}, {"stride", &stride},
+           {"map-spacing", &spacing_m}, {"map-normal-sigma", &normal_sigma_m}, {"width", &width_px},
+           {"backend", &backend}, {"save-map", &save_map}, {"scene", &scene_name},
+           {"no-sensor-noise", cli::Clear{&sensor_noise}}, {"save-mesh", &save_mesh},
+           {"quiet", &quiet}});
+  // clang-format on
   cl.addLocalizerParams(&params, {"num_particles", "seed", "pixel_stride", "backend", "init_centre",
                                   "init_yaw_centre"});
   cl.parse(argc, argv);
