@@ -116,6 +116,22 @@ class RenderedSequence : public Sequence {
   mutable int rendered_ = 0;
 };
 
+// --camera: a Replica camera JSON, or fx,fy,cx,cy,width,height; empty: the default camera at
+// width_px.
+Intrinsics cameraFromFlag(const std::string& camera, int width_px) {
+  Intrinsics K = sim::defaultCamera(width_px);
+  if (camera.empty()) return K;
+  if (camera.size() > 5 && camera.substr(camera.size() - 5) == ".json") {
+    double units;
+    sim::readReplicaCamera(camera, &K, &units);
+    return K;
+  }
+  const std::vector<double> v = parseNumberList(camera);
+  if (v.size() != 6) throw std::runtime_error("--camera: expected fx,fy,cx,cy,width,height");
+  const double Km[9] = {v[0], 0, v[2], 0, v[1], v[3], 0, 0, 1};
+  return makeIntrinsics(Km, static_cast<int>(v[4]), static_cast<int>(v[5]));
+}
+
 int run(int argc, char** argv) {
   std::string out, mesh_path, traj_path, camera, save_map, save_mesh, down = "0,0,-1";
   int first = 0, frames = -1, stride = 1, width_px = 640;
@@ -166,19 +182,7 @@ int run(int argc, char** argv) {
     if (!save_map.empty()) throw std::runtime_error("--save-map is for the built-in scene only");
   }
 
-  // Camera.
-  Intrinsics K = sim::defaultCamera(width_px);
-  if (!camera.empty()) {
-    if (camera.size() > 5 && camera.substr(camera.size() - 5) == ".json") {
-      double units;
-      sim::readReplicaCamera(camera, &K, &units);
-    } else {
-      const std::vector<double> v = parseNumberList(camera);
-      if (v.size() != 6) throw std::runtime_error("--camera: expected fx,fy,cx,cy,width,height");
-      const double Km[9] = {v[0], 0, v[2], 0, v[1], v[3], 0, 0, 1};
-      K = makeIntrinsics(Km, static_cast<int>(v[4]), static_cast<int>(v[5]));
-    }
-  }
+  const Intrinsics K = cameraFromFlag(camera, width_px);
 
   // Trajectory (camera-to-world, optical frame) and stamps.
   std::vector<Eigen::Isometry3d> poses;
