@@ -14,6 +14,9 @@
 # replay memcheck racecheck.
 set -uo pipefail
 mode="${1:-run}"
+# The device particle filter's suites (weights and resampling, sampling, likelihood and recovery).
+filter_tests=(test_cuda_particle_filter_weights test_cuda_particle_filter_sampling
+  test_cuda_particle_filter_likelihood)
 
 if [[ "$mode" == bundle ]]; then
   set -e
@@ -24,10 +27,9 @@ if [[ "$mode" == bundle ]]; then
   MAP="${GMM_MCL_MAP:-$ROOT/build/maps/7scenes_redkitchen_m1000.gmm}"
   [[ -f "$MAP" ]] || { echo "no map at $MAP (scripts/build_map_7scenes.sh)" >&2; exit 1; }
   configure_gpu_tools "$BUILD" "${CUDA_ARCH:-90}" "$NVCC" -DGMM_MCL_BUILD_FIT=OFF
-  tools=(gmm_mcl_bench gmm_mcl_replay test_cuda_backend test_cuda_particle_filter
-    test_cuda_localizer)
+  tools=(gmm_mcl_bench gmm_mcl_replay test_cuda_backend "${filter_tests[@]}" test_cuda_localizer)
   cmake --build "$BUILD" -j2 --target gmm_mcl_bench gmm_mcl_replay_tool test_cuda_backend \
-    test_cuda_particle_filter test_cuda_localizer
+    "${filter_tests[@]}" test_cuda_localizer
   rm -rf "$BUNDLE"
   mkdir -p "$BUNDLE/data"
   bundle_binaries "$BUNDLE" "$BUILD" "${tools[@]}"
@@ -61,7 +63,7 @@ cd "$BUNDLE"
 note "== $(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>&1 | head -1)"
 
 if [[ " $STEPS " == *" tests "* ]]; then
-  for t in test_cuda_particle_filter test_cuda_localizer test_cuda_backend; do
+  for t in "${filter_tests[@]}" test_cuda_localizer test_cuda_backend; do
     timeout "${TEST_TIMEOUT:-240}" "$bin/$t" > "$LOGS/$t.log" 2>&1
     note "== $t: exit $? at $(elapsed)"
     grep -hE "measured|FAILED|Failure|PASSED|skipped" "$LOGS/$t.log" | tee -a "$SUMMARY"
@@ -89,9 +91,11 @@ if [[ " $STEPS " == *" replay "* ]]; then
 fi
 
 if [[ " $STEPS " == *" memcheck "* ]]; then
-  timeout "${SAN_TIMEOUT:-200}" "$SANITIZER" --tool memcheck --leak-check full --error-exitcode 3 \
-    "$bin/test_cuda_particle_filter" > "$LOGS/memcheck_filter.log" 2>&1
-  note "== memcheck test_cuda_particle_filter: exit $? at $(elapsed)"
+  for t in "${filter_tests[@]}"; do
+    timeout "${SAN_TIMEOUT:-200}" "$SANITIZER" --tool memcheck --leak-check full \
+      --error-exitcode 3 "$bin/$t" > "$LOGS/memcheck_$t.log" 2>&1
+    note "== memcheck $t: exit $? at $(elapsed)"
+  done
   timeout "${SAN_TIMEOUT:-200}" "$SANITIZER" --tool memcheck --error-exitcode 3 \
     "$bin/test_cuda_localizer" \
     --gtest_filter='*Reproducible*:*TwoLocalizers*:*FallsBack*:*ThreadsDrive*' \
@@ -103,13 +107,15 @@ fi
 if [[ " $STEPS " == *" racecheck "* ]]; then
   # The filter's own kernels (block reductions in shared memory); the backend's membership and
   # likelihood kernels ran through racecheck with test_cuda_backend before.
-  timeout "${SAN_TIMEOUT:-200}" "$SANITIZER" --tool racecheck --racecheck-report all \
-    --error-exitcode 3 "$bin/test_cuda_particle_filter" \
-    --gtest_filter='-*Likelihood*:*Screening*' > "$LOGS/racecheck_filter.log" 2>&1
-  note "== racecheck test_cuda_particle_filter (filter kernels): exit $? at $(elapsed)"
-  timeout 120 "$SANITIZER" --tool synccheck --error-exitcode 3 "$bin/test_cuda_particle_filter" \
-    --gtest_filter='-*Likelihood*:*Screening*' > "$LOGS/synccheck_filter.log" 2>&1
-  note "== synccheck test_cuda_particle_filter (filter kernels): exit $? at $(elapsed)"
+  for t in "${filter_tests[@]}"; do
+    timeout "${SAN_TIMEOUT:-200}" "$SANITIZER" --tool racecheck --racecheck-report all \
+      --error-exitcode 3 "$bin/$t" \
+      --gtest_filter='-*Likelihood*:*Screening*' > "$LOGS/racecheck_$t.log" 2>&1
+    note "== racecheck $t (filter kernels): exit $? at $(elapsed)"
+    timeout 120 "$SANITIZER" --tool synccheck --error-exitcode 3 "$bin/$t" \
+      --gtest_filter='-*Likelihood*:*Screening*' > "$LOGS/synccheck_$t.log" 2>&1
+    note "== synccheck $t (filter kernels): exit $? at $(elapsed)"
+  done
   grep -hE "ERROR SUMMARY|RACECHECK SUMMARY|hazard|PASSED|FAILED" "$LOGS"/racecheck_*.log \
     "$LOGS"/synccheck_*.log | head -20 | tee -a "$SUMMARY"
 fi

@@ -50,7 +50,8 @@ cmake -S "$GMM_MCL_ROOT" -B "$BUILD" -DGMM_MCL_BUILD_ROS=ON -DGMM_MCL_WITH_CUDA=
 # targets that write the rostests' data.
 targets=(gmm_mcl_ros gmm_mcl_node gmm_mcl_make_sim_bag gmm_mcl_evaluate_pose_bag)
 # The CUDA suites (the backend, the device particle filter, the localizer with it).
-targets+=(test_cuda_backend test_cuda_particle_filter test_cuda_localizer)
+targets+=(test_cuda_backend test_cuda_particle_filter_weights test_cuda_particle_filter_sampling
+  test_cuda_particle_filter_likelihood test_cuda_localizer)
 targets+=($(grep -ohE 'pkg="gmm_mcl" +type="[A-Za-z0-9_]+"' "$GMM_MCL_ROOT"/launch/*.launch \
   "$GMM_MCL_ROOT"/test/ros/*.test | sed -E 's/.*type="([^"]+)"/\1/' | sort -u))
 targets+=($(cmake --build "$BUILD" --target help | sed -n 's/^\.\.\. \([A-Za-z0-9_]*_test_data\)$/\1/p'))

@@ -302,7 +302,8 @@ EOF
 # The CUDA suites as built for the bundle (exit 77: no device).
 step_cudatests() {
   local t rc
-  for t in test_cuda_backend test_cuda_particle_filter test_cuda_localizer; do
+  for t in test_cuda_backend test_cuda_particle_filter_weights test_cuda_particle_filter_sampling \
+    test_cuda_particle_filter_likelihood test_cuda_localizer; do
     "$BIN/$t" > "$OUT/$t.log" 2>&1
     rc=$?
     if [[ $rc -eq 0 ]]; then

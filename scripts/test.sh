@@ -45,8 +45,9 @@ if [ -x "$NVCC" ]; then
     -DCMAKE_CUDA_COMPILER="$NVCC" -DCMAKE_BUILD_TYPE=Release > "$CUDA_BUILD/cmake.log" 2>&1 \
     || { cat "$CUDA_BUILD/cmake.log"; exit 1; }
   start=$(date +%s)
-  cmake --build "$CUDA_BUILD" -j2 --target test_cuda_backend test_cuda_particle_filter \
-    test_cuda_localizer gmm_mcl_bench
+  cmake --build "$CUDA_BUILD" -j2 --target test_cuda_backend test_cuda_particle_filter_weights \
+    test_cuda_particle_filter_sampling test_cuda_particle_filter_likelihood test_cuda_localizer \
+    gmm_mcl_bench
   echo "== CUDA build took $(( $(date +%s) - start )) s"
   (cd "$CUDA_BUILD" && ctest --output-on-failure -R 'test_cuda_(backend|particle_filter|localizer)') \
     | tee "$CUDA_BUILD/ctest.log"

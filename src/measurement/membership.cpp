@@ -25,6 +25,31 @@ struct ProjectedSoA {
   int *ok, *col0, *col1, *row0, *row1, *exact;
 };
 
+// projectAll's per-frame constants: the pose, the intrinsics and the patch grid's geometry.
+struct ProjectConstants {
+  float R[9], t[3];
+  float fx, fy, cx, cy, ps, c0, col_hi, row_hi;
+  int last_col, last_row;
+};
+
+static inline ProjectConstants projectConstants(const RigidTransformF& T, const Intrinsics& K,
+                                                const PatchGrid& grid) {
+  ProjectConstants f;
+  for (int k = 0; k < 9; ++k) f.R[k] = T.R[k];
+  for (int k = 0; k < 3; ++k) f.t[k] = T.t[k];
+  f.fx = K.fx_px;
+  f.fy = K.fy_px;
+  f.cx = K.cx_px;
+  f.cy = K.cy_px;
+  f.ps = static_cast<float>(grid.patch_size_px);
+  f.c0 = 0.5f * (f.ps - 1.f);
+  f.last_col = grid.cols - 1;
+  f.last_row = grid.rows - 1;
+  f.col_hi = static_cast<float>(grid.cols) + 1.f;
+  f.row_hi = static_cast<float>(grid.rows) + 1.f;
+  return f;
+}
+
 // projectComponent for m components at once over structure-of-arrays inputs (mean x, y, z and
 // the 6 covariance entries), one branch-free loop that the compiler vectorises (8 components
 // per AVX2 instruction). The expressions are projectComponent's, in the same order, but the
@@ -41,42 +66,21 @@ __attribute__((noinline)) void projectAll(const float* __restrict in, int m,
                                           const PatchGrid& grid, float min_depth_m,
                                           float sigma_bound, float inflate_px,
                                           const ProjectedSoA& o) {
-  const float* __restrict mx = in;
-  const float* __restrict my = in + m;
-  const float* __restrict mz = in + 2 * m;
-  const float* __restrict s0 = in + 3 * m;
-  const float* __restrict s1 = in + 4 * m;
-  const float* __restrict s2 = in + 5 * m;
-  const float* __restrict s3 = in + 6 * m;
-  const float* __restrict s4 = in + 7 * m;
-  const float* __restrict s5 = in + 8 * m;
-  float* __restrict ou = o.u;
-  float* __restrict ov = o.v;
-  float* __restrict ocuu = o.cuu;
-  float* __restrict ocuv = o.cuv;
-  float* __restrict ocvv = o.cvv;
-  float* __restrict oquu = o.quu;
-  float* __restrict oquv = o.quv;
-  float* __restrict oqvv = o.qvv;
-  float* __restrict ohw = o.hw;
-  float* __restrict ohh = o.hh;
-  float* __restrict odepth = o.depth;
-  float* __restrict omargin = o.margin;
-  int* __restrict oexact = o.exact;
-  int* __restrict ook = o.ok;
-  int* __restrict oc0 = o.col0;
-  int* __restrict oc1 = o.col1;
-  int* __restrict or0 = o.row0;
-  int* __restrict or1 = o.row1;
-  float R[9], t[3];
-  for (int k = 0; k < 9; ++k) R[k] = T.R[k];
-  for (int k = 0; k < 3; ++k) t[k] = T.t[k];
-  const float fx = K.fx_px, fy = K.fy_px, cx = K.cx_px, cy = K.cy_px;
-  const float ps = static_cast<float>(grid.patch_size_px);
-  const float c0 = 0.5f * (ps - 1.f);
-  const int last_col = grid.cols - 1, last_row = grid.rows - 1;
-  const float col_hi = static_cast<float>(grid.cols) + 1.f;
-  const float row_hi = static_cast<float>(grid.rows) + 1.f;
+  const float* __restrict mx = in, * __restrict my = in + m, * __restrict mz = in + 2 * m;
+  const float* __restrict s0 = in + 3 * m, * __restrict s1 = in + 4 * m;
+  const float* __restrict s2 = in + 5 * m, * __restrict s3 = in + 6 * m;
+  const float* __restrict s4 = in + 7 * m, * __restrict s5 = in + 8 * m;
+  float* __restrict ou = o.u, * __restrict ov = o.v, * __restrict ocuu = o.cuu;
+  float* __restrict ocuv = o.cuv, * __restrict ocvv = o.cvv, * __restrict oquu = o.quu;
+  float* __restrict oquv = o.quv, * __restrict oqvv = o.qvv, * __restrict ohw = o.hw;
+  float* __restrict ohh = o.hh, * __restrict odepth = o.depth, * __restrict omargin = o.margin;
+  int* __restrict oexact = o.exact, * __restrict ook = o.ok, * __restrict oc0 = o.col0;
+  int* __restrict oc1 = o.col1, * __restrict or0 = o.row0, * __restrict or1 = o.row1;
+  const ProjectConstants f = projectConstants(T, K, grid);
+  const float(&R)[9] = f.R, (&t)[3] = f.t;
+  const float fx = f.fx, fy = f.fy, cx = f.cx, cy = f.cy, ps = f.ps, c0 = f.c0;
+  const float col_hi = f.col_hi, row_hi = f.row_hi;
+  const int last_col = f.last_col, last_row = f.last_row;
 #pragma omp simd
   for (int i = 0; i < m; ++i) {
     const float p[3] = {mx[i], my[i], mz[i]};
@@ -290,50 +294,6 @@ void copyMeans(const std::vector<ComponentF>& components, float* in, size_t stri
   }
 }
 
-// keep[j] = componentMayTouchGrid for the m components of the structure of arrays in (mean x, y,
-// z, covariance trace: [4][stride]) seen from T, as one loop the compiler vectorises (the same
-// arithmetic up to FMA contraction, which the bound's 1% + 1 px slack covers).
-__attribute__((noinline)) void mayTouchGridAll(const float* __restrict in, int m, size_t stride,
-                                               const RigidTransformF& T, const Intrinsics& K,
-                                               const PatchGrid& grid, float min_depth_m,
-                                               float sigma_bound, float inflate_px,
-                                               int* __restrict keep) {
-  const float* __restrict mx = in;
-  const float* __restrict my = in + stride;
-  const float* __restrict mz = in + 2 * stride;
-  const float* __restrict tr = in + 3 * stride;
-  float R[9], t[3];
-  for (int k = 0; k < 9; ++k) R[k] = T.R[k];
-  for (int k = 0; k < 3; ++k) t[k] = T.t[k];
-  const float fx = K.fx_px, fy = K.fy_px, cx = K.cx_px, cy = K.cy_px;
-  const float ips = 1.f / static_cast<float>(grid.patch_size_px);
-  const float c0 = 0.5f * (static_cast<float>(grid.patch_size_px) - 1.f);
-  const float col_hi = static_cast<float>(grid.cols) + 2.f;
-  const float row_hi = static_cast<float>(grid.rows) + 2.f;
-  const int last_col = grid.cols - 1, last_row = grid.rows - 1;
-  const float near = min_depth_m - 1e-4f;
-#pragma omp simd
-  for (int j = 0; j < m; ++j) {
-    const float x = R[0] * mx[j] + R[1] * my[j] + R[2] * mz[j] + t[0];
-    const float y = R[3] * mx[j] + R[4] * my[j] + R[5] * mz[j] + t[1];
-    const float z = R[6] * mx[j] + R[7] * my[j] + R[8] * mz[j] + t[2];
-    const float iz = 1.f / z;
-    const float iz2 = iz * iz;
-    const float jf2 = fx * fx * iz2 * (1.f + x * x * iz2) + fy * fy * iz2 * (1.f + y * y * iz2);
-    const float r = (sigma_bound * sqrtVec(jf2 * tr[j]) + inflate_px) * 1.01f + 1.f;
-    const float u = cx + fx * x * iz;
-    const float v = cy + fy * y * iz;
-    // Clamped as in projectAll (NaN to the low end, which culls); the comparisons with the grid
-    // give the unclamped values' answers.
-    const int col0 = ceilInt(clampTo((u - r - c0) * ips, -4.f, col_hi));
-    const int col1 = floorInt(clampTo((u + r - c0) * ips, -4.f, col_hi));
-    const int row0 = ceilInt(clampTo((v - r - c0) * ips, -4.f, row_hi));
-    const int row1 = floorInt(clampTo((v + r - c0) * ips, -4.f, row_hi));
-    keep[j] = (z >= near) & (col0 <= col1) & (col0 <= last_col) & (col1 >= 0) & (row0 <= row1) &
-              (row0 <= last_row) & (row1 >= 0);
-  }
-}
-
 }  // namespace
 
 std::string MeasurementParams::validate() const {
@@ -470,49 +430,6 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
   for (int i = 0; i < m; ++i) {
     const int end = rb[i + 1];
     for (int k = rb[i]; k < end; ++k) dst[cur[hp[k]]++] = i;
-  }
-}
-
-void cullToView(const std::vector<ComponentF>& components, const RigidTransformF* T_cam_map,
-                int num_poses, const Intrinsics& K, const PatchGrid& grid,
-                const MeasurementParams& params, std::vector<int>* visible) {
-  const int m = static_cast<int>(components.size());
-  const size_t ms = static_cast<size_t>(m);
-  const float inflate = patchInflation(grid.patch_size_px);
-  // The components not yet seen by any pose, structure of arrays, compacted after each pose, so
-  // that the poses after the first test only what is still outside every view so far.
-  static thread_local std::vector<float> soa;  // mean x, y, z, covariance trace: [4][m]
-  static thread_local std::vector<int> index, keep;
-  static thread_local std::vector<char> seen;
-  soa.resize(4 * ms);
-  index.resize(ms);
-  keep.resize(ms);
-  seen.assign(ms, 0);
-  float* in = soa.data();
-  copyMeans(components, in, ms);
-  for (int i = 0; i < m; ++i) {
-    const float* S = components[i].cov_m2;
-    in[3 * ms + i] = S[0] + S[3] + S[5];
-    index[i] = i;
-  }
-  int rest = m;
-  for (int k = 0; k < num_poses && rest > 0; ++k) {
-    mayTouchGridAll(in, rest, ms, T_cam_map[k], K, grid, params.min_component_depth_m,
-                    params.sigma_bound, inflate, keep.data());
-    int w = 0;
-    for (int j = 0; j < rest; ++j) {
-      if (keep[j]) {
-        seen[index[j]] = 1;
-        continue;
-      }
-      for (int a = 0; a < 4; ++a) in[a * ms + w] = in[a * ms + j];
-      index[w++] = index[j];
-    }
-    rest = w;
-  }
-  visible->clear();
-  for (int i = 0; i < m; ++i) {
-    if (seen[i]) visible->push_back(i);
   }
 }
 

@@ -143,6 +143,17 @@ __device__ __forceinline__ void accumulateStaged(const float4* rec, int n, int s
   }
 }
 
+// Adds the component slices' partial sums of each pixel: every lane of a pixel group (the lanes
+// PXG apart) ends with the total.
+template <int PXG, int PX>
+__device__ __forceinline__ void sumOverSlices(float (&sum)[PX]) {
+#pragma unroll
+  for (int off = PXG; off < 32; off <<= 1) {
+#pragma unroll
+    for (int q = 0; q < PX; ++q) sum[q] += __shfl_xor_sync(0xffffffffu, sum[q], off);
+  }
+}
+
 template <int PXG, int PX, bool STAGE>
 __global__ void __launch_bounds__(kThreads, LikelihoodMinBlocks<PX>::value)
     likelihoodKernel(int num_items, int bands, int band_patches, int num_patches, int words,
@@ -236,12 +247,7 @@ __global__ void __launch_bounds__(kThreads, LikelihoodMinBlocks<PX>::value)
           }
         }
       }
-      // Add the slices' partial sums (every lane of a pixel group ends with the total).
-#pragma unroll
-      for (int off = PXG; off < 32; off <<= 1) {
-#pragma unroll
-        for (int q = 0; q < PX; ++q) sum[q] += __shfl_xor_sync(0xffffffffu, sum[q], off);
-      }
+      sumOverSlices<PXG, PX>(sum);
       if (sl == 0) {
 #pragma unroll
         for (int q = 0; q < PX; ++q) {
