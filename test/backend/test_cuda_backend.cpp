@@ -11,6 +11,7 @@
 #include <set>
 #include <string>
 
+#include "backend/cuda_backend_test_utils.h"
 #include "bench/frame_set.h"
 #include "gmm_mcl/backend/cpu_backend.h"
 #include "gmm_mcl/backend/cuda_backend.h"
@@ -38,21 +39,7 @@ constexpr double kBorderlineTol = 1e-3;
 // ... and such pairs are rare.
 constexpr double kMaxMembershipMismatchFraction = 1e-3;
 
-bool haveDevice(std::string* why) { return cudaDeviceCount(why) > 0; }
-
-#define GMM_MCL_REQUIRE_DEVICE()                \
-  do {                                          \
-    std::string why;                            \
-    if (!haveDevice(&why)) GTEST_SKIP() << why; \
-  } while (0)
-
-// The synthetic world from T_map_cam with the sensor model's noise and 5 % dropout, to 6 m.
-DepthImage noisyImage(const Intrinsics& K, const Eigen::Isometry3d& T_map_cam, DepthEncoding enc,
-                      std::mt19937_64* rng) {
-  sim::DepthNoise noise;
-  noise.dropout = 0.05;
-  return sim::renderDepth(test::world().scene, K, T_map_cam, enc, 6.0, noise, rng);
-}
+using test::noisyImage;
 
 // The true pose and n - 1 poses within +-0.5 m and +-0.3 rad of yaw about it.
 std::vector<RigidTransformF> perturbedPoses(const Eigen::Isometry3d& T_true, int n, unsigned seed) {
@@ -168,197 +155,6 @@ TEST(CudaBackendTest, SyntheticSceneMatchesCpu) {
 // The pose refinement's pixel sums on the GPU (float per pair, double per block) match the host's
 // (double throughout): the log-likelihood and the normal equations at poses near and off the
 // truth, and the refined pose.
-constexpr double kNormalEquationsRelTol = 1e-4;  // of the largest entry of H (or of g, |loglik|)
-constexpr double kRefinedPoseTolM = 2e-4;        // refined positions, host vs GPU
-
-TEST(CudaBackendTest, RefinementSumsMatchHost) {
-  GMM_MCL_REQUIRE_DEVICE();
-  const auto& w = test::world();
-  CudaBackend gpu;
-  gpu.setMap(w.map);
-  ASSERT_NE(gpu.normalEquations(), nullptr);
-  const Eigen::Isometry3d T_map_base = test::referenceBasePose();
-  double roll, pitch, yaw;
-  rpyFromRotation(T_map_base.linear(), &roll, &pitch, &yaw);
-  const Particle truth = poseToParticle(T_map_base);
-  const MeasurementParams mp;
-  for (int stride : {8, 4}) {
-    FrameParams fp = test::frameParams(stride);
-    const DepthFrame frame = test::renderFrame(T_map_base, test::vgaCamera(), fp);
-    std::mt19937_64 rng(40 + stride);
-    std::normal_distribution<double> n01(0.0, 1.0);
-    double worst = 0.0, worst_yaw = 0.0, host_ms = 0.0, gpu_ms = 0.0;
-    int host_iterations = 0, gpu_iterations = 0;
-    for (int k = 0; k < 6; ++k) {
-      const Particle start = test::perturbed(truth, n01, rng);
-      RefinementParams rp;
-      rp.max_iterations = 1;  // one linearisation and one step: the sums themselves compared
-      const RefinementResult h1 =
-          refinePose(w.map.packed(), frame, start, roll, pitch, w.T_base_cam, mp, rp);
-      const RefinementResult g1 = refinePose(w.map.packed(), frame, start, roll, pitch,
-                                             w.T_base_cam, mp, rp, gpu.normalEquations());
-      EXPECT_NEAR(g1.loglik_start, h1.loglik_start,
-                  kNormalEquationsRelTol * std::max(1.0, std::abs(h1.loglik_start)))
-          << "stride " << stride << " start " << k;
-      const RefinementParams full;
-      const RefinementResult h =
-          refinePose(w.map.packed(), frame, start, roll, pitch, w.T_base_cam, mp, full);
-      const RefinementResult g = refinePose(w.map.packed(), frame, start, roll, pitch, w.T_base_cam,
-                                            mp, full, gpu.normalEquations());
-      ASSERT_TRUE(h.refined) << h.why;
-      ASSERT_TRUE(g.refined) << g.why;
-      host_ms += h.ms;
-      gpu_ms += g.ms;
-      host_iterations += h.iterations;
-      gpu_iterations += g.iterations;
-      const double d =
-          std::sqrt(std::pow(h.pose.x_m - g.pose.x_m, 2) + std::pow(h.pose.y_m - g.pose.y_m, 2) +
-                    std::pow(h.pose.z_m - g.pose.z_m, 2));
-      worst = std::max(worst, d);
-      worst_yaw = std::max(worst_yaw, std::abs(wrapAngle(h.pose.yaw_rad - g.pose.yaw_rad)));
-      EXPECT_LT(d, kRefinedPoseTolM) << "stride " << stride << " start " << k;
-      EXPECT_NEAR(g.loglik_refined, h.loglik_refined,
-                  kNormalEquationsRelTol * std::max(1.0, std::abs(h.loglik_refined)));
-    }
-    std::printf(
-        "[ measured ] stride %d, %zu pixels: refined poses host vs GPU within %.3f mm, %.5f deg; "
-        "per refinement host %.2f ms (%.1f iterations), GPU %.2f ms (%.1f iterations)\n",
-        stride, frame.size(), 1000.0 * worst, worst_yaw * 180.0 / M_PI, host_ms / 6,
-        host_iterations / 6.0, gpu_ms / 6, gpu_iterations / 6.0);
-  }
-}
-
-// The refinement reading the frame the backend prepared on the GPU (no host points; the camera's
-// extrinsics folded into each pose) lands where the host refinement of the same frame does.
-TEST(CudaBackendTest, RefinementOnTheDeviceFrameMatchesHost) {
-  GMM_MCL_REQUIRE_DEVICE();
-  const auto& w = test::world();
-  CudaBackend gpu;
-  gpu.setMap(w.map);
-  const Intrinsics K = test::vgaCamera();
-  const Eigen::Isometry3d T_map_base = test::referenceBasePose();
-  double roll, pitch, yaw;
-  rpyFromRotation(T_map_base.linear(), &roll, &pitch, &yaw);
-  const Particle truth = poseToParticle(T_map_base);
-  std::mt19937_64 rng(11);
-  const DepthImage img =
-      noisyImage(K, T_map_base * w.T_base_cam, DepthEncoding::kMono16Millimetres, &rng);
-  FrameParams fp;
-  fp.pixel_stride = 8;
-  fp.max_range_m = 5.f;
-  const DepthFrame frame = prepareFrame(img, K, fp);
-  NormalEquationsEvaluator* sums = gpu.normalEquations();
-  EXPECT_FALSE(sums->hasBackendFrame());  // nothing prepared yet
-  const CudaBackend::DeviceFrameInfo info = gpu.prepareDeviceFrame(img, K, fp);
-  ASSERT_EQ(info.pixels, static_cast<int>(frame.size()));
-  ASSERT_TRUE(sums->hasBackendFrame());
-  RefinementFrame on_device;
-  on_device.intrinsics = K;
-  on_device.grid = frame.grid;
-  on_device.pixels = info.pixels;
-  const MeasurementParams mp;
-  const RefinementParams rp;
-  std::normal_distribution<double> n01(0.0, 1.0);
-  double worst = 0.0;
-  for (int k = 0; k < 4; ++k) {
-    Particle start = truth;
-    start.x_m += 0.03 * n01(rng);
-    start.y_m += 0.03 * n01(rng);
-    start.yaw_rad += 0.015 * n01(rng);
-    const RefinementResult h =
-        refinePose(w.map.packed(), frame, start, roll, pitch, w.T_base_cam, mp, rp);
-    const RefinementResult d =
-        refinePose(w.map.packed(), on_device, start, roll, pitch, w.T_base_cam, mp, rp, sums);
-    ASSERT_TRUE(h.refined) << h.why;
-    ASSERT_TRUE(d.refined) << d.why;
-    const double dist =
-        std::sqrt(std::pow(h.pose.x_m - d.pose.x_m, 2) + std::pow(h.pose.y_m - d.pose.y_m, 2) +
-                  std::pow(h.pose.z_m - d.pose.z_m, 2));
-    worst = std::max(worst, dist);
-    EXPECT_LT(dist, kRefinedPoseTolM) << "start " << k;
-    EXPECT_NEAR(d.loglik_start, h.loglik_start,
-                kNormalEquationsRelTol * std::max(1.0, std::abs(h.loglik_start)));
-  }
-  std::printf("[ measured ] refinement on the device frame vs host points: within %.3f mm\n",
-              1000.0 * worst);
-  // Points without a device frame are an error, not a silent host fallback.
-  CpuBackend cpu;
-  EXPECT_EQ(cpu.normalEquations(), nullptr);
-  EXPECT_THROW(refinePose(w.map.packed(), on_device, truth, roll, pitch, w.T_base_cam, mp, rp),
-               std::invalid_argument);
-}
-
-// The sums themselves: H, g and the log-likelihood at several poses, GPU against host.
-TEST(CudaBackendTest, NormalEquationsMatchHost) {
-  GMM_MCL_REQUIRE_DEVICE();
-  const auto& w = test::world();
-  CudaBackend gpu;
-  gpu.setMap(w.map);
-  NormalEquationsEvaluator* dev = gpu.normalEquations();
-  HostNormalEquations host;
-  FrameParams fp = test::frameParams(4);
-  const Eigen::Isometry3d T_map_base = test::referenceBasePose();
-  const DepthFrame frame = test::renderFrame(T_map_base, test::vgaCamera(), fp);
-  std::vector<double> x(frame.size()), y(frame.size()), z(frame.size());
-  for (size_t i = 0; i < frame.size(); ++i) {
-    const Eigen::Vector3d p =
-        w.T_base_cam * Eigen::Vector3d(frame.x_m[i], frame.y_m[i], frame.z_m[i]);
-    x[i] = p.x();
-    y[i] = p.y();
-    z[i] = p.z();
-  }
-  host.setPoints(x, y, z, frame.patch_begin);
-  dev->setPoints(x, y, z, frame.patch_begin);
-  const MeasurementParams mp;
-  std::vector<EvalComponentF> eval;
-  makeEvalComponents(w.map.packed(), &eval);
-  std::mt19937_64 rng(5);
-  std::normal_distribution<double> n01(0.0, 1.0);
-  double worst_h = 0.0, worst_g = 0.0;
-  for (int k = 0; k < 5; ++k) {
-    Eigen::Isometry3d T = T_map_base;
-    T.translation() += Eigen::Vector3d(0.02 * n01(rng), 0.02 * n01(rng), 0.02 * n01(rng));
-    PatchMembership m;
-    std::vector<ProjectedComponent> projected;
-    std::vector<char> valid;
-    computeMembership(w.map.packed(), toRigidF((T * w.T_base_cam).inverse()), frame.intrinsics,
-                      frame.grid, mp, &projected, &valid, &m);
-    host.setLinearisation(eval, m);
-    dev->setLinearisation(eval, m);
-    PoseDerivatives d;
-    const Eigen::Matrix3d R = T.linear();
-    for (int r = 0; r < 3; ++r) {
-      for (int c = 0; c < 3; ++c) {
-        d.R[3 * r + c] = R(r, c);
-        // Any fixed matrices exercise the derivative columns alike on both sides.
-        for (int a = 0; a < 3; ++a) d.dR[a][3 * r + c] = 0.1 * (a + 1) * ((r + 2 * c) % 3 - 1);
-      }
-      d.t[r] = T.translation()[r];
-    }
-    NormalEquationSums a, b;
-    host.evaluate(d, mp.floor_log_density, true, &a);
-    dev->evaluate(d, mp.floor_log_density, true, &b);
-    EXPECT_NEAR(b.loglik, a.loglik, kNormalEquationsRelTol * std::abs(a.loglik));
-    double h_scale = 0.0, g_scale = 0.0;
-    for (double v : a.h) h_scale = std::max(h_scale, std::abs(v));
-    for (double v : a.g) g_scale = std::max(g_scale, std::abs(v));
-    ASSERT_GT(h_scale, 0.0);
-    for (int i = 0; i < 21; ++i) {
-      worst_h = std::max(worst_h, std::abs(a.h[i] - b.h[i]) / h_scale);
-      EXPECT_NEAR(b.h[i], a.h[i], kNormalEquationsRelTol * h_scale) << "H entry " << i;
-    }
-    for (int i = 0; i < 6; ++i) {
-      worst_g = std::max(worst_g, std::abs(a.g[i] - b.g[i]) / g_scale);
-      EXPECT_NEAR(b.g[i], a.g[i], kNormalEquationsRelTol * g_scale) << "g entry " << i;
-    }
-    NormalEquationSums c;
-    dev->evaluate(d, mp.floor_log_density, false, &c);
-    EXPECT_EQ(c.loglik, b.loglik);  // the same kernel sums, with or without linearising
-  }
-  std::printf("[ measured ] normal equations GPU vs host: H within %.2e, g within %.2e relative\n",
-              worst_h, worst_g);
-}
-
 // Frame preparation on the GPU gives prepareFrame's points: the same likelihoods, to the bit
 // when the order and arithmetic agree, for both encodings and several strides.
 TEST(CudaBackendTest, GpuFramePreparationMatchesHost) {
