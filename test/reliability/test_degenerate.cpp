@@ -1,4 +1,4 @@
-// Degenerate views and numerical safety (issue #7): the filter keeps its state, its covariance
+// Degenerate views and numerical safety: the filter keeps its state, its covariance
 // grows or stays positive-definite, it never produces NaN, and the status says why.
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-// Kidnapped robot (issue #7). The filter tracks from the true start, the sensor is teleported
+// Kidnapped robot. The filter tracks from the true start, the sensor is teleported
 // at least 1 m inside the recovery region while odometry reports the old motion, and the
 // estimate must be back under 10 cm (held for 30 frames) within 5 s of data. CI runs two
 // seeded 7-Scenes trials and one on the built-in synthetic scene at 640x480 (gmm_mcl_kidnap

@@ -15,7 +15,7 @@ namespace gmm_mcl {
 namespace {
 
 constexpr int kFrames = 240;              // 8 s of data
-constexpr double kConvergeWithinS = 5.0;  // issue 4 target
+constexpr double kConvergeWithinS = 5.0;  // the accuracy protocol's target
 constexpr double kAteLimitM = 0.05;       // short runs include the convergence transient
 constexpr double kTailLimitM = 0.10;      // success criterion of DESIGN.md
 
