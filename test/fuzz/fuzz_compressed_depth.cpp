@@ -11,9 +11,8 @@
 #include "gmm_mcl/camera/png_io.h"
 #include "gmm_mcl/map/gmm_map_io.h"  // crc32: PNG chunks use the same CRC-32
 
+namespace gmm_mcl {
 namespace {
-
-using namespace gmm_mcl;
 
 std::string formatFrom(fuzz::Reader* in) {
   return in->nameOrString({"16UC1; compressedDepth png", "32FC1; compressedDepth png",
@@ -23,12 +22,14 @@ std::string formatFrom(fuzz::Reader* in) {
 }
 
 }  // namespace
+}  // namespace gmm_mcl
 
 #ifdef GMM_MCL_LIBFUZZER
 // Mutated PNG chunks nearly always fail libpng's CRC check. After half of the mutations, repair
 // the CRC of every complete chunk (big-endian length, type, data, CRC over type and data).
 extern "C" size_t LLVMFuzzerCustomMutator(uint8_t* data, size_t size, size_t max_size,
                                           unsigned int seed) {
+  using namespace gmm_mcl;
   return fuzz::mutateAndRepair(data, size, max_size, seed, [](uint8_t* data, size_t size) {
     fuzz::Reader in(data, size);
     formatFrom(&in);
@@ -48,6 +49,7 @@ extern "C" size_t LLVMFuzzerCustomMutator(uint8_t* data, size_t size, size_t max
 #endif
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  using namespace gmm_mcl;
   fuzz::Reader in(data, size);
   const std::string format = formatFrom(&in);
   DepthImage image;

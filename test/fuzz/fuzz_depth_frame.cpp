@@ -13,9 +13,8 @@
 #include "gmm_mcl/camera/depth_frame.h"
 #include "gmm_mcl/camera/depth_image.h"
 
+namespace gmm_mcl {
 namespace {
-
-using namespace gmm_mcl;
 
 // Ranges beyond this may overflow float in the back-projection for any intrinsics.
 constexpr float kFiniteRangeLimitM = 1e20f;
@@ -138,8 +137,10 @@ void fuzzCloud(fuzz::Reader* in) {
 }
 
 }  // namespace
+}  // namespace gmm_mcl
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  using namespace gmm_mcl;
   fuzz::Reader in(data, size);
   if ((in.u8() & 1) == 0) {
     fuzzImage(&in);

@@ -16,9 +16,9 @@
 #include "gmm_mcl/camera/png_io.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 
+namespace gmm_mcl {
 namespace {
 
-using namespace gmm_mcl;
 using Bytes = std::vector<uint8_t>;
 
 std::string g_root;
@@ -376,8 +376,10 @@ void compressedCorpus() {
 }
 
 }  // namespace
+}  // namespace gmm_mcl
 
 int main(int argc, char** argv) {
+  using namespace gmm_mcl;
   if (argc != 2) {
     std::fprintf(stderr, "usage: %s <test/fuzz folder>\n", argv[0]);
     return 2;

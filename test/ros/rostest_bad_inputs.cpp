@@ -27,11 +27,10 @@
 #include "gmm_mcl/sim/box_scene.h"
 #include "synthetic_robot.h"
 
-using namespace gmm_mcl;
+namespace gmm_mcl {
+namespace lockstep {
 
 namespace {
-
-using namespace gmm_mcl::lockstep;
 
 struct ConfigDiag {
   int level;
@@ -189,8 +188,12 @@ TEST(BadConfigTest, ReportedAndNothingSubscribed) {
   }
 }
 
+}  // namespace lockstep
+}  // namespace gmm_mcl
+
 int main(int argc, char** argv) {
-  return runTestNode(argc, argv, "rostest_bad_inputs", "inputs", [](const std::string& mode) {
-    return std::string(mode == "config" ? "BadConfigTest.*" : "BadInputsTest.*");
-  });
+  return gmm_mcl::lockstep::runTestNode(
+      argc, argv, "rostest_bad_inputs", "inputs", [](const std::string& mode) {
+        return std::string(mode == "config" ? "BadConfigTest.*" : "BadInputsTest.*");
+      });
 }

@@ -22,7 +22,7 @@
 #include "gmm_mcl/ros/conversions.h"
 #include "lockstep.h"
 
-using namespace gmm_mcl;
+namespace gmm_mcl {
 
 namespace {
 
@@ -164,6 +164,8 @@ TEST(GroundTruthOdometryTest, LocalizerConvergesOnACowAndLadyLayoutBag) {
     EXPECT_GE(matched, static_cast<int>(rec.truth_.size()) * 9 / 10);
   }
 }
+
+}  // namespace gmm_mcl
 
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);

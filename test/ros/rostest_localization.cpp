@@ -19,8 +19,8 @@
 #include "gmm_mcl/ros/conversions.h"
 #include "lockstep.h"
 
-using namespace gmm_mcl;
-using namespace gmm_mcl::lockstep;
+namespace gmm_mcl {
+namespace lockstep {
 
 namespace {
 
@@ -238,9 +238,13 @@ TEST(LocalizationBagTest, LoopedBagResets) {
   EXPECT_EQ(backs, 1) << "map -> odom should restart once at the loop and increase otherwise";
 }
 
+}  // namespace lockstep
+}  // namespace gmm_mcl
+
 int main(int argc, char** argv) {
-  return runTestNode(argc, argv, "rostest_localization", "track", [](const std::string& mode) {
-    return std::string(mode == "looped" ? "LocalizationBagTest.Looped*"
-                                        : "LocalizationBagTest.Tracks*");
-  });
+  return gmm_mcl::lockstep::runTestNode(
+      argc, argv, "rostest_localization", "track", [](const std::string& mode) {
+        return std::string(mode == "looped" ? "LocalizationBagTest.Looped*"
+                                            : "LocalizationBagTest.Tracks*");
+      });
 }

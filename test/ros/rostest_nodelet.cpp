@@ -26,10 +26,10 @@
 
 #include "nodelet_test_world.h"
 
-using namespace gmm_mcl;
-using namespace gmm_mcl::lockstep;
+namespace gmm_mcl {
+namespace lockstep {
 
-World* gmm_mcl::lockstep::w = nullptr;
+World* w = nullptr;
 
 TEST(NodeletTest, FirstFrameWaitsForTf) {
   ASSERT_TRUE(w->robot.waitForNodelet({"/gmm_mcl", "/gmm_mcl_start"}));
@@ -485,11 +485,14 @@ TEST(NodeletTest, SinglePoseStartAndCpuFallback) {
       << d.message;
 }
 
+}  // namespace lockstep
+}  // namespace gmm_mcl
+
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "rostest_nodelet");
-  World world;
-  w = &world;
+  gmm_mcl::lockstep::World world;
+  gmm_mcl::lockstep::w = &world;
   std::string filter;
   ros::param::param<std::string>("~filter", filter, "");
   if (!filter.empty()) testing::GTEST_FLAG(filter) = filter;

@@ -11,7 +11,7 @@
 #include "gmm_mcl/ros/conversions.h"
 #include "gmm_mcl/sim/box_scene.h"
 
-using namespace gmm_mcl;
+namespace gmm_mcl {
 
 namespace {
 
@@ -355,3 +355,5 @@ TEST(RosConversionsTest, PoseResetRequestThroughTf) {
   EXPECT_FALSE(ros_conv::poseResetRequestFromMsg(msg, tf, "map", &r, &why));
   EXPECT_NE(why.find("'nowhere'"), std::string::npos) << why;
 }
+
+}  // namespace gmm_mcl

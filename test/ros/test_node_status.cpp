@@ -5,7 +5,7 @@
 
 #include "gmm_mcl/ros/node_status.h"
 
-using namespace gmm_mcl;
+namespace gmm_mcl {
 using S = diagnostic_msgs::DiagnosticStatus;
 
 namespace {
@@ -272,3 +272,5 @@ TEST(NodeStatusTest, UpdateBudgetReportedAndWarnsOnlyAtItsLimit) {
   EXPECT_EQ(value(d, "budget"), "off");
   EXPECT_EQ(value(d, "pixel stride"), "4");
 }
+
+}  // namespace gmm_mcl

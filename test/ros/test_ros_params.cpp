@@ -12,7 +12,7 @@
 #include "gmm_mcl/common/enum_names.h"
 #include "gmm_mcl/ros/ros_params.h"
 
-using namespace gmm_mcl;
+namespace gmm_mcl {
 
 namespace {
 
@@ -174,3 +174,5 @@ TEST(RosParamsTest, InitialPoseNeedsAllFour) {
   EXPECT_NEAR(T.translation().z(), 1.2, 1e-12);
   EXPECT_NEAR(cov(5, 5), o.initial_cov_yawyaw_rad2, 1e-12);
 }
+
+}  // namespace gmm_mcl
