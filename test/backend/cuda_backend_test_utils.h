@@ -1,9 +1,10 @@
-// Shared by the CUDA backend's test files: skip without a device, the synthetic world's noisy
-// depth images.
+// Shared by the CUDA backend's test files: the fixture (skip without a device), the synthetic
+// world's noisy depth images.
 #pragma once
 
 #include <gtest/gtest.h>
 
+#include <memory>
 #include <random>
 #include <string>
 
@@ -25,10 +26,17 @@ inline DepthImage noisyImage(const Intrinsics& K, const Eigen::Isometry3d& T_map
 }
 
 }  // namespace test
-}  // namespace gmm_mcl
 
-#define GMM_MCL_REQUIRE_DEVICE()                                 \
-  do {                                                           \
-    std::string why;                                             \
-    if (!::gmm_mcl::test::haveDevice(&why)) GTEST_SKIP() << why; \
-  } while (0)
+// Every case of the CUDA backend: skipped without a device; a backend with no map yet.
+class CudaBackendTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string why;
+    if (!test::haveDevice(&why)) GTEST_SKIP() << why;
+    gpu = std::make_unique<CudaBackend>();
+  }
+
+  std::unique_ptr<CudaBackend> gpu;
+};
+
+}  // namespace gmm_mcl

@@ -126,28 +126,26 @@ void expectSameLikelihood(const GmmMap& map, const DepthFrame& frame,
   (void)map;
 }
 
-TEST(CudaBackendTest, SyntheticSceneMatchesCpu) {
-  GMM_MCL_REQUIRE_DEVICE();
+TEST_F(CudaBackendTest, SyntheticSceneMatchesCpu) {
   const auto& w = test::world();
   CpuBackend cpu;
-  CudaBackend gpu;
   cpu.setMap(w.map);
-  gpu.setMap(w.map);
+  gpu->setMap(w.map);
   for (int stride : {4, 1, 8}) {
     FrameParams fp = test::frameParams(stride);
     const Eigen::Isometry3d T_map_base = test::referenceBasePose();
     const DepthFrame frame = test::renderFrame(T_map_base, test::vgaCamera(), fp);
     const auto poses = perturbedPoses(T_map_base * w.T_base_cam, 256, 10u + stride);
     const std::string label = "synthetic stride " + std::to_string(stride);
-    expectSameLikelihood(w.map, frame, poses, &cpu, &gpu, label.c_str());
+    expectSameLikelihood(w.map, frame, poses, &cpu, gpu.get(), label.c_str());
     if (stride == 4) {
       // The paper's model (no depth noise): one evaluation form for every particle.
       MeasurementParams noise_off;
       noise_off.depth_noise.a_m = noise_off.depth_noise.b_per_m = 0.f;
-      expectSameLikelihood(w.map, frame, poses, &cpu, &gpu, (label + ", no depth noise").c_str(),
-                           noise_off);
+      expectSameLikelihood(w.map, frame, poses, &cpu, gpu.get(),
+                           (label + ", no depth noise").c_str(), noise_off);
       const std::vector<RigidTransformF> some(poses.begin(), poses.begin() + 32);
-      expectSameMembership(w.map, frame, some, &cpu, &gpu, label.c_str());
+      expectSameMembership(w.map, frame, some, &cpu, gpu.get(), label.c_str());
     }
   }
 }
@@ -157,11 +155,9 @@ TEST(CudaBackendTest, SyntheticSceneMatchesCpu) {
 // truth, and the refined pose.
 // Frame preparation on the GPU gives prepareFrame's points: the same likelihoods, to the bit
 // when the order and arithmetic agree, for both encodings and several strides.
-TEST(CudaBackendTest, GpuFramePreparationMatchesHost) {
-  GMM_MCL_REQUIRE_DEVICE();
+TEST_F(CudaBackendTest, GpuFramePreparationMatchesHost) {
   const auto& w = test::world();
-  CudaBackend gpu;
-  gpu.setMap(w.map);
+  gpu->setMap(w.map);
   const Intrinsics K = test::vgaCamera();
   const Eigen::Isometry3d T_map_cam = test::referenceBasePose() * w.T_base_cam;
   const auto poses = perturbedPoses(T_map_cam, 64, 5);
@@ -174,9 +170,9 @@ TEST(CudaBackendTest, GpuFramePreparationMatchesHost) {
       fp.max_range_m = 5.f;
       const DepthFrame frame = prepareFrame(img, K, fp);
       BackendOutput host, dev;
-      gpu.evaluate(frame, poses, MeasurementParams(), &host);
-      gpu.evaluateImage(img, K, fp, poses, MeasurementParams(), &dev);
-      EXPECT_EQ(gpu.lastFramePixels(), static_cast<int>(frame.size()));
+      gpu->evaluate(frame, poses, MeasurementParams(), &host);
+      gpu->evaluateImage(img, K, fp, poses, MeasurementParams(), &dev);
+      EXPECT_EQ(gpu->lastFramePixels(), static_cast<int>(frame.size()));
       EXPECT_EQ(host.patches_with_pixels, dev.patches_with_pixels);
       EXPECT_EQ(host.evaluations, dev.evaluations);
       double worst = 0.0;
@@ -198,23 +194,21 @@ TEST(CudaBackendTest, GpuFramePreparationMatchesHost) {
   BackendOutput out;
   const DepthImage img =
       sim::renderDepth(w.scene, K, T_map_cam, DepthEncoding::kMono16Millimetres, 6.0);
-  EXPECT_THROW(gpu.evaluateImage(img, K, bad, poses, MeasurementParams(), &out),
+  EXPECT_THROW(gpu->evaluateImage(img, K, bad, poses, MeasurementParams(), &out),
                std::invalid_argument);
   EXPECT_THROW(
-      gpu.evaluateImage(img, test::smallCamera(), FrameParams(), poses, MeasurementParams(), &out),
+      gpu->evaluateImage(img, test::smallCamera(), FrameParams(), poses, MeasurementParams(), &out),
       std::invalid_argument);
 }
 
-TEST(CudaBackendTest, EmptyAndDegenerateInputs) {
-  GMM_MCL_REQUIRE_DEVICE();
+TEST_F(CudaBackendTest, EmptyAndDegenerateInputs) {
   const auto& w = test::world();
-  CudaBackend gpu;
   BackendOutput out;
   FrameParams fp;
   const DepthFrame frame = test::renderFrame(test::referenceBasePose(), test::vgaCamera(), fp);
-  EXPECT_THROW(gpu.evaluate(frame, {}, MeasurementParams(), &out), BackendError);  // no map
-  gpu.setMap(w.map);
-  gpu.evaluate(frame, {}, MeasurementParams(), &out);
+  EXPECT_THROW(gpu->evaluate(frame, {}, MeasurementParams(), &out), BackendError);  // no map
+  gpu->setMap(w.map);
+  gpu->evaluate(frame, {}, MeasurementParams(), &out);
   EXPECT_TRUE(out.log_likelihood.empty());
   // A frame with no used pixels: every particle scores 0 nats.
   DepthFrame empty = frame;
@@ -223,7 +217,7 @@ TEST(CudaBackendTest, EmptyAndDegenerateInputs) {
   empty.z_m.clear();
   std::fill(empty.patch_begin.begin(), empty.patch_begin.end(), 0);
   const auto poses = perturbedPoses(test::referenceBasePose() * w.T_base_cam, 5, 3);
-  gpu.evaluate(empty, poses, MeasurementParams(), &out);
+  gpu->evaluate(empty, poses, MeasurementParams(), &out);
   ASSERT_EQ(out.log_likelihood.size(), 5u);
   for (double l : out.log_likelihood) EXPECT_EQ(l, 0.0);
   // More particles than one mask batch holds still gives every particle its value.
@@ -235,7 +229,7 @@ TEST(CudaBackendTest, EmptyAndDegenerateInputs) {
   const auto many = perturbedPoses(test::referenceBasePose() * w.T_base_cam, 7000, 4);
   BackendOutput a, b;
   cpu.evaluate(small, many, MeasurementParams(), &a);
-  gpu.evaluate(small, many, MeasurementParams(), &b);
+  gpu->evaluate(small, many, MeasurementParams(), &b);
   for (size_t i = 0; i < many.size(); i += 97) {
     EXPECT_NEAR(a.log_likelihood[i], b.log_likelihood[i],
                 kRelTol * std::max(std::abs(a.log_likelihood[i]), double(small.size())));
@@ -245,8 +239,7 @@ TEST(CudaBackendTest, EmptyAndDegenerateInputs) {
 // 7-Scenes redkitchen, M = 1000 map: frames from $GMM_MCL_7SCENES_FRAMES (a raw frame file
 // written by `gmm_mcl_bench --export-frames`) or the data set's PNGs; map from $GMM_MCL_MAP or
 // build/maps/7scenes_redkitchen_m1000.gmm.
-TEST(CudaBackendTest, SevenScenesFramesMatchCpu) {
-  GMM_MCL_REQUIRE_DEVICE();
+TEST_F(CudaBackendTest, SevenScenesFramesMatchCpu) {
   struct stat st;
   const char* env_map = std::getenv("GMM_MCL_MAP");
   std::string map_path = env_map && *env_map ? env_map : "";
@@ -277,9 +270,8 @@ TEST(CudaBackendTest, SevenScenesFramesMatchCpu) {
   }
   const GmmMap map = loadMap(map_path);
   CpuBackend cpu;
-  CudaBackend gpu;
   cpu.setMap(map);
-  gpu.setMap(map);
+  gpu->setMap(map);
   const size_t used = std::min<size_t>(frames.images.size(), 3);
   for (size_t f = 0; f < used; ++f) {
     const size_t idx = f * (frames.images.size() / used);
@@ -288,9 +280,9 @@ TEST(CudaBackendTest, SevenScenesFramesMatchCpu) {
     const DepthFrame frame = prepareFrame(frames.images[idx], frames.K, fp);
     const auto poses = perturbedPoses(frames.T_map_cam[idx], 256, 100u + unsigned(idx));
     const std::string label = "7-Scenes frame " + std::to_string(idx);
-    expectSameLikelihood(map, frame, poses, &cpu, &gpu, label.c_str());
+    expectSameLikelihood(map, frame, poses, &cpu, gpu.get(), label.c_str());
     const std::vector<RigidTransformF> some(poses.begin(), poses.begin() + 32);
-    expectSameMembership(map, frame, some, &cpu, &gpu, label.c_str());
+    expectSameMembership(map, frame, some, &cpu, gpu.get(), label.c_str());
   }
   // Another patch size (a parameter of the model) on the first frame (8x8 patches: 4,800 of them
   // exceed the membership bitmask's shared memory at M = 1000).
@@ -302,16 +294,16 @@ TEST(CudaBackendTest, SevenScenesFramesMatchCpu) {
     const auto poses = perturbedPoses(frames.T_map_cam[0], 64, 300u + unsigned(patch));
     const std::string label =
         "7-Scenes frame 0, " + std::to_string(patch) + "x" + std::to_string(patch) + " patches";
-    expectSameLikelihood(map, frame, poses, &cpu, &gpu, label.c_str());
+    expectSameLikelihood(map, frame, poses, &cpu, gpu.get(), label.c_str());
     const std::vector<RigidTransformF> some(poses.begin(), poses.begin() + 8);
-    expectSameMembership(map, frame, some, &cpu, &gpu, label.c_str());
+    expectSameMembership(map, frame, some, &cpu, gpu.get(), label.c_str());
   }
   // The benchmark's `large` map (M = 4000, $GMM_MCL_LARGE_MAP) when given.
   const char* env_large = std::getenv("GMM_MCL_LARGE_MAP");
   if (env_large && *env_large && stat(env_large, &st) == 0) {
     const GmmMap large = loadMap(env_large);
     cpu.setMap(large);
-    gpu.setMap(large);
+    gpu->setMap(large);
     for (int stride : {4, 8}) {
       FrameParams fp;
       fp.pixel_stride = stride;
@@ -319,9 +311,9 @@ TEST(CudaBackendTest, SevenScenesFramesMatchCpu) {
       const auto poses = perturbedPoses(frames.T_map_cam[0], 128, 400u + unsigned(stride));
       const std::string label = "7-Scenes frame 0, M=" + std::to_string(large.size()) +
                                 ", stride " + std::to_string(stride);
-      expectSameLikelihood(large, frame, poses, &cpu, &gpu, label.c_str());
+      expectSameLikelihood(large, frame, poses, &cpu, gpu.get(), label.c_str());
       const std::vector<RigidTransformF> some(poses.begin(), poses.begin() + 8);
-      expectSameMembership(large, frame, some, &cpu, &gpu, label.c_str());
+      expectSameMembership(large, frame, some, &cpu, gpu.get(), label.c_str());
     }
   } else {
     std::printf("[ skipped  ] M=4000 map: GMM_MCL_LARGE_MAP not set\n");

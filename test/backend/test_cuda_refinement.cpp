@@ -30,12 +30,10 @@ using test::noisyImage;
 constexpr double kNormalEquationsRelTol = 1e-4;  // of the largest entry of H (or of g, |loglik|)
 constexpr double kRefinedPoseTolM = 2e-4;        // refined positions, host vs GPU
 
-TEST(CudaBackendTest, RefinementSumsMatchHost) {
-  GMM_MCL_REQUIRE_DEVICE();
+TEST_F(CudaBackendTest, RefinementSumsMatchHost) {
   const auto& w = test::world();
-  CudaBackend gpu;
-  gpu.setMap(w.map);
-  ASSERT_NE(gpu.normalEquations(), nullptr);
+  gpu->setMap(w.map);
+  ASSERT_NE(gpu->normalEquations(), nullptr);
   const Eigen::Isometry3d T_map_base = test::referenceBasePose();
   double roll, pitch, yaw;
   rpyFromRotation(T_map_base.linear(), &roll, &pitch, &yaw);
@@ -55,7 +53,7 @@ TEST(CudaBackendTest, RefinementSumsMatchHost) {
       const RefinementResult h1 =
           refinePose(w.map.packed(), frame, start, roll, pitch, w.T_base_cam, mp, rp);
       const RefinementResult g1 = refinePose(w.map.packed(), frame, start, roll, pitch,
-                                             w.T_base_cam, mp, rp, gpu.normalEquations());
+                                             w.T_base_cam, mp, rp, gpu->normalEquations());
       EXPECT_NEAR(g1.loglik_start, h1.loglik_start,
                   kNormalEquationsRelTol * std::max(1.0, std::abs(h1.loglik_start)))
           << "stride " << stride << " start " << k;
@@ -63,7 +61,7 @@ TEST(CudaBackendTest, RefinementSumsMatchHost) {
       const RefinementResult h =
           refinePose(w.map.packed(), frame, start, roll, pitch, w.T_base_cam, mp, full);
       const RefinementResult g = refinePose(w.map.packed(), frame, start, roll, pitch, w.T_base_cam,
-                                            mp, full, gpu.normalEquations());
+                                            mp, full, gpu->normalEquations());
       ASSERT_TRUE(h.refined) << h.why;
       ASSERT_TRUE(g.refined) << g.why;
       host_ms += h.ms;
@@ -89,11 +87,9 @@ TEST(CudaBackendTest, RefinementSumsMatchHost) {
 
 // The refinement reading the frame the backend prepared on the GPU (no host points; the camera's
 // extrinsics folded into each pose) lands where the host refinement of the same frame does.
-TEST(CudaBackendTest, RefinementOnTheDeviceFrameMatchesHost) {
-  GMM_MCL_REQUIRE_DEVICE();
+TEST_F(CudaBackendTest, RefinementOnTheDeviceFrameMatchesHost) {
   const auto& w = test::world();
-  CudaBackend gpu;
-  gpu.setMap(w.map);
+  gpu->setMap(w.map);
   const Intrinsics K = test::vgaCamera();
   const Eigen::Isometry3d T_map_base = test::referenceBasePose();
   double roll, pitch, yaw;
@@ -106,9 +102,9 @@ TEST(CudaBackendTest, RefinementOnTheDeviceFrameMatchesHost) {
   fp.pixel_stride = 8;
   fp.max_range_m = 5.f;
   const DepthFrame frame = prepareFrame(img, K, fp);
-  NormalEquationsEvaluator* sums = gpu.normalEquations();
+  NormalEquationsEvaluator* sums = gpu->normalEquations();
   EXPECT_FALSE(sums->hasBackendFrame());  // nothing prepared yet
-  const CudaBackend::DeviceFrameInfo info = gpu.prepareDeviceFrame(img, K, fp);
+  const CudaBackend::DeviceFrameInfo info = gpu->prepareDeviceFrame(img, K, fp);
   ASSERT_EQ(info.pixels, static_cast<int>(frame.size()));
   ASSERT_TRUE(sums->hasBackendFrame());
   RefinementFrame on_device;
@@ -148,12 +144,10 @@ TEST(CudaBackendTest, RefinementOnTheDeviceFrameMatchesHost) {
 }
 
 // The sums themselves: H, g and the log-likelihood at several poses, GPU against host.
-TEST(CudaBackendTest, NormalEquationsMatchHost) {
-  GMM_MCL_REQUIRE_DEVICE();
+TEST_F(CudaBackendTest, NormalEquationsMatchHost) {
   const auto& w = test::world();
-  CudaBackend gpu;
-  gpu.setMap(w.map);
-  NormalEquationsEvaluator* dev = gpu.normalEquations();
+  gpu->setMap(w.map);
+  NormalEquationsEvaluator* dev = gpu->normalEquations();
   HostNormalEquations host;
   FrameParams fp = test::frameParams(4);
   const Eigen::Isometry3d T_map_base = test::referenceBasePose();
