@@ -24,8 +24,8 @@
 #    targets, with the package's own tools), run there: the bags stay here;
 #  - env.sh: PATH, LD_LIBRARY_PATH, PYTHONHOME, ROS_PACKAGE_PATH, CMAKE_PREFIX_PATH for it.
 # Scripts' #!/usr/bin/python3 lines become #!/usr/bin/env python3, resolved to the bundled
-# interpreter by PATH. scripts/gpu_ros_check.sh is copied beside the archive, since the GPU
-# machine gets the main checkout, which may not have it yet.
+# interpreter by PATH. scripts/gpu_ros_check.sh and the ros_common.sh it sources are copied
+# beside the archive, since the GPU machine gets the main checkout, which may not have them yet.
 set -euo pipefail
 source "$(dirname "$0")/common.sh"
 source "$(dirname "$0")/ros_common.sh"
@@ -214,7 +214,7 @@ export ROS_DISTRO=debian
 export ROS_HOME="${ROS_HOME:-$GPUROS/../ros_home}"
 EOF
 
-cp "$GMM_MCL_ROOT/scripts/gpu_ros_check.sh" "$R/"
+cp "$GMM_MCL_ROOT/scripts/gpu_ros_check.sh" "$GMM_MCL_ROOT/scripts/ros_common.sh" "$R/"
 echo "== staged $(du -sh "$R" | cut -f1) in $R ($(wc -l < "$R/rostests.txt") rostests)"
 
 # ---- pack ---------------------------------------------------------------------------------------
@@ -225,5 +225,5 @@ mv "$BUNDLE/gpuros.tar.xz.partial" "$BUNDLE/gpuros.tar.xz"
 # The staged copy goes: inside the package's folder, roslaunch finds its launch files as
 # duplicates of the package's own ("multiple files named [replay.launch] in package [gmm_mcl]").
 rm -rf "$STAGE"
-cp "$GMM_MCL_ROOT/scripts/gpu_ros_check.sh" "$BUNDLE/"
+cp "$GMM_MCL_ROOT/scripts/gpu_ros_check.sh" "$GMM_MCL_ROOT/scripts/ros_common.sh" "$BUNDLE/"
 echo "== $BUNDLE: $(du -sh "$BUNDLE" | cut -f1) (xz took $(( $(date +%s) - start )) s)"

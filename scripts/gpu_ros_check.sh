@@ -75,23 +75,11 @@ SHARE="$GPUROS/ws/share/gmm_mcl"
 BIN="$GPUROS/ws/lib/gmm_mcl"
 NODELET="$GPUROS/usr/lib/nodelet/nodelet"
 
-MASTER_PID=""
-start_master() {
-  roscore -p "${ROS_MASTER_URI##*:}" > "$1" 2>&1 &
-  MASTER_PID=$!
-  for _ in $(seq 1 60); do
-    rosparam get /run_id > /dev/null 2>&1 && return 0
-    sleep 0.5
-  done
-  return 1
-}
-stop_master() {
-  [[ -n "$MASTER_PID" ]] || return 0
-  kill -INT "$MASTER_PID" 2> /dev/null
-  wait "$MASTER_PID" 2> /dev/null
-  MASTER_PID=""
-}
-trap stop_master EXIT
+# A private roscore (ros_start_master, ros_stop_master): ros_common.sh lies beside this script
+# in the checkout and in the bundle.
+# shellcheck disable=SC1091
+source "$HERE/ros_common.sh"
+trap ros_stop_master EXIT
 
 # status_stats BAG LABEL: per-frame figures from the recorded ~status messages.
 status_stats() {
@@ -140,13 +128,13 @@ step_info() {
 }
 
 step_roscore() {
-  if start_master "$OUT/roscore.log"; then
+  if ros_start_master "$OUT/roscore.log"; then
     local nodes
     nodes=$(rosnode list 2> /dev/null | tr '\n' ' ')
-    stop_master
+    ros_stop_master
     pass roscore "master answered on $ROS_MASTER_URI, nodes: $nodes"
   else
-    stop_master
+    ros_stop_master
     fail roscore "no answer (roscore.log)"
   fi
 }
@@ -221,7 +209,7 @@ run_replay() {
 step_demo() {
   local d="$WORK/demo" b
   make_demo_bag "$d" "$FRAMES"
-  start_master "$OUT/roscore_demo.log" || { fail demo "no master"; return; }
+  ros_start_master "$OUT/roscore_demo.log" || { fail demo "no master"; return; }
   for b in $DEMO_BACKENDS; do
     local t0 secs
     t0=$(date +%s)
@@ -242,13 +230,13 @@ step_demo() {
       fail "demo $b" "$(tail -3 "$OUT/ate_$b.txt" | tr '\n' ' ') $stats"
     fi
   done
-  stop_master
+  ros_stop_master
 }
 
 step_live() {
   local d="$WORK/demo"
   make_demo_bag "$d" "$FRAMES"
-  start_master "$OUT/roscore_live.log" || { fail live "no master"; return; }
+  ros_start_master "$OUT/roscore_live.log" || { fail live "no master"; return; }
   rm -f "$d/poses_live.bag"
   roslaunch gmm_mcl replay.launch bag:="$d/sim.bag" map:="$d/sim.gmm" \
     overrides:="$SHARE/config/sim_test.yaml" params:="$d/sim_init.yaml" rate:=1.0 loop:=true \
@@ -265,7 +253,7 @@ step_live() {
   sleep "$LIVE_SECONDS"
   kill -INT "$launch_pid" 2> /dev/null
   wait "$launch_pid" 2> /dev/null
-  stop_master
+  ros_stop_master
   echo "global_localization: rc $gl_rc $gl" > "$OUT/live_calls.txt"
   echo "dynparam set: rc $dr_rc $dr" >> "$OUT/live_calls.txt"
   echo "dynparam get: $get" >> "$OUT/live_calls.txt"
@@ -319,7 +307,7 @@ step_sanitizer() {
   local tool="$1" d="$WORK/sanitizer"
   [[ -x "$SANITIZER" ]] || { fail "$tool" "compute-sanitizer not found"; return; }
   make_demo_bag "$d" "$SANITIZER_FRAMES"
-  start_master "$OUT/roscore_$tool.log" || { fail "$tool" "no master"; return; }
+  ros_start_master "$OUT/roscore_$tool.log" || { fail "$tool" "no master"; return; }
   "$SANITIZER" --tool "$tool" --log-file "$OUT/$tool.log" --print-limit 50 \
     "$NODELET" manager __name:=sanitized_manager > "$OUT/manager_$tool.log" 2>&1 &
   local san_pid=$!
@@ -337,7 +325,7 @@ step_sanitizer() {
   for _ in $(seq 1 "$SANITIZER_EXIT_S"); do kill -0 "$san_pid" 2> /dev/null || break; sleep 1; done
   kill -INT "$san_pid" 2> /dev/null
   wait "$san_pid" 2> /dev/null
-  stop_master
+  ros_stop_master
   local summary steps
   summary=$(grep -E "ERROR SUMMARY|RACECHECK SUMMARY|LEAK SUMMARY" "$OUT/$tool.log" | tr '\n' ' ')
   steps=$(status_stats "$d/poses_$tool.bag" "$tool" 2>&1 | tail -1)
