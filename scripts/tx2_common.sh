@@ -6,6 +6,18 @@
 # (CORE_PACKAGES has it); libgomp comes with the cross compiler.
 TX2_CROSS_PACKAGES=(g++-aarch64-linux-gnu qemu-user libpng-dev:arm64 zlib1g-dev:arm64 libgtest-dev:arm64)
 
+# tx2_switch FLAG ARGS...: prints 1 when ARGS is FLAG, 0 when empty; anything else is a usage
+# error (exit 2). Each TX2 script takes one optional switch.
+tx2_switch() {
+  local flag="$1"
+  shift
+  case "$*" in
+    "") echo 0 ;;
+    "$flag") echo 1 ;;
+    *) echo "usage: $(basename "$0") [$flag]" >&2; exit 2 ;;
+  esac
+}
+
 tx2_sudo() {
   if [ "$(id -u)" -eq 0 ]; then "$@"; else sudo "$@"; fi
 }

@@ -21,13 +21,7 @@ set -euo pipefail
 source "$(dirname "$0")/common.sh"
 source "$(dirname "$0")/tx2_common.sh"
 
-CI_MODE=0
-for a in "$@"; do
-  case "$a" in
-    --ci) CI_MODE=1 ;;
-    *) echo "usage: $0 [--ci]" >&2; exit 2 ;;
-  esac
-done
+CI_MODE="$(tx2_switch --ci "$@")"
 
 ensure_packages "${CORE_PACKAGES[@]}"
 ensure_arm64_packages

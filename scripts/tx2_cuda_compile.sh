@@ -13,13 +13,7 @@ set -euo pipefail
 source "$(dirname "$0")/common.sh"
 source "$(dirname "$0")/tx2_common.sh"
 
-IF_INSTALLED=0
-for a in "$@"; do
-  case "$a" in
-    --if-installed) IF_INSTALLED=1 ;;
-    *) echo "usage: $0 [--if-installed]" >&2; exit 2 ;;
-  esac
-done
+IF_INSTALLED="$(tx2_switch --if-installed "$@")"
 
 if [[ "$IF_INSTALLED" -eq 1 ]]; then
   if ! tx2_cuda_toolkit_present; then
