@@ -40,53 +40,63 @@ Eigen::Isometry3d randomCamera(std::mt19937_64* rng) {
   return T;
 }
 
+// Each component of the synthetic map seen from `cameras` random cameras, drawn from rng:
+// f(T_map_cam, T_cam_map, component, its mean in the map frame, in the camera frame).
+template <typename F>
+void forEachComponentView(int cameras, std::mt19937_64* rng, F&& f) {
+  for (int pose = 0; pose < cameras; ++pose) {
+    const Eigen::Isometry3d T_map_cam = randomCamera(rng);
+    const RigidTransformF T_cam_map = toRigidF(T_map_cam.inverse());
+    for (const ComponentF& c : test::world().map.packed()) {
+      const Eigen::Vector3d mu(c.mean_m[0], c.mean_m[1], c.mean_m[2]);
+      f(T_map_cam, T_cam_map, c, mu, Eigen::Vector3d(T_map_cam.inverse() * mu));
+    }
+  }
+}
+
 TEST(DepthNoiseTest, EvaluationFormMatchesTheConvolvedDensity) {
-  const auto& comps = test::world().map.packed();
   const DepthNoiseModel noise;  // Kinect v1 defaults
   std::mt19937_64 rng(3);
   std::normal_distribution<double> n01(0.0, 1.0);
   double worst = 0.0, worst_thin_dir_ratio = 1e9;
   int formed = 0;
-  for (int pose = 0; pose < 20; ++pose) {
-    const Eigen::Isometry3d T_map_cam = randomCamera(&rng);
-    const RigidTransformF T_cam_map = toRigidF(T_map_cam.inverse());
-    for (const ComponentF& c : comps) {
-      const Eigen::Vector3d mu(c.mean_m[0], c.mean_m[1], c.mean_m[2]);
-      const Eigen::Vector3d m = T_map_cam.inverse() * mu;
-      EvalComponentF e, e2;
-      const bool ok = makeNoisyEvalComponent(c, T_cam_map, noise, kEvalScaleNats, &e);
-      ASSERT_EQ(ok, m.z() > 0.0);
-      // Components whose mean projects into a VGA image (585 px focal length): the ones a
-      // patch can use. Beside the image the ray turns towards the image plane, |m| / z grows
-      // without bound and so does s.
-      if (!ok || m.z() < 0.1 || std::abs(m.x() / m.z()) > 0.6 || std::abs(m.y() / m.z()) > 0.45) {
-        continue;
-      }
-      ASSERT_TRUE(makeNoisyEvalComponent(c, T_cam_map, noise, kEvalScaleLog2, &e2));
-      ++formed;
-      // Reference in double: Sigma + s^2 r r^T, s = sigma(z) |m| / z.
-      const double d = m.z() - noise.z0_m;
-      const double s = (noise.a_m + noise.b_per_m * d * d) * m.norm() / m.z();
-      const Eigen::Vector3d r = (mu - T_map_cam.translation()).normalized();
-      const Eigen::Matrix3d cov = unpack(c.cov_m2) + s * s * r * r.transpose();
-      const Eigen::Matrix3d L = cov.llt().matrixL();
-      const double log_norm = c.log_weight - 0.5 * std::log(cov.determinant());
-      EXPECT_NEAR(e.log_norm, log_norm, 1e-4 * std::max(1.0, std::abs(log_norm)));
-      // The variance along the ray grew by s^2 (the component is now at least as thick as the
-      // sensor's noise along the ray).
-      worst_thin_dir_ratio = std::min(worst_thin_dir_ratio, r.dot(cov * r) / (s * s));
-      for (int k = 0; k < 10; ++k) {
-        Eigen::Vector3d z(n01(rng), n01(rng), n01(rng));
-        if (z.norm() > 3.0) z *= 3.0 / z.norm();
-        const Eigen::Vector3d p = mu + L * z;
-        const double ref = log_norm - 0.5 * z.squaredNorm();
-        const float px = static_cast<float>(p.x()), py = static_cast<float>(p.y()),
-                    pz = static_cast<float>(p.z());
-        worst = std::max(worst, std::abs(evalLogDensity(e, px, py, pz) - ref));
-        worst = std::max(worst, std::abs(evalLogDensity(e2, px, py, pz) / kEvalScaleLog2 - ref));
-      }
-    }
-  }
+  forEachComponentView(
+      20, &rng,
+      [&](const Eigen::Isometry3d& T_map_cam, const RigidTransformF& T_cam_map, const ComponentF& c,
+          const Eigen::Vector3d& mu, const Eigen::Vector3d& m) {
+        EvalComponentF e, e2;
+        const bool ok = makeNoisyEvalComponent(c, T_cam_map, noise, kEvalScaleNats, &e);
+        ASSERT_EQ(ok, m.z() > 0.0);
+        // Components whose mean projects into a VGA image (585 px focal length): the ones a
+        // patch can use. Beside the image the ray turns towards the image plane, |m| / z grows
+        // without bound and so does s.
+        if (!ok || m.z() < 0.1 || std::abs(m.x() / m.z()) > 0.6 || std::abs(m.y() / m.z()) > 0.45) {
+          return;
+        }
+        ASSERT_TRUE(makeNoisyEvalComponent(c, T_cam_map, noise, kEvalScaleLog2, &e2));
+        ++formed;
+        // Reference in double: Sigma + s^2 r r^T, s = sigma(z) |m| / z.
+        const double d = m.z() - noise.z0_m;
+        const double s = (noise.a_m + noise.b_per_m * d * d) * m.norm() / m.z();
+        const Eigen::Vector3d r = (mu - T_map_cam.translation()).normalized();
+        const Eigen::Matrix3d cov = unpack(c.cov_m2) + s * s * r * r.transpose();
+        const Eigen::Matrix3d L = cov.llt().matrixL();
+        const double log_norm = c.log_weight - 0.5 * std::log(cov.determinant());
+        EXPECT_NEAR(e.log_norm, log_norm, 1e-4 * std::max(1.0, std::abs(log_norm)));
+        // The variance along the ray grew by s^2 (the component is now at least as thick as the
+        // sensor's noise along the ray).
+        worst_thin_dir_ratio = std::min(worst_thin_dir_ratio, r.dot(cov * r) / (s * s));
+        for (int k = 0; k < 10; ++k) {
+          Eigen::Vector3d z(n01(rng), n01(rng), n01(rng));
+          if (z.norm() > 3.0) z *= 3.0 / z.norm();
+          const Eigen::Vector3d p = mu + L * z;
+          const double ref = log_norm - 0.5 * z.squaredNorm();
+          const float px = static_cast<float>(p.x()), py = static_cast<float>(p.y()),
+                      pz = static_cast<float>(p.z());
+          worst = std::max(worst, std::abs(evalLogDensity(e, px, py, pz) - ref));
+          worst = std::max(worst, std::abs(evalLogDensity(e2, px, py, pz) / kEvalScaleLog2 - ref));
+        }
+      });
   std::printf(
       "[ measured ] %d noisy evaluation forms: worst |ln density error| %.2e nats "
       "within 3 sigma; variance along the ray >= %.3f s^2\n",
@@ -99,36 +109,32 @@ TEST(DepthNoiseTest, EvaluationFormMatchesTheConvolvedDensity) {
 TEST(DepthNoiseTest, RayInflationLeavesTheProjectionUnchanged) {
   // The noise lies along the ray through the mean, which the pinhole Jacobian maps to zero: the
   // projected 2D covariance, and so the patch membership, is the noise-free one.
-  const auto& comps = test::world().map.packed();
   const Intrinsics K = test::vgaCamera();
   std::mt19937_64 rng(5);
   double worst = 0.0;
   int compared = 0;
-  for (int pose = 0; pose < 10; ++pose) {
-    const Eigen::Isometry3d T_map_cam = randomCamera(&rng);
-    const RigidTransformF T_cam_map = toRigidF(T_map_cam.inverse());
-    for (const ComponentF& c : comps) {
-      const Eigen::Vector3d mu(c.mean_m[0], c.mean_m[1], c.mean_m[2]);
-      const Eigen::Vector3d m = T_map_cam.inverse() * mu;
-      if (m.z() < 0.1) continue;
-      const Eigen::Vector3d r = (mu - T_map_cam.translation()).normalized();
-      const Eigen::Matrix3d cov = unpack(c.cov_m2) + 0.05 * 0.05 * r * r.transpose();  // 5 cm
-      ComponentF wide = c;
-      const float packed[6] = {static_cast<float>(cov(0, 0)), static_cast<float>(cov(0, 1)),
-                               static_cast<float>(cov(0, 2)), static_cast<float>(cov(1, 1)),
-                               static_cast<float>(cov(1, 2)), static_cast<float>(cov(2, 2))};
-      for (int k = 0; k < 6; ++k) wide.cov_m2[k] = packed[k];
-      ProjectedComponent a, b;
-      ASSERT_TRUE(projectComponent(c, T_cam_map, K, 0.1f, 3.f, 22.6f, &a));
-      ASSERT_TRUE(projectComponent(wide, T_cam_map, K, 0.1f, 3.f, 22.6f, &b));
-      const double scale = std::max(
-          {1.0, static_cast<double>(std::abs(a.cov_uu)), static_cast<double>(std::abs(a.cov_vv))});
-      worst =
-          std::max({worst, std::abs(a.cov_uu - b.cov_uu) / scale,
-                    std::abs(a.cov_uv - b.cov_uv) / scale, std::abs(a.cov_vv - b.cov_vv) / scale});
-      ++compared;
-    }
-  }
+  forEachComponentView(
+      10, &rng,
+      [&](const Eigen::Isometry3d& T_map_cam, const RigidTransformF& T_cam_map, const ComponentF& c,
+          const Eigen::Vector3d& mu, const Eigen::Vector3d& m) {
+        if (m.z() < 0.1) return;
+        const Eigen::Vector3d r = (mu - T_map_cam.translation()).normalized();
+        const Eigen::Matrix3d cov = unpack(c.cov_m2) + 0.05 * 0.05 * r * r.transpose();  // 5 cm
+        ComponentF wide = c;
+        const float packed[6] = {static_cast<float>(cov(0, 0)), static_cast<float>(cov(0, 1)),
+                                 static_cast<float>(cov(0, 2)), static_cast<float>(cov(1, 1)),
+                                 static_cast<float>(cov(1, 2)), static_cast<float>(cov(2, 2))};
+        for (int k = 0; k < 6; ++k) wide.cov_m2[k] = packed[k];
+        ProjectedComponent a, b;
+        ASSERT_TRUE(projectComponent(c, T_cam_map, K, 0.1f, 3.f, 22.6f, &a));
+        ASSERT_TRUE(projectComponent(wide, T_cam_map, K, 0.1f, 3.f, 22.6f, &b));
+        const double scale = std::max({1.0, static_cast<double>(std::abs(a.cov_uu)),
+                                       static_cast<double>(std::abs(a.cov_vv))});
+        worst = std::max({worst, std::abs(a.cov_uu - b.cov_uu) / scale,
+                          std::abs(a.cov_uv - b.cov_uv) / scale,
+                          std::abs(a.cov_vv - b.cov_vv) / scale});
+        ++compared;
+      });
   std::printf(
       "[ measured ] %d components: projected covariance changed by at most %.2e "
       "(relative) by 5 cm of noise along the ray\n",
