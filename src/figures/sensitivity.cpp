@@ -73,15 +73,8 @@ void collectKl(const RunTrace& reference, const RunTrace& run, const std::string
                std::vector<KlSample>* out) {
   const int n = static_cast<int>(std::min(reference.posterior.size(), run.posterior.size()));
   for (int f = std::max(0, eval_from_frame); f < n; ++f) {
-    KlSample s;
-    s.sweep = sweep;
-    s.value = value;
-    s.run = run_index;
-    s.seed = seed;
-    s.frame = f;
-    s.kl = stateKl(reference.posterior[f], run.posterior[f], regularisation);
-    s.error_m = run.error_m[f];
-    out->push_back(s);
+    const double kl = stateKl(reference.posterior[f], run.posterior[f], regularisation);
+    out->push_back(KlSample{sweep, value, run_index, seed, f, kl, run.error_m[f]});
   }
 }
 
