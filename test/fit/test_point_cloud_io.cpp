@@ -1,8 +1,6 @@
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <cmath>
-#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
@@ -13,21 +11,26 @@
 #include "gmm_mcl/fit/fit_error.h"
 #include "gmm_mcl/fit/point_cloud_io.h"
 #include "test_utils/synthetic_fixtures.h"
+#include "test_utils/temp_dir.h"
 
 namespace gmm_mcl {
 namespace {
 
-std::string tempPath(const std::string& name) {
-  return ::testing::TempDir() + "gmm_fit_io_" + std::to_string(::getpid()) + "_" + name;
-}
+// Each case's files in a temporary folder, removed with it.
+class PointCloudIoTest : public ::testing::Test {
+ protected:
+  std::string tempPath(const std::string& name) const { return dir_ / name; }
+  // Writes `bytes` to a file named `name` in the folder; returns its path.
+  std::string writeTemp(const std::string& name, const std::string& bytes) const {
+    const std::string path = tempPath(name);
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    return path;
+  }
 
-// Writes `bytes` to a temporary file named after `name`; returns its path.
-std::string writeTemp(const std::string& name, const std::string& bytes) {
-  const std::string path = tempPath(name);
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-  return path;
-}
+ private:
+  test::TempDir dir_{"fit_io"};
+};
 
 std::string floatBytes(std::initializer_list<float> v) {
   std::string s;
@@ -35,7 +38,7 @@ std::string floatBytes(std::initializer_list<float> v) {
   return s;
 }
 
-TEST(PointCloudIoTest, PcdBinaryRoundTrip) {
+TEST_F(PointCloudIoTest, PcdBinaryRoundTrip) {
   const PointCloud pts = {{1.f, 2.f, 3.f}, {-4.5f, 0.25f, 1e-3f}};
   const std::string path = tempPath("rt.pcd");
   writePcd(pts, path);
@@ -43,23 +46,20 @@ TEST(PointCloudIoTest, PcdBinaryRoundTrip) {
   ASSERT_EQ(back.size(), 2u);
   EXPECT_EQ(back[0], pts[0]);
   EXPECT_EQ(back[1], pts[1]);
-  std::remove(path.c_str());
 }
 
-TEST(PointCloudIoTest, PcdAsciiWithExtraFieldsAndNan) {
-  const std::string path =
+TEST_F(PointCloudIoTest, PcdAsciiWithExtraFieldsAndNan) {
+  const PointCloud p = readPcd(
       writeTemp("a.pcd",
                 "VERSION .7\nFIELDS intensity x y z\nSIZE 4 4 4 4\nTYPE U F F F\nCOUNT 1 1 1 1\n"
-                "WIDTH 3\nHEIGHT 1\nPOINTS 3\nDATA ascii\n7 1 2 3\n8 nan 0 0\n9 -1 -2 -3.5\n");
-  const PointCloud p = readPcd(path);
+                "WIDTH 3\nHEIGHT 1\nPOINTS 3\nDATA ascii\n7 1 2 3\n8 nan 0 0\n9 -1 -2 -3.5\n"));
   ASSERT_EQ(p.size(), 3u);
   EXPECT_EQ(p[0], Eigen::Vector3f(1, 2, 3));
   EXPECT_FALSE(p[1].allFinite());  // kept: the caller drops non-finite points
   EXPECT_EQ(p[2], Eigen::Vector3f(-1, -2, -3.5f));
-  std::remove(path.c_str());
 }
 
-TEST(PointCloudIoTest, PcdBinaryCompressedLzf) {
+TEST_F(PointCloudIoTest, PcdBinaryCompressedLzf) {
   // Two points, fields x y z stored field-major after LZF: x0 x1 y0 y1 z0 z1 (24 bytes).
   // Literal run of the first 12 bytes, then a 12-byte back-reference at distance 12 (the
   // y and z arrays repeat x: both points are (1,2)).
@@ -76,26 +76,23 @@ TEST(PointCloudIoTest, PcdBinaryCompressedLzf) {
   body.append(reinterpret_cast<const char*>(&csize), 4);
   body.append(reinterpret_cast<const char*>(&usize), 4);
   body += lzf;
-  const std::string path =
-      writeTemp("c.pcd",
-                "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\n"
-                "HEIGHT 1\nPOINTS 2\nDATA binary_compressed\n" +
-                    body);
-  const PointCloud p = readPcd(path);
+  const PointCloud p =
+      readPcd(writeTemp("c.pcd",
+                        "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\n"
+                        "HEIGHT 1\nPOINTS 2\nDATA binary_compressed\n" +
+                            body));
   ASSERT_EQ(p.size(), 2u);
   EXPECT_EQ(p[0], Eigen::Vector3f(1, 1, 1));
   EXPECT_EQ(p[1], Eigen::Vector3f(2, 2, 2));
-  std::remove(path.c_str());
 }
 
-TEST(PointCloudIoTest, PlyAsciiQuadIsTwoTriangles) {
-  const std::string path =
+TEST_F(PointCloudIoTest, PlyAsciiQuadIsTwoTriangles) {
+  const CloudFile f = readCloudFile(
       writeTemp("q.ply",
                 "ply\nformat ascii 1.0\ncomment unit square\nelement vertex 4\nproperty float x\n"
                 "property float y\nproperty float z\nproperty uchar red\nelement face 1\n"
                 "property list uchar int vertex_indices\nend_header\n0 0 0 1\n1 0 0 2\n1 1 0 3\n"
-                "0 1 0 4\n4 0 1 2 3\n");
-  const CloudFile f = readCloudFile(path);
+                "0 1 0 4\n4 0 1 2 3\n"));
   ASSERT_EQ(f.points.size(), 4u);
   ASSERT_TRUE(f.hasFaces());
   ASSERT_EQ(f.mesh.triangles.size(), 2u);
@@ -107,29 +104,26 @@ TEST(PointCloudIoTest, PlyAsciiQuadIsTwoTriangles) {
     EXPECT_LE(p.y(), 1.f);
     EXPECT_EQ(p.z(), 0.f);
   }
-  std::remove(path.c_str());
 }
 
-TEST(PointCloudIoTest, PlyBinaryBigEndianVertices) {
+TEST_F(PointCloudIoTest, PlyBinaryBigEndianVertices) {
   std::string body;
   for (float v : {1.5f, -2.f, 3.25f}) {
     uint32_t bits;
     std::memcpy(&bits, &v, 4);
     for (int k = 3; k >= 0; --k) body += static_cast<char>((bits >> (8 * k)) & 0xFF);
   }
-  const std::string path =
+  const CloudFile f = readCloudFile(
       writeTemp("be.ply",
                 "ply\nformat binary_big_endian 1.0\nelement vertex 1\nproperty float x\n"
                 "property float y\nproperty float z\nend_header\n" +
-                    body);
-  const CloudFile f = readCloudFile(path);
+                    body));
   ASSERT_EQ(f.points.size(), 1u);
   EXPECT_EQ(f.points[0], Eigen::Vector3f(1.5f, -2.f, 3.25f));
   EXPECT_FALSE(f.hasFaces());
-  std::remove(path.c_str());
 }
 
-TEST(PointCloudIoTest, BadFilesAreClearErrors) {
+TEST_F(PointCloudIoTest, BadFilesAreClearErrors) {
   EXPECT_THROW(readCloudFile(tempPath("missing.pcd")), FitError);
   const std::string empty = writeTemp("empty.pcd", "");
   try {
@@ -149,10 +143,9 @@ TEST(PointCloudIoTest, BadFilesAreClearErrors) {
                 "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
   EXPECT_THROW(readPly(badface), FitError);
   EXPECT_THROW(readCloudFile(tempPath("cloud.las")), FitError);
-  for (const auto& p : {empty, trunc, badface}) std::remove(p.c_str());
 }
 
-TEST(PointCloudIoTest, ReplicaMeshWhenAvailable) {
+TEST_F(PointCloudIoTest, ReplicaMeshWhenAvailable) {
   const std::string path = test::datasetsRoot() + "/replica_office0/office0_mesh.ply";
   if (!std::ifstream(path)) GTEST_SKIP() << "data set not found: " << path;
   const CloudFile f = readCloudFile(path);
