@@ -47,6 +47,8 @@ void putF32(Bytes* b, size_t at, float f) {
   std::memcpy(&u, &f, 4);
   putU32(b, at, u);
 }
+void put(Bytes* b, size_t at, uint32_t v) { putU32(b, at, v); }
+void put(Bytes* b, size_t at, float f) { putF32(b, at, f); }
 void fixCrc(Bytes* b) { putU32(b, b->size() - 4, crc32(b->data(), b->size() - 4)); }
 
 // ---- map files ------------------------------------------------------------------------------
@@ -76,40 +78,26 @@ void mapCorpus() {
   b = three;
   b[40] ^= 1;
   write("corpus", t, "bad_crc.gmm", b);
-  b = three;
-  putU32(&b, 8, 2);
-  fixCrc(&b);
-  write("corpus", t, "version_2.gmm", b);
-  b = three;
-  putU32(&b, 16, 2);
-  fixCrc(&b);
-  write("corpus", t, "scalar_type_2.gmm", b);
+  // The M=3 map with one word changed and the checksum made right again.
+  const auto changed = [&](const char* name, size_t at, auto value) {
+    Bytes c = three;
+    put(&c, at, value);
+    fixCrc(&c);
+    write("corpus", t, name, c);
+  };
+  changed("version_2.gmm", 8, uint32_t{2});
+  changed("scalar_type_2.gmm", 16, uint32_t{2});
   b = Bytes(three.begin(), three.begin() + kMapHeaderBytes);
   putU32(&b, 12, 0);
   b.resize(b.size() + 4);
   fixCrc(&b);
   write("corpus", t, "zero_count.gmm", b);
-  b = three;
-  putF32(&b, kMapHeaderBytes + 4, std::numeric_limits<float>::quiet_NaN());
-  fixCrc(&b);
-  write("corpus", t, "nan_weight.gmm", b);
-  b = three;
-  putF32(&b, kMapHeaderBytes, -1.f / 3);
-  fixCrc(&b);
-  write("corpus", t, "negative_weight.gmm", b);
-  b = three;
-  putF32(&b, kMapHeaderBytes, 0.5f);
-  fixCrc(&b);
-  write("corpus", t, "weights_not_one.gmm", b);
-  b = three;
+  changed("nan_weight.gmm", kMapHeaderBytes + 4, std::numeric_limits<float>::quiet_NaN());
+  changed("negative_weight.gmm", kMapHeaderBytes, -1.f / 3);
+  changed("weights_not_one.gmm", kMapHeaderBytes, 0.5f);
   const size_t cov0 = kMapHeaderBytes + 16 * 3;  // after 3 weights and 3 means
-  putF32(&b, cov0, -0.04f);
-  fixCrc(&b);
-  write("corpus", t, "not_positive_definite.gmm", b);
-  b = three;
-  putF32(&b, cov0 + 4, std::numeric_limits<float>::infinity());
-  fixCrc(&b);
-  write("corpus", t, "inf_covariance.gmm", b);
+  changed("not_positive_definite.gmm", cov0, -0.04f);
+  changed("inf_covariance.gmm", cov0 + 4, std::numeric_limits<float>::infinity());
   // Bug: a positive-definite covariance of denormal floats passed every check, and its inverse
   // (1e39) was packed as a float: a map with infinite precisions loaded without an error.
   b = one;
@@ -149,9 +137,7 @@ Bytes imageInput(const ImageCase& c) {
   w.u8(0);
   w.u8(7);  // the encoding as a string
   w.str(c.encoding);
-  w.u32(c.width);
-  w.u32(c.height);
-  w.u32(c.step);
+  for (uint32_t size : {c.width, c.height, c.step}) w.u32(size);
   w.u8(c.big_endian ? 1 : 0);
   for (double k : c.K) w.number(k);
   w.u32(c.info_width);
@@ -160,17 +146,22 @@ Bytes imageInput(const ImageCase& c) {
   return w.bytes;
 }
 
-Bytes millimetres(uint32_t w, uint32_t h, uint32_t step, bool big_endian) {
-  Bytes d(static_cast<size_t>(step) * h, 0);
+// h rows of row_step bytes; pixel(u, v, p) writes pixel (u, v) at p, pixel_step bytes apart.
+template <typename Pixel>
+Bytes rows(uint32_t w, uint32_t h, uint32_t row_step, uint32_t pixel_step, Pixel pixel) {
+  Bytes d(static_cast<size_t>(row_step) * h, 0);
   for (uint32_t v = 0; v < h; ++v) {
-    for (uint32_t u = 0; u < w; ++u) {
-      const uint16_t mm = (u + v) % 5 == 0 ? 0 : static_cast<uint16_t>(500 + 300 * u + 100 * v);
-      uint8_t* p = &d[v * step + 2 * u];
-      p[big_endian ? 1 : 0] = static_cast<uint8_t>(mm & 0xFF);
-      p[big_endian ? 0 : 1] = static_cast<uint8_t>(mm >> 8);
-    }
+    for (uint32_t u = 0; u < w; ++u) pixel(u, v, &d[v * row_step + u * pixel_step]);
   }
   return d;
+}
+
+Bytes millimetres(uint32_t w, uint32_t h, uint32_t step, bool big_endian) {
+  return rows(w, h, step, 2, [big_endian](uint32_t u, uint32_t v, uint8_t* p) {
+    const uint16_t mm = (u + v) % 5 == 0 ? 0 : static_cast<uint16_t>(500 + 300 * u + 100 * v);
+    p[big_endian ? 1 : 0] = static_cast<uint8_t>(mm & 0xFF);
+    p[big_endian ? 0 : 1] = static_cast<uint8_t>(mm >> 8);
+  });
 }
 
 Bytes metres(uint32_t w, uint32_t h, bool big_endian) {
@@ -194,30 +185,21 @@ struct CloudCase : FrameTail {
 Bytes cloudInput(const CloudCase& c) {
   fuzz::Writer w;
   w.u8(1);
-  w.u32(c.width);
-  w.u32(c.height);
-  w.u32(c.point_step);
-  w.u32(c.row_step);
+  for (uint32_t size : {c.width, c.height, c.point_step, c.row_step}) w.u32(size);
   w.u8(c.big_endian ? 1 : 0);
-  w.i32(c.x);
-  w.i32(c.y);
-  w.i32(c.z);
+  for (int32_t offset : {c.x, c.y, c.z}) w.i32(offset);  // of the x, y, z fields
   writeTail(c, &w);
   return w.bytes;
 }
 
 // Points of a pinhole camera (f = 6, c = (3.5, 2.5)) looking at a tilted plane.
 Bytes cloudPoints(uint32_t w, uint32_t h, uint32_t point_step, uint32_t row_step) {
-  Bytes d(static_cast<size_t>(row_step) * h, 0);
-  for (uint32_t v = 0; v < h; ++v) {
-    for (uint32_t u = 0; u < w; ++u) {
-      const float z = 1.0f + 0.1f * u + 0.05f * v;
-      float p[3] = {(u - 3.5f) * z / 6.f, (v - 2.5f) * z / 6.f, z};
-      if ((u * 7 + v) % 11 == 0) p[2] = std::numeric_limits<float>::quiet_NaN();
-      std::memcpy(&d[v * row_step + u * point_step], p, 12);
-    }
-  }
-  return d;
+  return rows(w, h, row_step, point_step, [](uint32_t u, uint32_t v, uint8_t* out) {
+    const float z = 1.0f + 0.1f * u + 0.05f * v;
+    float p[3] = {(u - 3.5f) * z / 6.f, (v - 2.5f) * z / 6.f, z};
+    if ((u * 7 + v) % 11 == 0) p[2] = std::numeric_limits<float>::quiet_NaN();
+    std::memcpy(out, p, 12);
+  });
 }
 
 void depthFrameCorpus() {
