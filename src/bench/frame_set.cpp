@@ -5,26 +5,17 @@
 #include <cstring>
 #include <fstream>
 #include <random>
-#include <sstream>
 #include <stdexcept>
 
+#include "gmm_mcl/datasets/seven_scenes_sequence.h"
 #include "gmm_mcl/sim/box_scene.h"
 #include "gmm_mcl/sim/mesh_scene.h"
-#if defined(GMM_MCL_HAVE_PNG)
-#include "gmm_mcl/camera/png_io.h"
-#endif
 
 namespace gmm_mcl {
 namespace bench {
 
 namespace {
 const char kMagic[8] = {'G', 'M', 'M', 'F', 'R', 'M', '1', '\0'};
-
-std::string framePath(const std::string& dir, int i, const char* suffix) {
-  char name[64];
-  std::snprintf(name, sizeof(name), "/frame-%06d.%s", i, suffix);
-  return dir + name;
-}
 
 template <typename T>
 void put(std::ofstream& f, const T& v) {
@@ -39,32 +30,21 @@ void get(std::ifstream& f, T* v, const std::string& path) {
 }  // namespace
 
 FrameSet loadSevenScenes(const std::string& dir, int first, int count) {
-#if defined(GMM_MCL_HAVE_PNG)
+  SequenceOptions options;
+  options.max_frames = first + count;
+  const SevenScenesSequence sequence(dir, first + count, options);
+  if (sequence.size() < first + count) {
+    throw std::runtime_error(dir + ": " + std::to_string(sequence.size()) + " frames, " +
+                             std::to_string(first + count) + " needed");
+  }
   FrameSet set;
   set.source = "7-Scenes " + dir;
-  set.K = sim::sevenScenesCamera();
+  set.K = sequence.intrinsics();
   for (int i = first; i < first + count; ++i) {
-    set.images.push_back(loadDepthPng16(framePath(dir, i, "depth.png")));
-    std::ifstream pf(framePath(dir, i, "pose.txt"));
-    if (!pf) throw std::runtime_error(framePath(dir, i, "pose.txt") + ": cannot open");
-    Eigen::Matrix4d M;
-    for (int r = 0; r < 4; ++r) {
-      for (int c = 0; c < 4; ++c) {
-        if (!(pf >> M(r, c)))
-          throw std::runtime_error(framePath(dir, i, "pose.txt") + ": bad pose");
-      }
-    }
-    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-    T.linear() = M.block<3, 3>(0, 0);
-    T.translation() = M.block<3, 1>(0, 3);
-    set.T_map_cam.push_back(T);
+    set.images.push_back(sequence.loadDepth(i));
+    set.T_map_cam.push_back(sequence.T_world_cam(i));
   }
   return set;
-#else
-  (void)first;
-  (void)count;
-  throw std::runtime_error("7-Scenes frames in " + dir + " need libpng (not built in)");
-#endif
 }
 
 void saveFrameSet(const FrameSet& set, const std::string& path) {

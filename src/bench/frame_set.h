@@ -20,8 +20,9 @@ struct FrameSet {
   std::vector<Eigen::Isometry3d> T_map_cam;  // ground truth, camera optical frame -> map
 };
 
-// Frames first..first+count-1 of a 7-Scenes sequence folder (frame-NNNNNN.depth.png and
-// .pose.txt). Throws std::runtime_error when libpng is not built in or a file is bad.
+// Frames first..first+count-1 of a 7-Scenes sequence folder, read by the data-set reader
+// (SevenScenesSequence: its camera-intrinsics.txt, rotations made orthonormal). Throws
+// std::runtime_error when libpng is not built in, a file is bad or the folder is shorter.
 FrameSet loadSevenScenes(const std::string& dir, int first, int count);
 
 // Raw frame file: "GMMFRM1\0", uint32 count, width, height, float fx, fy, cx, cy; per frame 16
