@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "gmm_mcl/fit/fit_error.h"
+#include "gmm_mcl/sim/mesh.h"
 
 namespace gmm_mcl {
 namespace {
@@ -36,11 +37,6 @@ void principalAxes(const Eigen::Matrix3d& cov, Eigen::Vector3d* eval, Eigen::Mat
     (*eval)[i] = std::max(es.eigenvalues()[2 - i], 0.0);
     evec->col(i) = es.eigenvectors().col(2 - i);
   }
-}
-
-void putF32(std::ofstream& out, double v) {
-  const float f = static_cast<float>(v);
-  out.write(reinterpret_cast<const char*>(&f), 4);
 }
 
 }  // namespace
@@ -119,17 +115,6 @@ void writeEllipsoidsPly(const GmmMap& map, const std::string& path,
   const std::string fault = params.validate();
   if (!fault.empty()) throw FitError("ellipsoid export parameters: " + fault);
   const int rings = params.rings, segs = params.segments;
-  const size_t verts_per = static_cast<size_t>((rings - 1) * segs + 2);
-  const size_t faces_per = static_cast<size_t>(2 * segs * (rings - 1));
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) throw FitError(path + ": cannot open for writing: " + std::strerror(errno));
-  out << "ply\nformat binary_little_endian 1.0\ncomment gmm_mcl map, " << params.sigma
-      << "-sigma ellipsoids, " << map.size() << " components\n"
-      << "element vertex " << verts_per * map.size()
-      << "\nproperty float x\nproperty float y\nproperty float z\n"
-      << "property uchar red\nproperty uchar green\nproperty uchar blue\n"
-      << "element face " << faces_per * map.size() << "\nproperty list uchar int vertex_indices\n"
-      << "end_header\n";
   double wmax = 0.0;
   for (const auto& c : map.components()) wmax = std::max(wmax, c.weight);
   // Unit-sphere vertices: the poles then rings x segments.
@@ -143,42 +128,45 @@ void writeEllipsoidsPly(const GmmMap& map, const std::string& path,
     }
   }
   unit.emplace_back(0, 0, -1);
+  sim::Mesh mesh;
+  std::vector<sim::VertexColour> colours;
   for (const auto& c : map.components()) {
     Eigen::Vector3d ev;
     Eigen::Matrix3d axes;
     principalAxes(c.cov_m2, &ev, &axes);
     const Eigen::Matrix3d A = axes * (params.sigma * ev.cwiseSqrt()).asDiagonal();
     const double t = std::sqrt(c.weight / wmax);
-    const uint8_t rgb[3] = {static_cast<uint8_t>(255 * t), static_cast<uint8_t>(80),
-                            static_cast<uint8_t>(255 * (1.0 - t))};
+    const sim::VertexColour rgb = {static_cast<uint8_t>(255 * t), static_cast<uint8_t>(80),
+                                   static_cast<uint8_t>(255 * (1.0 - t))};
     for (const auto& u : unit) {
-      const Eigen::Vector3d p = c.mean_m + A * u;
-      for (int a = 0; a < 3; ++a) putF32(out, p[a]);
-      out.write(reinterpret_cast<const char*>(rgb), 3);
+      mesh.vertices_m.push_back((c.mean_m + A * u).cast<float>());
+      colours.push_back(rgb);
     }
   }
-  auto tri = [&](size_t base, size_t a, size_t b, size_t c) {
-    const uint8_t three = 3;
-    out.write(reinterpret_cast<const char*>(&three), 1);
-    for (size_t v : {a, b, c}) {
-      const int32_t idx = static_cast<int32_t>(base + v);
-      out.write(reinterpret_cast<const char*>(&idx), 4);
-    }
-  };
-  const size_t south = verts_per - 1;
-  for (size_t i = 0; i < map.size(); ++i) {
-    const size_t base = i * verts_per;
-    auto ring = [&](int r, int s) { return 1 + static_cast<size_t>(r * segs + (s % segs)); };
-    for (int s = 0; s < segs; ++s) tri(base, 0, ring(0, s), ring(0, s + 1));
+  const uint32_t verts_per = static_cast<uint32_t>(unit.size()), south = verts_per - 1;
+  for (uint32_t i = 0; i < map.size(); ++i) {
+    const uint32_t base = i * verts_per;
+    auto tri = [&](uint32_t a, uint32_t b, uint32_t c) {
+      mesh.triangles.push_back({base + a, base + b, base + c});
+    };
+    auto ring = [&](int r, int s) { return 1 + static_cast<uint32_t>(r * segs + (s % segs)); };
+    for (int s = 0; s < segs; ++s) tri(0, ring(0, s), ring(0, s + 1));
     for (int r = 0; r + 1 < rings - 1; ++r) {
       for (int s = 0; s < segs; ++s) {
-        tri(base, ring(r, s), ring(r + 1, s), ring(r + 1, s + 1));
-        tri(base, ring(r, s), ring(r + 1, s + 1), ring(r, s + 1));
+        tri(ring(r, s), ring(r + 1, s), ring(r + 1, s + 1));
+        tri(ring(r, s), ring(r + 1, s + 1), ring(r, s + 1));
       }
     }
-    for (int s = 0; s < segs; ++s) tri(base, ring(rings - 2, s), south, ring(rings - 2, s + 1));
+    for (int s = 0; s < segs; ++s) tri(ring(rings - 2, s), south, ring(rings - 2, s + 1));
   }
-  if (!out) throw FitError(path + ": write failed");
+  std::ostringstream comment;
+  comment << "gmm_mcl map, " << params.sigma << "-sigma ellipsoids, " << map.size()
+          << " components";
+  try {
+    sim::savePlyMesh(mesh, path, colours, comment.str());
+  } catch (const sim::MeshError& e) {
+    throw FitError(e.what());
+  }
 }
 
 void writeEllipsoidsCsv(const GmmMap& map, const std::string& path,

@@ -1,5 +1,7 @@
 #include "gmm_mcl/sim/mesh.h"
 
+#include <cerrno>
+#include <cstring>
 #include <fstream>
 #include <utility>
 
@@ -64,17 +66,28 @@ Mesh loadPlyMesh(const std::string& path) {
   return std::move(ply.mesh);
 }
 
-void savePlyMesh(const Mesh& mesh, const std::string& path) {
+void savePlyMesh(const Mesh& mesh, const std::string& path,
+                 const std::vector<VertexColour>& colours, const std::string& comment) {
   const std::string why = mesh.check();
   if (!why.empty()) throw MeshError(path + ": refusing to write an invalid mesh: " + why);
+  const bool coloured = !colours.empty();
+  if (coloured && colours.size() != mesh.vertices_m.size()) {
+    throw MeshError(path + ": " + std::to_string(colours.size()) + " colours for " +
+                    std::to_string(mesh.vertices_m.size()) + " vertices");
+  }
   std::ofstream out(path, std::ios::binary);
-  if (!out) throw MeshError(path + ": cannot open for writing");
-  out << "ply\nformat binary_little_endian 1.0\ncomment gmm_mcl sim mesh\n"
+  if (!out) throw MeshError(path + ": cannot open for writing: " + std::strerror(errno));
+  out << "ply\nformat binary_little_endian 1.0\ncomment " << comment << "\n"
       << "element vertex " << mesh.vertices_m.size() << "\nproperty float x\nproperty float y\n"
-      << "property float z\nelement face " << mesh.triangles.size()
+      << "property float z\n"
+      << (coloured ? "property uchar red\nproperty uchar green\nproperty uchar blue\n" : "")
+      << "element face " << mesh.triangles.size()
       << "\nproperty list uchar int vertex_indices\nend_header\n";
   // Little-endian on every platform this package targets (x86-64, aarch64).
-  for (const auto& v : mesh.vertices_m) out.write(reinterpret_cast<const char*>(v.data()), 12);
+  for (size_t i = 0; i < mesh.vertices_m.size(); ++i) {
+    out.write(reinterpret_cast<const char*>(mesh.vertices_m[i].data()), 12);
+    if (coloured) out.write(reinterpret_cast<const char*>(colours[i].data()), 3);
+  }
   for (const auto& t : mesh.triangles) {
     const unsigned char n = 3;
     out.write(reinterpret_cast<const char*>(&n), 1);

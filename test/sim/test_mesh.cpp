@@ -170,6 +170,25 @@ TEST(PlyMeshTest, RoundTripOfTheSceneMeshIsExact) {
   for (size_t i = 0; i < m.triangles.size(); ++i) EXPECT_EQ(r.triangles[i], m.triangles[i]);
 }
 
+// Per-vertex colours (the map inspector's ellipsoids) beside the coordinates: the reader skips
+// them and reads the same mesh; colours not one per vertex are refused.
+TEST(PlyMeshTest, ColouredMeshReadsBackTheSameMesh) {
+  const Mesh m = meshFromScene(makeDefaultPrimitiveScene());
+  std::vector<VertexColour> colours(m.vertices_m.size());
+  for (size_t i = 0; i < colours.size(); ++i) {
+    colours[i] = {static_cast<uint8_t>(i), static_cast<uint8_t>(3 * i), 7};
+  }
+  const std::string p = tempPath("coloured.ply");
+  savePlyMesh(m, p, colours, "coloured test mesh");
+  const Mesh r = loadPlyMesh(p);
+  ASSERT_EQ(r.vertices_m.size(), m.vertices_m.size());
+  ASSERT_EQ(r.triangles.size(), m.triangles.size());
+  for (size_t i = 0; i < m.vertices_m.size(); ++i) EXPECT_EQ(r.vertices_m[i], m.vertices_m[i]);
+  for (size_t i = 0; i < m.triangles.size(); ++i) EXPECT_EQ(r.triangles[i], m.triangles[i]);
+  colours.pop_back();
+  EXPECT_THROW(savePlyMesh(m, tempPath("short.ply"), colours), MeshError);
+}
+
 TEST(PlyMeshTest, InvalidMeshIsRefusedByWriterAndBvh) {
   Mesh m;
   m.vertices_m = {Eigen::Vector3f(0, 0, 0), Eigen::Vector3f(1, 0, 0)};

@@ -51,9 +51,15 @@ PlyContents readPlyFile(const std::string& path);
 // coordinate, no face element, or no triangles at all.
 Mesh loadPlyMesh(const std::string& path);
 
-// Writes a binary little-endian PLY (float x y z, uchar-count int vertex_indices); throws
-// MeshError on failure.
-void savePlyMesh(const Mesh& mesh, const std::string& path);
+// Per-vertex colour (red, green, blue) of a PLY file.
+using VertexColour = std::array<uint8_t, 3>;
+
+// Writes a binary little-endian PLY (float x y z, with `colours` also uchar red green blue per
+// vertex; uchar-count int vertex_indices) with `comment` in its header; throws MeshError on
+// failure, for an invalid mesh, or for colours not one per vertex.
+void savePlyMesh(const Mesh& mesh, const std::string& path,
+                 const std::vector<VertexColour>& colours = {},
+                 const std::string& comment = "gmm_mcl sim mesh");
 
 }  // namespace sim
 }  // namespace gmm_mcl
