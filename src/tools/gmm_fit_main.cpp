@@ -20,6 +20,7 @@
 #include "gmm_mcl/fit/seven_scenes_cloud.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/tools/command_line.h"
+#include "gmm_mcl/tools/report_errors.h"
 
 namespace gmm_mcl {
 namespace {
@@ -145,18 +146,13 @@ Options parseOptions(int argc, char** argv) {
 int importMap(const Options& o) {
   if (!o.input.empty() || !o.seven_dir.empty()) usageError("--import takes no INPUT or --7scenes");
   if (o.output.empty()) usageError("no output: give -o MAP");
-  try {
-    const GmmMap map = readMapCsv(o.import_path);
-    saveMap(map, o.output);
-    loadMap(o.output);  // read back: the file validates as every consumer will see it
-    if (!o.quiet) {
-      std::cerr << o.import_path << ": " << map.size() << " components -> " << o.output << "\n";
-    }
-    return 0;
-  } catch (const std::exception& e) {
-    std::cerr << "gmm_mcl_fit: " << e.what() << "\n";
-    return 1;
+  const GmmMap map = readMapCsv(o.import_path);
+  saveMap(map, o.output);
+  loadMap(o.output);  // read back: the file validates as every consumer will see it
+  if (!o.quiet) {
+    std::cerr << o.import_path << ": " << map.size() << " components -> " << o.output << "\n";
   }
+  return 0;
 }
 
 // The input's points: the stitched 7-Scenes frames, a mesh's surface samples or a file's points.
@@ -307,10 +303,9 @@ int run(int argc, char** argv) {
     const PointCloud cloud = prepareCloud(loadCloud(&o), o);
     if (o.output.empty()) return 0;
     fitAndWrite(cloud, &o, tty);
-  } catch (const std::exception& e) {
-    if (tty && !o.quiet) std::cerr << "\n";
-    std::cerr << "gmm_mcl_fit: error: " << e.what() << "\n";
-    return 1;
+  } catch (const std::exception&) {
+    if (tty && !o.quiet) std::cerr << "\n";  // end the progress line before the error
+    throw;
   }
   return 0;
 }
@@ -318,4 +313,6 @@ int run(int argc, char** argv) {
 }  // namespace
 }  // namespace gmm_mcl
 
-int main(int argc, char** argv) { return gmm_mcl::run(argc, argv); }
+int main(int argc, char** argv) {
+  return gmm_mcl::cli::reportErrors("gmm_mcl_fit", [&] { return gmm_mcl::run(argc, argv); });
+}

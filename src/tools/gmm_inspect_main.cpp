@@ -6,6 +6,7 @@
 #include "gmm_mcl/fit/map_inspect.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/tools/command_line.h"
+#include "gmm_mcl/tools/report_errors.h"
 
 namespace {
 
@@ -29,7 +30,7 @@ int main(int argc, char** argv) {
   cl.positional("map");
   cl.parse(argc, argv);
   if (map_path.empty()) cl.fail("no map file given");
-  try {
+  return cli::reportErrors("gmm_mcl_inspect", [&] {
     const GmmMap map = loadMap(map_path);
     std::cout << map_path << "\n";
     printMapSummary(summarizeMap(map), std::cout, encodeMap(map).size());
@@ -41,9 +42,6 @@ int main(int argc, char** argv) {
       writeEllipsoidsCsv(map, csv, params);
       std::cout << "wrote " << params.sigma << "-sigma ellipsoid table to " << csv << "\n";
     }
-  } catch (const std::exception& e) {
-    std::cerr << "gmm_mcl_inspect: error: " << e.what() << "\n";
-    return 1;
-  }
-  return 0;
+    return 0;
+  });
 }
