@@ -12,7 +12,8 @@
 # frames from `gmm_mcl_bench --export-frames`); by default the files
 # .deps/7scenes_redkitchen_m1000.gmm, .deps/7scenes_redkitchen_m4000.gmm and
 # .deps/7scenes_frames30.bin when present. Eigen and googletest are taken from .deps/eigen3 and
-# .deps/googletest when the system has none. Prebuilt binaries: GMM_MCL_GPU_BUILD_DIR=DIR and
+# .deps/googletest when the system has none, boost::program_options from .deps/boost whenever it
+# is there (scripts/gpu_deps.sh puts them and those inputs there). Prebuilt binaries: GMM_MCL_GPU_BUILD_DIR=DIR and
 # the steps without `build`.
 set -uo pipefail
 ROOT="$(cd "$(dirname "$0")/.." && pwd)"
@@ -36,6 +37,9 @@ if step build; then
   extra=()
   [[ -d .deps/eigen3 && ! -d /usr/include/eigen3 ]] && extra+=(-DGMM_MCL_EIGEN_DIR="$ROOT/.deps/eigen3")
   [[ -d .deps/googletest && ! -d /usr/src/googletest ]] && extra+=(-DGMM_MCL_GTEST_SRC="$ROOT/.deps/googletest")
+  # Boost: a system may have the headers and not the library (the H100 machine); a carried copy
+  # is always used.
+  [[ -d .deps/boost ]] && extra+=(-DGMM_MCL_BOOST_DIR="$ROOT/.deps/boost")
   cmake -S "$ROOT" -B "$BUILD" -DGMM_MCL_BUILD_ROS=OFF -DGMM_MCL_WITH_CUDA=ON -DGMM_MCL_BUILD_FIT=OFF \
     -DCMAKE_CUDA_ARCHITECTURES="$ARCH" -DCMAKE_BUILD_TYPE=Release "${extra[@]}" > "$LOGS/cmake.log" 2>&1 \
     || { cat "$LOGS/cmake.log"; exit 1; }
