@@ -493,8 +493,7 @@ int main(int argc, char** argv) {
   ros::init(argc, argv, "rostest_nodelet");
   gmm_mcl::lockstep::World world;
   gmm_mcl::lockstep::w = &world;
-  std::string filter;
-  ros::param::param<std::string>("~filter", filter, "");
+  const std::string filter = ros::param::param<std::string>("~filter", "");
   if (!filter.empty()) testing::GTEST_FLAG(filter) = filter;
   world.robot.waitForNodelet();  // every case starts with the nodelet up (a failure shows there)
   return RUN_ALL_TESTS();
