@@ -32,17 +32,17 @@ cp "$DATASETS/replica_office0/office0_mesh.ply" "$DATASETS/replica_office0/traj.
 MAPS="${GMM_MCL_EVAL_MAPS:-$ROOT/build/eval_unseen/maps}"
 mkdir -p "$MAPS"
 SEVEN="$DATASETS/7scenes_redkitchen/data"
-[[ -f "$MAPS/replica_office0_m1000.gmm" ]] || "$BUILD/gmm_fit" \
+[[ -f "$MAPS/replica_office0_m1000.gmm" ]] || "$BUILD/gmm_mcl_fit" \
   "$DATASETS/replica_office0/office0_mesh.ply" --mesh-samples 250000 -m 1000 --seed 1 \
   -o "$MAPS/replica_office0_m1000.gmm" -q
 for f0 in 0 5; do
   m="$MAPS/7scenes_redkitchen_m1000_first$f0.gmm"
-  [[ -f "$m" ]] || "$BUILD/gmm_fit" --7scenes "$SEVEN" --first $f0 --last $((990 + f0)) --step 10 \
+  [[ -f "$m" ]] || "$BUILD/gmm_mcl_fit" --7scenes "$SEVEN" --first $f0 --last $((990 + f0)) --step 10 \
     --min-depth 0.1 --max-depth 4.0 --voxel 0.02 -m 1000 --seed 1 -o "$m" -q
 done
 # The M=4000 map of the DESIGN.md protocol's frames (the benchmark's `large` workload; the
 # 7s-m4000 protocol of scripts/eval_unseen.sh).
-[[ -f "$MAPS/7scenes_redkitchen_m4000.gmm" ]] || "$BUILD/gmm_fit" --7scenes "$SEVEN" --first 0 \
+[[ -f "$MAPS/7scenes_redkitchen_m4000.gmm" ]] || "$BUILD/gmm_mcl_fit" --7scenes "$SEVEN" --first 0 \
   --last 990 --step 10 --min-depth 0.1 --max-depth 4.0 --voxel 0.02 -m 4000 --seed 1 \
   -o "$MAPS/7scenes_redkitchen_m4000.gmm" -q
 cp "$MAPS"/*.gmm "$BUNDLE/data/maps/"
