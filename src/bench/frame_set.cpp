@@ -1,7 +1,6 @@
 #include "bench/frame_set.h"
 
 #include <cstdint>
-#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <random>
@@ -30,9 +29,7 @@ void get(std::ifstream& f, T* v, const std::string& path) {
 }  // namespace
 
 FrameSet loadSevenScenes(const std::string& dir, int first, int count) {
-  SequenceOptions options;
-  options.max_frames = first + count;
-  const SevenScenesSequence sequence(dir, first + count, options);
+  const SevenScenesSequence sequence(dir, first + count);
   if (sequence.size() < first + count) {
     throw std::runtime_error(dir + ": " + std::to_string(sequence.size()) + " frames, " +
                              std::to_string(first + count) + " needed");

@@ -262,8 +262,9 @@ TEST_F(CudaBackendTest, SevenScenesFramesMatchCpu) {
       GTEST_SKIP() << "7-Scenes frames not found (set GMM_MCL_7SCENES_FRAMES or GMM_MCL_DATASETS)";
     }
     frames = bench::loadSevenScenes(dir, 0, 1);
-    frames.images.push_back(bench::loadSevenScenes(dir, 50, 1).images[0]);
-    frames.T_map_cam.push_back(bench::loadSevenScenes(dir, 50, 1).T_map_cam[0]);
+    const bench::FrameSet frame50 = bench::loadSevenScenes(dir, 50, 1);
+    frames.images.push_back(frame50.images[0]);
+    frames.T_map_cam.push_back(frame50.T_map_cam[0]);
 #else
     GTEST_SKIP() << "7-Scenes frames need libpng or GMM_MCL_7SCENES_FRAMES";
 #endif
