@@ -35,28 +35,29 @@ add_library(gmm_mcl_cuda OBJECT
   src/backend/cuda/cuda_backend_launch.cpp
   src/backend/cuda/cuda_normal_equations.cpp
   # The device particle filter: kernels, host code.
-  src/backend/cuda/filter_sampling_kernels.cu
-  src/backend/cuda/filter_weight_kernels.cu
-  src/backend/cuda/filter_resample_kernels.cu
-  src/backend/cuda/cuda_particle_filter_impl.cpp
-  src/backend/cuda/cuda_particle_filter.cpp
-  src/backend/cuda/cuda_particle_filter_candidates.cpp
+  src/filter/cuda/filter_sampling_kernels.cu
+  src/filter/cuda/filter_weight_kernels.cu
+  src/filter/cuda/filter_resample_kernels.cu
+  src/filter/cuda/cuda_particle_filter_impl.cpp
+  src/filter/cuda/cuda_particle_filter.cpp
+  src/filter/cuda/cuda_particle_filter_candidates.cpp
 )
-# The device filter's cub sorts and scans (src/backend/cuda/filter_sort.cu) in their own
+# The device filter's cub sorts and scans (src/filter/cuda/filter_sort.cu) in their own
 # objects: CUDA 13's cub refuses C++14, so this one file (C++14 code) is compiled as C++17
 # there; older toolkits (the TX2's CUDA 10.2) compile it as C++14 like every other file.
-add_library(gmm_mcl_cuda_sort OBJECT src/backend/cuda/filter_sort.cu)
+add_library(gmm_mcl_cuda_sort OBJECT src/filter/cuda/filter_sort.cu)
 target_include_directories(gmm_mcl_cuda_sort PRIVATE
-  ${CMAKE_CURRENT_SOURCE_DIR}/src/backend ${CMAKE_CURRENT_SOURCE_DIR}/include ${GMM_MCL_CUDA_INCLUDE})
+  ${CMAKE_CURRENT_SOURCE_DIR}/src/filter ${CMAKE_CURRENT_SOURCE_DIR}/include ${GMM_MCL_CUDA_INCLUDE})
 target_compile_definitions(gmm_mcl_cuda_sort PRIVATE CCCL_IGNORE_DEPRECATED_CPP_DIALECT)
 target_compile_options(gmm_mcl_cuda_sort PRIVATE -Xcompiler=-Wall)
 if(CMAKE_CUDA_COMPILER_VERSION VERSION_GREATER_EQUAL 13)
   set_target_properties(gmm_mcl_cuda_sort PROPERTIES CUDA_STANDARD 17)
 endif()
 set_target_properties(gmm_mcl_cuda_sort PROPERTIES POSITION_INDEPENDENT_CODE ON)
-# The sources include each other as "cuda/<file>" from src/backend.
+# The sources include each other as "cuda/<file>": the backend's from src/backend (the shared
+# device helpers: buffers, error checks), the device filter's from src/filter.
 target_include_directories(gmm_mcl_cuda PRIVATE
-  ${CMAKE_CURRENT_SOURCE_DIR}/src/backend ${CMAKE_CURRENT_SOURCE_DIR}/include ${GMM_MCL_CUDA_INCLUDE})
+  ${CMAKE_CURRENT_SOURCE_DIR}/src/backend ${CMAKE_CURRENT_SOURCE_DIR}/src/filter ${CMAKE_CURRENT_SOURCE_DIR}/include ${GMM_MCL_CUDA_INCLUDE})
 # Eigen's headers, and the core's definitions: EIGEN_MAX_STATIC_ALIGN_BYTES=0 gives Eigen objects
 # the same layout here as in the core. Not through target_link_libraries: CMake links OBJECT
 # libraries from 3.12 on (JetPack 4 has 3.10).

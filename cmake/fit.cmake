@@ -9,7 +9,7 @@ add_library(gmm_mcl_fit STATIC
   src/fit/seven_scenes_cloud.cpp
   src/fit/map_inspect.cpp
 )
-# The 7-Scenes cloud reads the sequence through the data-set reader (cmake/replay.cmake); the PLY
+# The 7-Scenes cloud reads the sequence through the data-set reader (cmake/datasets.cmake); the PLY
 # reader and the mesh type are the simulator's (gmm_mcl_datasets links gmm_mcl_sim).
 target_link_libraries(gmm_mcl_fit PUBLIC gmm_mcl_datasets)
 

@@ -2,11 +2,12 @@
 # and evaluation, the soak publisher. Included by CMakeLists.txt when GMM_MCL_BUILD_ROS is ON,
 # after cmake/ros.cmake (catkin, messages, gmm_mcl_ros) and the replay library.
 
-# Bag writing shared by the converters and sequence -> bag.
-add_library(gmm_mcl_datasets_ros STATIC
+# gmm_mcl_ros_tools (src/ros_tools, include/gmm_mcl/ros_tools): bag writing shared by the
+# converters and sequence -> bag.
+add_library(gmm_mcl_ros_tools STATIC
   src/ros_tools/bag_writer.cpp
   src/ros_tools/sequence_bag.cpp)
-target_link_libraries(gmm_mcl_datasets_ros PUBLIC gmm_mcl_ros gmm_mcl_replay)
+target_link_libraries(gmm_mcl_ros_tools PUBLIC gmm_mcl_ros gmm_mcl_replay)
 
 # gmm_mcl_make_bag: 7-Scenes / TUM / Stanford folders or the synthetic scene -> bag.
 add_executable(gmm_mcl_make_bag src/ros_tools/make_bag_main.cpp)
@@ -32,5 +33,5 @@ set(GMM_MCL_ROS_TOOLS gmm_mcl_make_bag gmm_mcl_make_sim_bag gmm_mcl_make_7scenes
     gmm_mcl_ground_truth_odometry gmm_mcl_replay_bag gmm_mcl_evaluate_pose_bag
     gmm_mcl_soak_publisher)
 foreach(t ${GMM_MCL_ROS_TOOLS})
-  target_link_libraries(${t} PRIVATE gmm_mcl_datasets_ros gmm_mcl_cli)
+  target_link_libraries(${t} PRIVATE gmm_mcl_ros_tools gmm_mcl_cli)
 endforeach()

@@ -20,8 +20,8 @@
 #    each shared library any of these ELF files needs beyond the C library and the C++ runtime
 #    (the GPU machine's are newer);
 #  - rostests.txt: one line per rostest (test file, arguments, @DATA@ for the build folder);
-#    test_data_commands.txt: the commands that write their data (the build's *_test_data
-#    targets, with the package's own tools), run there: the bags stay here;
+#    test_data_commands.txt: the commands that write their data (build/…/ros_test_data_commands.txt,
+#    with the package's own tools), run there: the bags stay here;
 #  - env.sh: PATH, LD_LIBRARY_PATH, PYTHONHOME, ROS_PACKAGE_PATH, CMAKE_PREFIX_PATH for it.
 # Scripts' #!/usr/bin/python3 lines become #!/usr/bin/env python3, resolved to the bundled
 # interpreter by PATH. scripts/gpu_ros_check.sh and the ros_common.sh it sources are copied
@@ -182,15 +182,11 @@ for _ in 1 2; do
 done
 
 # Rostests: test file and arguments, as the build registered them, the build folder written
-# @DATA@; and the commands of the build's *_test_data targets that write their data (the
-# package's own tools under @BIN@), run on the GPU machine instead of carrying the bags.
+# @DATA@; and the commands that write their data (the package's own tools under @BIN@), which
+# test/CMakeLists.txt writes beside its rules, run on the GPU machine instead of carrying the bags.
 (cd "$BUILD" && ctest -N -V) | sed -n 's/.*rostest --pkgdir=[^ ]* --package=gmm_mcl .* \(\/[^ ]*\.test\)\(.*\)"$/\1\2/p' |
   sed -e "s|^$GMM_MCL_ROOT/||" -e "s|$BUILD|@DATA@|g" > "$R/rostests.txt"
-for mk in "$BUILD"/CMakeFiles/*_test_data.dir/build.make; do
-  sed -n 's/^\t\(.*\)$/\1/p' "$mk" | grep -vE '^@|^\$\(CMAKE_COMMAND\)|cmake_depends' |
-    sed -e 's|^[^ ]*cmake -E make_directory|mkdir -p|' -e "s|$BUILD|@DATA@|g" \
-        -e 's|^devel/lib/gmm_mcl/|@BIN@/|'
-done > "$R/test_data_commands.txt"
+cp "$BUILD/ros_test_data_commands.txt" "$R/test_data_commands.txt"
 if grep -vE '^(mkdir -p|@BIN@/)' "$R/test_data_commands.txt"; then
   echo "error: a test data command above uses something the bundle does not have" >&2; exit 1
 fi

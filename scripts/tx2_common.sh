@@ -86,7 +86,7 @@ ensure_cuda_toolkit_11() {
   local tmp p
   tmp="$(mktemp -d)"
   echo "== downloading Debian's CUDA 11.8 compiler packages (about 870 MB) into $tmp"
-  # libcub-dev: the device filter's sorts and scans (src/backend/cuda/filter_sort.cu); Debian keeps cub apart.
+  # libcub-dev: the device filter's sorts and scans (src/filter/cuda/filter_sort.cu); Debian keeps cub apart.
   (cd "$tmp" && apt-get download -qq nvidia-cuda-toolkit nvidia-cuda-dev libcudart11.0 libnvvm4 \
      libcub-dev libthrust-dev)
   tx2_sudo rm -rf "$TX2_CUDA_PREFIX.partial"

@@ -160,12 +160,12 @@ if git grep -nE 'Eigen::(seqN?|placeholders|all|last|lastN|indexing)\b|\.reshape
 fi
 NVCC="${NVCC:-/usr/local/cuda/bin/nvcc}"
 if [[ -x "$NVCC" ]]; then
-  for f in src/backend/cuda/*.cu; do
-    if "$NVCC" -std=c++14 -I include -I src/backend -I /usr/include/eigen3 -M "$f" 2> /dev/null | grep -q 'eigen3'; then
+  for f in src/backend/cuda/*.cu src/filter/cuda/*.cu; do
+    if "$NVCC" -std=c++14 -I include -I src/backend -I src/filter -I /usr/include/eigen3 -M "$f" 2> /dev/null | grep -q 'eigen3'; then
       bad "$f includes Eigen (Eigen 3.3.4 does not compile under nvcc 10.2)"
     fi
   done
-  echo "== Eigen 3.3.4: no 3.4 API; no CUDA kernel file includes Eigen ($(ls src/backend/cuda/*.cu | wc -l) .cu files)"
+  echo "== Eigen 3.3.4: no 3.4 API; no CUDA kernel file includes Eigen ($(ls src/backend/cuda/*.cu src/filter/cuda/*.cu | wc -l) .cu files)"
 else
   echo "== Eigen 3.3.4: no 3.4 API (skipped the .cu include check: no nvcc)"
 fi

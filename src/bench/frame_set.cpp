@@ -1,4 +1,4 @@
-#include "bench/frame_set.h"
+#include "gmm_mcl/bench/frame_set.h"
 
 #include <cstdint>
 #include <cstring>

@@ -5,7 +5,7 @@
 namespace gmm_mcl {
 
 #if defined(GMM_MCL_HAVE_CUDA)
-// Defined in src/backend/cuda/: the device filter on the CUDA backend's device and stream; nullptr
+// Defined in src/filter/cuda/: the device filter on the CUDA backend's device and stream; nullptr
 // when the backend is not the CUDA backend. Throws BackendError when the device cannot hold the
 // set.
 std::unique_ptr<ParticleFilterBase> makeCudaParticleFilter(const ParticleFilterParams& params,

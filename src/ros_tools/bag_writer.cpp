@@ -1,4 +1,4 @@
-#include "gmm_mcl/ros/bag_writer.h"
+#include "gmm_mcl/ros_tools/bag_writer.h"
 
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/TransformStamped.h>

@@ -15,9 +15,9 @@
 #include <string>
 #include <vector>
 
+#include "gmm_mcl/cli/command_line.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/ros/conversions.h"
-#include "gmm_mcl/tools/command_line.h"
 
 namespace gmm_mcl {
 

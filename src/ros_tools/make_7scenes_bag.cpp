@@ -8,11 +8,11 @@
 #include <cstdlib>
 #include <string>
 
+#include "gmm_mcl/cli/command_line.h"
+#include "gmm_mcl/cli/report_errors.h"
 #include "gmm_mcl/datasets/seven_scenes_sequence.h"
 #include "gmm_mcl/map/gmm_map_io.h"
-#include "gmm_mcl/ros/sequence_bag.h"
-#include "gmm_mcl/tools/command_line.h"
-#include "gmm_mcl/tools/report_errors.h"
+#include "gmm_mcl/ros_tools/sequence_bag.h"
 
 namespace gmm_mcl {
 

@@ -6,12 +6,12 @@
 #include <memory>
 #include <string>
 
+#include "gmm_mcl/cli/report_errors.h"
+#include "gmm_mcl/cli/sequence_flags.h"
 #include "gmm_mcl/datasets/sim_sequence.h"
 #include "gmm_mcl/map/gmm_map_io.h"
-#include "gmm_mcl/ros/bag_writer.h"
-#include "gmm_mcl/ros/sequence_bag.h"
-#include "gmm_mcl/tools/report_errors.h"
-#include "gmm_mcl/tools/sequence_flags.h"
+#include "gmm_mcl/ros_tools/bag_writer.h"
+#include "gmm_mcl/ros_tools/sequence_bag.h"
 
 namespace gmm_mcl {
 

@@ -20,13 +20,13 @@
 #include <random>
 #include <string>
 
+#include "gmm_mcl/cli/command_line.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/map/gmm_map_io.h"
-#include "gmm_mcl/ros/bag_writer.h"
 #include "gmm_mcl/ros/conversions.h"
+#include "gmm_mcl/ros_tools/bag_writer.h"
 #include "gmm_mcl/sim/box_scene.h"
 #include "gmm_mcl/sim/mesh_scene.h"
-#include "gmm_mcl/tools/command_line.h"
 
 namespace gmm_mcl {
 namespace {

@@ -26,13 +26,13 @@
 #include <string>
 #include <vector>
 
+#include "gmm_mcl/cli/command_line.h"
 #include "gmm_mcl/filter/stamped_buffer.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/replay/odometry_synthesizer.h"
 #include "gmm_mcl/replay/replay.h"
-#include "gmm_mcl/ros/bag_writer.h"
 #include "gmm_mcl/ros/conversions.h"
-#include "gmm_mcl/tools/command_line.h"
+#include "gmm_mcl/ros_tools/bag_writer.h"
 
 namespace gmm_mcl {
 namespace {

@@ -1,10 +1,10 @@
-#include "gmm_mcl/ros/sequence_bag.h"
+#include "gmm_mcl/ros_tools/sequence_bag.h"
 
 #include <stdexcept>
 
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/replay/replay.h"
-#include "gmm_mcl/ros/bag_writer.h"
+#include "gmm_mcl/ros_tools/bag_writer.h"
 
 namespace gmm_mcl {
 namespace ros_bag {

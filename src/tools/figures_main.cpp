@@ -16,16 +16,16 @@
 #include <vector>
 
 #include "gmm_mcl/camera/depth_frame.h"
-#include "gmm_mcl/figures/nll_sweep.h"
-#include "gmm_mcl/figures/scenario.h"
-#include "gmm_mcl/figures/sensitivity.h"
+#include "gmm_mcl/cli/command_line.h"
+#include "gmm_mcl/experiments/figures/nll_sweep.h"
+#include "gmm_mcl/experiments/figures/scenario.h"
+#include "gmm_mcl/experiments/figures/sensitivity.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/replay/replay.h"
-#include "gmm_mcl/tools/command_line.h"
 #if defined(GMM_MCL_FIGURES_HAVE_FIT)
-#include "gmm_mcl/figures/map_series.h"
-#include "gmm_mcl/tools/report_errors.h"
+#include "gmm_mcl/cli/report_errors.h"
+#include "gmm_mcl/experiments/figures/map_series.h"
 #endif
 
 namespace gmm_mcl {

@@ -12,6 +12,8 @@
 #include <string>
 #include <vector>
 
+#include "gmm_mcl/cli/command_line.h"
+#include "gmm_mcl/cli/report_errors.h"
 #include "gmm_mcl/fit/cloud_filter.h"
 #include "gmm_mcl/fit/em_fitter.h"
 #include "gmm_mcl/fit/fit_error.h"
@@ -19,8 +21,6 @@
 #include "gmm_mcl/fit/point_cloud_io.h"
 #include "gmm_mcl/fit/seven_scenes_cloud.h"
 #include "gmm_mcl/map/gmm_map_io.h"
-#include "gmm_mcl/tools/command_line.h"
-#include "gmm_mcl/tools/report_errors.h"
 
 namespace gmm_mcl {
 namespace {

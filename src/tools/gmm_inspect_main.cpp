@@ -3,10 +3,10 @@
 #include <iostream>
 #include <string>
 
+#include "gmm_mcl/cli/command_line.h"
+#include "gmm_mcl/cli/report_errors.h"
 #include "gmm_mcl/fit/map_inspect.h"
 #include "gmm_mcl/map/gmm_map_io.h"
-#include "gmm_mcl/tools/command_line.h"
-#include "gmm_mcl/tools/report_errors.h"
 
 namespace {
 

@@ -10,10 +10,10 @@
 #include <fstream>
 #include <string>
 
-#include "gmm_mcl/reliability/kidnap.h"
+#include "gmm_mcl/cli/command_line.h"
+#include "gmm_mcl/cli/report_errors.h"
+#include "gmm_mcl/experiments/reliability/kidnap.h"
 #include "gmm_mcl/sim/mesh_scene.h"
-#include "gmm_mcl/tools/command_line.h"
-#include "gmm_mcl/tools/report_errors.h"
 
 namespace gmm_mcl {
 namespace reliability {

@@ -14,6 +14,8 @@
 #include <string>
 #include <vector>
 
+#include "gmm_mcl/cli/command_line.h"
+#include "gmm_mcl/cli/report_errors.h"
 #include "gmm_mcl/common/number_list.h"
 #include "gmm_mcl/datasets/sequence_base.h"
 #include "gmm_mcl/datasets/sequence_writer.h"
@@ -22,8 +24,6 @@
 #include "gmm_mcl/sim/mesh_renderer.h"
 #include "gmm_mcl/sim/mesh_scene.h"
 #include "gmm_mcl/sim/trajectory_io.h"
-#include "gmm_mcl/tools/command_line.h"
-#include "gmm_mcl/tools/report_errors.h"
 
 namespace gmm_mcl {
 

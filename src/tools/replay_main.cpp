@@ -13,12 +13,12 @@
 #include <string>
 #include <vector>
 
+#include "gmm_mcl/cli/report_errors.h"
+#include "gmm_mcl/cli/sequence_flags.h"
 #include "gmm_mcl/datasets/sequence_writer.h"
 #include "gmm_mcl/datasets/sim_sequence.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/replay/replay.h"
-#include "gmm_mcl/tools/report_errors.h"
-#include "gmm_mcl/tools/sequence_flags.h"
 
 namespace gmm_mcl {
 namespace {

@@ -14,6 +14,8 @@
 #include <string>
 #include <vector>
 
+#include "gmm_mcl/cli/command_line.h"
+#include "gmm_mcl/cli/report_errors.h"
 #include "gmm_mcl/common/timing.h"
 #include "gmm_mcl/filter/lost_detector.h"
 #include "gmm_mcl/filter/pose.h"
@@ -21,8 +23,6 @@
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/measurement/likelihood.h"
 #include "gmm_mcl/replay/replay.h"
-#include "gmm_mcl/tools/command_line.h"
-#include "gmm_mcl/tools/report_errors.h"
 
 namespace gmm_mcl {
 namespace {

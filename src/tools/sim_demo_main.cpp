@@ -10,6 +10,7 @@
 #include <random>
 #include <string>
 
+#include "gmm_mcl/cli/command_line.h"
 #include "gmm_mcl/filter/localizer.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/measurement/likelihood.h"
@@ -18,7 +19,6 @@
 #include "gmm_mcl/sim/mesh_renderer.h"
 #include "gmm_mcl/sim/mesh_scene.h"
 #include "gmm_mcl/sim/step_input.h"
-#include "gmm_mcl/tools/command_line.h"
 
 namespace gmm_mcl {
 

@@ -25,9 +25,9 @@
 #include "gmm_mcl/datasets/sim_sequence.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/replay/replay.h"
-#include "gmm_mcl/ros/bag_writer.h"
 #include "gmm_mcl/ros/conversions.h"
-#include "gmm_mcl/ros/sequence_bag.h"
+#include "gmm_mcl/ros_tools/bag_writer.h"
+#include "gmm_mcl/ros_tools/sequence_bag.h"
 #include "test_utils/synthetic_fixtures.h"
 #include "test_utils/temp_dir.h"
 

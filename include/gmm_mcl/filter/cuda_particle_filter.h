@@ -1,5 +1,5 @@
 // The particle set on the GPU: every ParticleFilterBase operation runs on the CUDA backend's
-// device and stream (src/backend/cuda/filter_*_kernels.cu), so that a filter step at
+// device and stream (src/filter/cuda/filter_*_kernels.cu), so that a filter step at
 // 10^5 particles fits a 30 Hz camera. Prediction noise and uniform draws come from a
 // counter-based generator (Philox); the likelihood is evaluated from device-resident poses on the
 // frame the backend keeps on the device; weights, the estimate and the scores are deterministic

@@ -1,4 +1,4 @@
-#include "gmm_mcl/figures/scenario.h"
+#include "gmm_mcl/experiments/figures/scenario.h"
 
 #include <sys/stat.h>
 

@@ -7,7 +7,7 @@
 #include <fstream>
 #include <string>
 
-#include "gmm_mcl/figures/nll_sweep.h"
+#include "gmm_mcl/experiments/figures/nll_sweep.h"
 #include "test_utils/synthetic_fixtures.h"
 
 namespace gmm_mcl {

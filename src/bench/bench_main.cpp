@@ -21,9 +21,9 @@
 
 #include "bench_tool.h"
 #include "gmm_mcl/backend/cpu_backend.h"
+#include "gmm_mcl/cli/command_line.h"
+#include "gmm_mcl/cli/report_errors.h"
 #include "gmm_mcl/map/gmm_map_io.h"
-#include "gmm_mcl/tools/command_line.h"
-#include "gmm_mcl/tools/report_errors.h"
 #if defined(GMM_MCL_HAVE_CUDA)
 #include "gmm_mcl/backend/cuda_backend.h"
 #endif

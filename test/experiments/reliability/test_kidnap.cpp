@@ -10,10 +10,10 @@
 #include <fstream>
 #include <string>
 
+#include "gmm_mcl/experiments/reliability/kidnap.h"
 #include "gmm_mcl/fit/em_fitter.h"
 #include "gmm_mcl/fit/seven_scenes_cloud.h"
 #include "gmm_mcl/map/gmm_map_io.h"
-#include "gmm_mcl/reliability/kidnap.h"
 #include "gmm_mcl/sim/mesh_scene.h"
 #include "test_utils/synthetic_fixtures.h"
 

@@ -1,4 +1,4 @@
-#include "gmm_mcl/figures/gaussian_kl.h"
+#include "gmm_mcl/experiments/figures/gaussian_kl.h"
 
 #include <Eigen/Cholesky>
 #include <cmath>

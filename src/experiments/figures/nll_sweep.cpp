@@ -1,4 +1,4 @@
-#include "gmm_mcl/figures/nll_sweep.h"
+#include "gmm_mcl/experiments/figures/nll_sweep.h"
 
 #include <cmath>
 #include <fstream>

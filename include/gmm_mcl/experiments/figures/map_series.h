@@ -4,7 +4,7 @@
 
 #include <cstdint>
 
-#include "gmm_mcl/figures/scenario.h"
+#include "gmm_mcl/experiments/figures/scenario.h"
 #include "gmm_mcl/fit/em_fitter.h"
 #include "gmm_mcl/fit/point_cloud.h"
 

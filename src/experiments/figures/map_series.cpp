@@ -1,4 +1,4 @@
-#include "gmm_mcl/figures/map_series.h"
+#include "gmm_mcl/experiments/figures/map_series.h"
 
 #include <cmath>
 

@@ -1,4 +1,4 @@
-// Writing the experiments' CSV files (private to src/figures).
+// Writing the experiments' CSV files (private to src/experiments/figures).
 #pragma once
 
 #include <fstream>

@@ -5,8 +5,8 @@
 
 #include <cmath>
 
-#include "gmm_mcl/figures/scenario.h"
-#include "gmm_mcl/figures/sensitivity.h"
+#include "gmm_mcl/experiments/figures/scenario.h"
+#include "gmm_mcl/experiments/figures/sensitivity.h"
 #include "test_utils/synthetic_fixtures.h"
 
 namespace gmm_mcl {

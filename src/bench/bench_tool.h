@@ -5,8 +5,8 @@
 #include <string>
 #include <vector>
 
-#include "bench/frame_set.h"
 #include "gmm_mcl/backend/likelihood_backend_base.h"
+#include "gmm_mcl/bench/frame_set.h"
 #include "gmm_mcl/camera/depth_frame.h"
 #include "gmm_mcl/map/gmm_map.h"
 

@@ -2,8 +2,8 @@
 // gmm_mcl_make_bag): --intrinsics, --depth-scale, --tolerance, --gravity, --trajectory, --rate.
 #pragma once
 
+#include "gmm_mcl/cli/command_line.h"
 #include "gmm_mcl/datasets/sequence_base.h"
-#include "gmm_mcl/tools/command_line.h"
 
 namespace gmm_mcl {
 namespace cli {

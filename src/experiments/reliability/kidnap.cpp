@@ -1,4 +1,4 @@
-#include "gmm_mcl/reliability/kidnap.h"
+#include "gmm_mcl/experiments/reliability/kidnap.h"
 
 #include <algorithm>
 #include <cmath>

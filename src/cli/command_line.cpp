@@ -1,4 +1,4 @@
-#include "gmm_mcl/tools/command_line.h"
+#include "gmm_mcl/cli/command_line.h"
 
 #include <algorithm>
 #include <cerrno>

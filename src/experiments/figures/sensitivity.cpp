@@ -1,4 +1,4 @@
-#include "gmm_mcl/figures/sensitivity.h"
+#include "gmm_mcl/experiments/figures/sensitivity.h"
 
 #include <algorithm>
 #include <cmath>

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <random>
 
-#include "gmm_mcl/figures/gaussian_kl.h"
+#include "gmm_mcl/experiments/figures/gaussian_kl.h"
 
 namespace gmm_mcl {
 namespace figures {

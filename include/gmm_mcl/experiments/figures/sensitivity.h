@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include "gmm_mcl/figures/gaussian_kl.h"
-#include "gmm_mcl/figures/scenario.h"
+#include "gmm_mcl/experiments/figures/gaussian_kl.h"
+#include "gmm_mcl/experiments/figures/scenario.h"
 #include "gmm_mcl/filter/params.h"
 
 namespace gmm_mcl {
