@@ -2,6 +2,8 @@
 
 #include <omp.h>
 
+#include <algorithm>
+
 namespace gmm_mcl {
 
 void CpuBackend::evaluate(const DepthFrame& frame, const std::vector<RigidTransformF>& T_map_cam,
@@ -18,45 +20,74 @@ void CpuBackend::evaluate(const DepthFrame& frame, const std::vector<RigidTransf
   for (int p = 0; p < frame.grid.count(); ++p) {
     patches_with_pixels += frame.patch_begin[p + 1] > frame.patch_begin[p] ? 1 : 0;
   }
-  // Membership and likelihood over the components some pose can see (the same members and sums:
-  // the list keeps the map's order).
+  // The poses by the cell of their camera centre; per group, the components that the map grid
+  // places near the group's views, culled to what some pose of the group can see within the
+  // frame's depth, then membership and likelihood over that list (in the map's order: the sums
+  // over the whole map within float rounding, test_membership). A tracking cloud is one group; a
+  // start spread over a building is many, each paying for its own view.
   const double t_cull = omp_get_wtime();
   T_cam_map_.resize(n);
   for (int i = 0; i < n; ++i) T_cam_map_[i] = invertRigid(T_map_cam[i]);
-  cullToView(components_, T_cam_map_.data(), n, frame.intrinsics, frame.grid, params, &visible_);
-  const int m_view = static_cast<int>(visible_.size());
-  view_components_.resize(m_view);
-  view_eval_.resize(m_view);
-  for (int k = 0; k < m_view; ++k) {
-    view_components_[k] = components_[visible_[k]];
-    view_eval_[k] = eval_[visible_[k]];
-  }
-  const double cull_s = omp_get_wtime() - t_cull;
-#pragma omp parallel num_threads(threads)
-  {
-    const int tid = omp_get_thread_num();
-    LikelihoodScratch& s = scratch_[tid];
+  const float far_m = viewFarDepth(frame, params);
+  groupPosesByPlace(T_map_cam, std::max(1.0, 0.5 * static_cast<double>(far_m)), &group_order_,
+                    &group_begin_);
+  const int groups = static_cast<int>(group_begin_.size()) - 1;
+  visible_any_.assign(components_.size(), 0);
+  double cull_s = omp_get_wtime() - t_cull;
+  for (int g = 0; g < groups; ++g) {
+    const double t0 = omp_get_wtime();
+    const int first = group_begin_[g], count = group_begin_[g + 1] - group_begin_[g];
+    Box3 region;
+    group_T_cam_map_.resize(count);
+    for (int k = 0; k < count; ++k) {
+      const int i = group_order_[first + k];
+      region.extend(viewBox(T_map_cam[i], frame.intrinsics, frame.grid, far_m));
+      group_T_cam_map_[k] = T_cam_map_[i];
+    }
+    map_grid_.query(region, &candidates_);
+    cullToView(components_, candidates_.data(), static_cast<int>(candidates_.size()),
+               group_T_cam_map_.data(), count, frame.intrinsics, frame.grid, params, far_m,
+               &visible_);
+    const int m_view = static_cast<int>(visible_.size());
+    view_components_.resize(m_view);
+    view_eval_.resize(m_view);
+    for (int k = 0; k < m_view; ++k) {
+      view_components_[k] = components_[visible_[k]];
+      view_eval_[k] = eval_[visible_[k]];
+      visible_any_[visible_[k]] = 1;
+    }
+    cull_s += omp_get_wtime() - t0;
+#pragma omp parallel num_threads(count > 1 ? threads : 1)
+    {
+      const int tid = omp_get_thread_num();
+      LikelihoodScratch& s = scratch_[tid];
 #pragma omp for schedule(dynamic, 8)
-    for (int i = 0; i < n; ++i) {
-      const double t0 = omp_get_wtime();
-      const RigidTransformF& T_cam_map = T_cam_map_[i];
-      computeMembership(view_components_, T_cam_map, frame.intrinsics, frame.grid, params,
-                        &s.projected, &s.valid, &s.membership);
-      const EvalComponentF* eval = noisyEvalComponents(view_components_, view_eval_, s.valid,
-                                                       T_cam_map, params.depth_noise, &s.noisy);
-      const double t1 = omp_get_wtime();
-      const FrameLikelihood fl =
-          frameLogLikelihood(eval, frame, T_map_cam[i], s.membership, params.floor_log_density);
-      likelihood_s[tid] += omp_get_wtime() - t1;
-      membership_s[tid] += t1 - t0;
-      out->log_likelihood[i] = fl.log_likelihood;
-      out->floor_hits[i] = fl.floor_hits;
-      evaluations[tid] += fl.evaluations;
-      for (int p = 0; p < frame.grid.count(); ++p) {
-        if (frame.patch_begin[p + 1] > frame.patch_begin[p]) pairs[tid] += s.membership.countFor(p);
+      for (int k = 0; k < count; ++k) {
+        const int i = group_order_[first + k];
+        const double t1 = omp_get_wtime();
+        const RigidTransformF& T_cam_map = T_cam_map_[i];
+        computeMembership(view_components_, T_cam_map, frame.intrinsics, frame.grid, params,
+                          &s.projected, &s.valid, &s.membership);
+        const EvalComponentF* eval = noisyEvalComponents(view_components_, view_eval_, s.valid,
+                                                         T_cam_map, params.depth_noise, &s.noisy);
+        const double t2 = omp_get_wtime();
+        const FrameLikelihood fl =
+            frameLogLikelihood(eval, frame, T_map_cam[i], s.membership, params.floor_log_density);
+        likelihood_s[tid] += omp_get_wtime() - t2;
+        membership_s[tid] += t2 - t1;
+        out->log_likelihood[i] = fl.log_likelihood;
+        out->floor_hits[i] = fl.floor_hits;
+        evaluations[tid] += fl.evaluations;
+        for (int p = 0; p < frame.grid.count(); ++p) {
+          if (frame.patch_begin[p + 1] > frame.patch_begin[p]) {
+            pairs[tid] += s.membership.countFor(p);
+          }
+        }
       }
     }
   }
+  int m_view = 0;
+  for (char v : visible_any_) m_view += v;
   // Stage times: thread-summed time divided by the thread count (wall-equivalent).
   out->projection_membership_ms = 1e3 * cull_s;  // one thread
   out->likelihood_ms = 0.0;

@@ -21,21 +21,21 @@ double mapSelfLogDensity(const GmmMap& map, float floor_log_density, const Depth
   // Each component convolved with the depth noise along its normal (the direction of its
   // smallest variance: a surface seen head-on) at the nominal range.
   const double d = nominal_range_m - noise.z0_m;
-  const double s = noise.enabled() ? noise.a_m + noise.b_per_m * d * d : 0.0;
+  const double s_noise = noise.enabled() ? noise.a_m + noise.b_per_m * d * d : 0.0;
   std::vector<Eigen::Matrix3d> L(comps.size());  // Cholesky factors
   std::vector<double> log_norm(comps.size());    // ln(lambda) - ln((2 pi)^1.5 |Sigma|^0.5)
   std::vector<double> cumulative(comps.size());
   double total = 0.0;
   for (size_t j = 0; j < comps.size(); ++j) {
     Eigen::Matrix3d cov = comps[j].cov_m2;
-    if (s > 0.0) {
+    if (s_noise > 0.0) {
       const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
       const Eigen::Vector3d n = es.eigenvectors().col(0);
-      cov += s * s * n * n.transpose();
+      cov += s_noise * s_noise * n * n.transpose();
     }
     L[j] = cov.llt().matrixL();
-    log_norm[j] = std::log(comps[j].weight) - 1.5 * std::log(2.0 * M_PI) -
-                  L[j].diagonal().array().log().sum();
+    log_norm[j] =
+        map.modelLogWeight(j) - 1.5 * std::log(2.0 * M_PI) - L[j].diagonal().array().log().sum();
     total += comps[j].weight;
     cumulative[j] = total;
   }
@@ -43,20 +43,33 @@ double mapSelfLogDensity(const GmmMap& map, float floor_log_density, const Depth
   std::uniform_real_distribution<double> pick(0.0, total);
   std::normal_distribution<double> g(0.0, 1.0);
   double sum = 0.0;
-  std::vector<double> terms(comps.size());
+  std::vector<double> terms;
+  std::vector<int> near;
   for (int s = 0; s < samples; ++s) {
     const size_t j = std::min<size_t>(
         std::lower_bound(cumulative.begin(), cumulative.end(), pick(rng)) - cumulative.begin(),
         comps.size() - 1);
     const Eigen::Vector3d x = comps[j].mean_m + L[j] * Eigen::Vector3d(g(rng), g(rng), g(rng));
+    // The components whose 3-sigma box, grown by the noise's, reaches x (the map's grid: the
+    // cost follows the neighbourhood, not the map), and the one x was drawn from.
+    Box3 around;
+    around.extend(x - Eigen::Vector3d::Constant(3.0 * s_noise));
+    around.extend(x + Eigen::Vector3d::Constant(3.0 * s_noise));
+    map.grid().query(around, &near);
+    if (!std::binary_search(near.begin(), near.end(), static_cast<int>(j))) {
+      near.insert(std::lower_bound(near.begin(), near.end(), static_cast<int>(j)),
+                  static_cast<int>(j));
+    }
+    terms.resize(near.size());
     double mx = floor_log_density;
-    for (size_t k = 0; k < comps.size(); ++k) {
+    for (size_t q = 0; q < near.size(); ++q) {
+      const size_t k = static_cast<size_t>(near[q]);
       const Eigen::Vector3d z = L[k].triangularView<Eigen::Lower>().solve(x - comps[k].mean_m);
-      terms[k] = log_norm[k] - 0.5 * z.squaredNorm();
-      mx = std::max(mx, terms[k]);
+      terms[q] = log_norm[k] - 0.5 * z.squaredNorm();
+      mx = std::max(mx, terms[q]);
     }
     double acc = std::exp(floor_log_density - mx);
-    for (size_t k = 0; k < comps.size(); ++k) acc += std::exp(terms[k] - mx);
+    for (double t : terms) acc += std::exp(t - mx);
     sum += mx + std::log(acc);
   }
   return sum / samples;

@@ -1,7 +1,10 @@
 #include "gmm_mcl/map/gmm_map.h"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 #include <Eigen/LU>
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -62,9 +65,34 @@ void validateComponents(const std::vector<GaussianComponent>& components,
   }
 }
 
+double estimateSurfaceArea(const std::vector<GaussianComponent>& components) {
+  std::vector<std::pair<double, double>> area_per_weight;  // (area / weight, weight)
+  area_per_weight.reserve(components.size());
+  double total = 0.0;
+  for (const GaussianComponent& c : components) {
+    const Eigen::Vector3d s =
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(c.cov_m2, Eigen::EigenvaluesOnly)
+            .eigenvalues();  // ascending
+    const double area = 4.0 * M_PI * std::sqrt(std::max(s(1), 0.0) * std::max(s(2), 0.0));
+    if (!(c.weight > 0.0) || !(area > 0.0)) continue;
+    area_per_weight.emplace_back(area / c.weight, c.weight);
+    total += c.weight;
+  }
+  if (area_per_weight.empty()) return kReferenceSurfaceAreaM2;
+  std::sort(area_per_weight.begin(), area_per_weight.end());
+  double acc = 0.0;
+  for (const auto& a : area_per_weight) {
+    acc += a.second;
+    if (acc >= 0.5 * total) return a.first;
+  }
+  return area_per_weight.back().first;
+}
+
 GmmMap::GmmMap(std::vector<GaussianComponent> components, const std::string& source)
     : components_(std::move(components)) {
   validateComponents(components_, source);
+  surface_area_m2_ = estimateSurfaceArea(components_);
+  log_weight_scale_ = std::log(surface_area_m2_ / kReferenceSurfaceAreaM2);
   packed_.resize(components_.size());
   half_extent_m_.resize(components_.size());
   min_bound_m_.setConstant(std::numeric_limits<double>::infinity());
@@ -77,13 +105,53 @@ GmmMap::GmmMap(std::vector<GaussianComponent> components, const std::string& sou
     // Symmetrise the inverse: float evaluation relies on an exactly symmetric precision.
     const Eigen::Matrix3d precision = c.cov_m2.inverse();
     packSymmetric(0.5 * (precision + precision.transpose()), p.precision);
-    p.log_weight = static_cast<float>(std::log(c.weight) - 1.5 * kLog2Pi);
-    p.log_norm = static_cast<float>(std::log(c.weight) - 1.5 * kLog2Pi -
+    p.log_weight = static_cast<float>(modelLogWeight(i) - 1.5 * kLog2Pi);
+    p.log_norm = static_cast<float>(modelLogWeight(i) - 1.5 * kLog2Pi -
                                     0.5 * std::log(c.cov_m2.determinant()));
     half_extent_m_[i] = 3.0 * c.cov_m2.diagonal().cwiseSqrt();
     min_bound_m_ = min_bound_m_.cwiseMin(c.mean_m);
     max_bound_m_ = max_bound_m_.cwiseMax(c.mean_m);
   }
+  std::vector<Box3> boxes(components_.size());
+  for (size_t i = 0; i < components_.size(); ++i) boxes[i] = threeSigmaBox(i);
+  grid_ = ComponentGrid(boxes);
+}
+
+Box3 GmmMap::threeSigmaBox(size_t i) const {
+  Box3 b;
+  b.lo = components_[i].mean_m - half_extent_m_[i];
+  b.hi = components_[i].mean_m + half_extent_m_[i];
+  return b;
+}
+
+GmmMap tiledMap(const GmmMap& room, int nx, int ny, double spacing_m, const std::string& source) {
+  if (nx < 1 || ny < 1 || !(spacing_m > 0.0)) {
+    throw MapError(source + ": tiling needs nx, ny >= 1 and a positive spacing");
+  }
+  const Eigen::Vector3d centre = 0.5 * (room.minBound() + room.maxBound());
+  std::vector<GaussianComponent> out;
+  out.reserve(room.size() * static_cast<size_t>(nx) * static_cast<size_t>(ny));
+  const double share = 1.0 / (static_cast<double>(nx) * ny);
+  for (int ix = 0; ix < nx; ++ix) {
+    for (int iy = 0; iy < ny; ++iy) {
+      const Eigen::Matrix3d R =
+          Eigen::AngleAxisd(0.5 * M_PI * ((ix + iy) % 4), Eigen::Vector3d::UnitZ()).matrix();
+      const Eigen::Vector3d shift(ix * spacing_m, iy * spacing_m, 0.0);
+      for (const GaussianComponent& c : room.components()) {
+        GaussianComponent t;
+        t.weight = c.weight * share;
+        t.mean_m = centre + R * (c.mean_m - centre) + shift;
+        t.cov_m2 = R * c.cov_m2 * R.transpose();
+        t.cov_m2 = 0.5 * (t.cov_m2 + t.cov_m2.transpose());
+        out.push_back(t);
+      }
+    }
+  }
+  return GmmMap(std::move(out), source);
+}
+
+double GmmMap::modelLogWeight(size_t i) const {
+  return std::log(components_[i].weight) + log_weight_scale_;
 }
 
 double GmmMap::logDensity(const Eigen::Vector3d& p_map) const {
@@ -94,8 +162,7 @@ double GmmMap::logDensity(const Eigen::Vector3d& p_map) const {
     const GaussianComponent& c = components_[i];
     const Eigen::Vector3d d = p_map - c.mean_m;
     const double q = d.dot(c.cov_m2.ldlt().solve(d));
-    terms[i] =
-        std::log(c.weight) - 1.5 * kLog2Pi - 0.5 * std::log(c.cov_m2.determinant()) - 0.5 * q;
+    terms[i] = modelLogWeight(i) - 1.5 * kLog2Pi - 0.5 * std::log(c.cov_m2.determinant()) - 0.5 * q;
     max_term = std::max(max_term, terms[i]);
   }
   double sum = 0.0;

@@ -255,7 +255,7 @@ FrameLikelihood exactFrameLogLikelihood(const GmmMap& map, const DepthFrame& fra
       cov += sigma * sigma * ray * ray.transpose();
     }
     precision[j] = cov.inverse();
-    log_norm[j] = std::log(comps[j].weight) - 1.5 * kLog2Pi - 0.5 * std::log(cov.determinant());
+    log_norm[j] = map.modelLogWeight(j) - 1.5 * kLog2Pi - 0.5 * std::log(cov.determinant());
   }
   FrameLikelihood out;
   out.pixels = static_cast<int>(frame.size());

@@ -1,4 +1,9 @@
 // The per-update view cull: the components that some pose of the cloud may see.
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <utility>
 #include <vector>
 
 #include "gmm_mcl/internal/fast_math.h"
@@ -13,7 +18,7 @@ namespace {
 __attribute__((noinline)) void mayTouchGridAll(const float* __restrict in, int m, size_t stride,
                                                const RigidTransformF& T, const Intrinsics& K,
                                                const PatchGrid& grid, float min_depth_m,
-                                               float sigma_bound, float inflate_px,
+                                               float sigma_bound, float inflate_px, float far_m,
                                                int* __restrict keep) {
   const float* __restrict mx = in;
   const float* __restrict my = in + stride;
@@ -46,20 +51,81 @@ __attribute__((noinline)) void mayTouchGridAll(const float* __restrict in, int m
     const int col1 = floorInt(clampTo((u + r - c0) * ips, -4.f, col_hi));
     const int row0 = ceilInt(clampTo((v - r - c0) * ips, -4.f, row_hi));
     const int row1 = floorInt(clampTo((v + r - c0) * ips, -4.f, row_hi));
-    keep[j] = (z >= near) & (col0 <= col1) & (col0 <= last_col) & (col1 >= 0) & (row0 <= row1) &
-              (row0 <= last_row) & (row1 >= 0);
+    // Beyond the frame's deepest pixel by more than the component's extent (sqrt of the trace
+    // bounds every standard deviation): no pixel lies in its reach.
+    const float beyond = z - sigma_bound * sqrtVec(tr[j]) - far_m;
+    keep[j] = (z >= near) & (beyond <= 0.f) & (col0 <= col1) & (col0 <= last_col) & (col1 >= 0) &
+              (row0 <= row1) & (row0 <= last_row) & (row1 >= 0);
   }
 }
 
 }  // namespace
 
+float viewFarDepth(const DepthFrame& frame, const MeasurementParams& params) {
+  if (frame.empty()) return 0.f;
+  const float z = *std::max_element(frame.z_m.begin(), frame.z_m.end());
+  const DepthNoiseModel& noise = params.depth_noise;
+  const float d = z - noise.z0_m;
+  const float sigma = noise.enabled() ? noise.a_m + noise.b_per_m * d * d : 0.f;
+  return z + params.sigma_bound * sigma;
+}
+
+Box3 viewBox(const RigidTransformF& T_map_cam, const Intrinsics& K, const PatchGrid& grid,
+             float far_m) {
+  // The membership's reach beyond the grid: half a patch diagonal and the cull's slack.
+  const float reach = patchInflation(grid.patch_size_px) * 1.01f + 2.f;
+  const float u[2] = {-reach, static_cast<float>(grid.cols * grid.patch_size_px) + reach};
+  const float v[2] = {-reach, static_cast<float>(grid.rows * grid.patch_size_px) + reach};
+  Box3 box;
+  box.extend(Eigen::Vector3d(T_map_cam.t[0], T_map_cam.t[1], T_map_cam.t[2]));
+  for (float uu : u) {
+    for (float vv : v) {
+      float p_cam[3], p_map[3];
+      backProject(K, uu, vv, far_m, p_cam);
+      transformPoint(T_map_cam, p_cam, p_map);
+      box.extend(Eigen::Vector3d(p_map[0], p_map[1], p_map[2]));
+    }
+  }
+  return box;
+}
+
+void groupPosesByPlace(const std::vector<RigidTransformF>& T_map_cam, double cell_m,
+                       std::vector<int>* order, std::vector<int>* begin) {
+  const int n = static_cast<int>(T_map_cam.size());
+  std::vector<std::pair<std::array<long long, 3>, int>> keyed(n);
+  for (int i = 0; i < n; ++i) {
+    for (int a = 0; a < 3; ++a) {
+      const double c = std::floor(static_cast<double>(T_map_cam[i].t[a]) / cell_m);
+      keyed[i].first[a] =
+          std::isfinite(c) ? static_cast<long long>(std::max(-1e15, std::min(1e15, c))) : 0;
+    }
+    keyed[i].second = i;
+  }
+  std::sort(keyed.begin(), keyed.end());
+  order->resize(n);
+  begin->clear();
+  for (int k = 0; k < n; ++k) {
+    (*order)[k] = keyed[k].second;
+    if (k == 0 || keyed[k].first != keyed[k - 1].first) begin->push_back(k);
+  }
+  begin->push_back(n);
+}
+
 void cullToView(const std::vector<ComponentF>& components, const RigidTransformF* T_cam_map,
                 int num_poses, const Intrinsics& K, const PatchGrid& grid,
                 const MeasurementParams& params, std::vector<int>* visible) {
-  const int m = static_cast<int>(components.size());
-  const size_t ms = static_cast<size_t>(m);
+  cullToView(components, nullptr, -1, T_cam_map, num_poses, K, grid, params,
+             std::numeric_limits<float>::infinity(), visible);
+}
+
+void cullToView(const std::vector<ComponentF>& components, const int* candidates,
+                int num_candidates, const RigidTransformF* T_cam_map, int num_poses,
+                const Intrinsics& K, const PatchGrid& grid, const MeasurementParams& params,
+                float far_m, std::vector<int>* visible) {
+  const int m = candidates ? num_candidates : static_cast<int>(components.size());
+  const size_t ms = static_cast<size_t>(std::max(m, 0));
   const float inflate = patchInflation(grid.patch_size_px);
-  // The components not yet seen by any pose, structure of arrays, compacted after each pose, so
+  // The candidates not yet seen by any pose, structure of arrays, compacted after each pose, so
   // that the poses after the first test only what is still outside every view so far.
   static thread_local std::vector<float> soa;  // mean x, y, z, covariance trace: [4][m]
   static thread_local std::vector<int> index, keep;
@@ -70,15 +136,16 @@ void cullToView(const std::vector<ComponentF>& components, const RigidTransformF
   seen.assign(ms, 0);
   float* in = soa.data();
   for (int i = 0; i < m; ++i) {
-    for (int a = 0; a < 3; ++a) in[a * ms + i] = components[i].mean_m[a];
-    const float* S = components[i].cov_m2;
+    const ComponentF& c = components[candidates ? candidates[i] : i];
+    for (int a = 0; a < 3; ++a) in[a * ms + i] = c.mean_m[a];
+    const float* S = c.cov_m2;
     in[3 * ms + i] = S[0] + S[3] + S[5];
     index[i] = i;
   }
   int rest = m;
   for (int k = 0; k < num_poses && rest > 0; ++k) {
     mayTouchGridAll(in, rest, ms, T_cam_map[k], K, grid, params.min_component_depth_m,
-                    params.sigma_bound, inflate, keep.data());
+                    params.sigma_bound, inflate, far_m, keep.data());
     int w = 0;
     for (int j = 0; j < rest; ++j) {
       if (keep[j]) {
@@ -92,7 +159,7 @@ void cullToView(const std::vector<ComponentF>& components, const RigidTransformF
   }
   visible->clear();
   for (int i = 0; i < m; ++i) {
-    if (seen[i]) visible->push_back(i);
+    if (seen[i]) visible->push_back(candidates ? candidates[i] : i);
   }
 }
 

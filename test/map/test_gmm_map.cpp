@@ -51,15 +51,18 @@ size_t covOffset(size_t m, size_t i) { return kMapHeaderBytes + 16 * m + 24 * i;
 TEST(GmmMapTest, PrecomputesNormaliserAndPrecision) {
   const GmmMap map = smallMap();
   const ComponentF& c = map.packed()[1];
+  // The model's weights are surface-normalised: every log-weight carries ln(A / A_ref).
+  const double scale = std::log(estimateSurfaceArea(map.components()) / kReferenceSurfaceAreaM2);
+  EXPECT_NEAR(map.logWeightScale(), scale, 1e-12);
   const double expected =
-      std::log(0.3) - 1.5 * std::log(2 * M_PI) - 0.5 * std::log(0.01 * 0.02 * 0.03);
+      std::log(0.3) + scale - 1.5 * std::log(2 * M_PI) - 0.5 * std::log(0.01 * 0.02 * 0.03);
   EXPECT_NEAR(c.log_norm, expected, 1e-5);
   EXPECT_NEAR(c.precision[0], 100.0, 1e-3);
   EXPECT_NEAR(c.precision[3], 50.0, 1e-3);
   EXPECT_NEAR(map.threeSigmaHalfExtent(2).x(), 1.5, 1e-12);
   // Density at a mean equals the sum over components evaluated exactly.
   const double p = std::exp(map.logDensity(Eigen::Vector3d(0.0, -3.0, 1.5)));
-  EXPECT_NEAR(p, 0.2 / std::pow(2 * M_PI * 0.25, 1.5), 1e-9);
+  EXPECT_NEAR(p, std::exp(scale) * 0.2 / std::pow(2 * M_PI * 0.25, 1.5), 1e-9 * std::exp(scale));
 }
 
 TEST(GmmMapTest, WriteReadRoundTripsExactly) {

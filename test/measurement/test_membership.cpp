@@ -131,8 +131,11 @@ TEST(MembershipTest, ViewCullKeepsEveryContributingComponent) {
   }
 }
 
-// The CPU backend evaluates on the culled list: the same log-likelihoods, bit for bit, as the
-// whole map through poseLogLikelihood, with the depth-noise model on and off.
+// The CPU backend evaluates on the culled list (the map grid's candidates near the views, then
+// the cull within the frame's depth): the same log-likelihoods as the whole map through
+// poseLogLikelihood within float rounding, the same floor hits, with the depth-noise model on
+// and off.
+constexpr double kCulledRelativeTolerance = 1e-8;  // 1.5e-9 seen
 TEST(MembershipTest, BackendOnCulledListEqualsWholeMap) {
   const auto& w = test::world();
   const DepthFrame frame =
@@ -154,7 +157,12 @@ TEST(MembershipTest, BackendOnCulledListEqualsWholeMap) {
     for (size_t i = 0; i < T_map_cam.size(); ++i) {
       const FrameLikelihood ref =
           poseLogLikelihood(w.map.packed(), frame, T_map_cam[i], mp, &scratch);
-      EXPECT_EQ(out.log_likelihood[i], ref.log_likelihood) << i;
+      // The grid's candidates leave out what lies outside every view's box (a component beside
+      // or behind the camera whose linearised projection still reaches the grid): its share of
+      // a pixel's density is below float rounding.
+      EXPECT_NEAR(out.log_likelihood[i], ref.log_likelihood,
+                  kCulledRelativeTolerance * std::abs(ref.log_likelihood))
+          << i;
       EXPECT_EQ(out.floor_hits[i], ref.floor_hits) << i;
     }
   }

@@ -14,6 +14,7 @@ class CpuBackend : public LikelihoodBackend {
   void setMap(const GmmMap& map) override {
     components_ = map.packed();
     makeEvalComponents(components_, &eval_);
+    map_grid_ = map.grid();
   }
   void evaluate(const DepthFrame& frame, const std::vector<RigidTransformF>& T_map_cam,
                 const MeasurementParams& params, BackendOutput* out) override;
@@ -25,9 +26,14 @@ class CpuBackend : public LikelihoodBackend {
   std::vector<ComponentF> components_;
   std::vector<EvalComponentF> eval_;        // the likelihood kernel's form of components_ (nats)
   std::vector<LikelihoodScratch> scratch_;  // one per thread
-  // Per update: the poses' inverses, the view cull's list and the compact tables it selects.
+  ComponentGrid map_grid_;                  // the map's components by place (the view's candidates)
+  // Per update: the poses' inverses, the poses grouped by where their cameras are, and per
+  // group the map grid's candidates, the view cull's list and the compact tables it selects.
   std::vector<RigidTransformF> T_cam_map_;
-  std::vector<int> visible_;
+  std::vector<int> group_order_, group_begin_;
+  std::vector<RigidTransformF> group_T_cam_map_;
+  std::vector<int> candidates_, visible_;
+  std::vector<char> visible_any_;
   std::vector<ComponentF> view_components_;
   std::vector<EvalComponentF> view_eval_;
 };

@@ -1,0 +1,112 @@
+// Maps of whole buildings (docs/building_scale.md): the component grid finds what brute force
+// finds, the mapped surface follows the map, and a room inside a 100-room map scores at the true
+// pose what it scores in a map of its own, per pixel, at a cost that follows the view.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "gmm_mcl/backend/cpu_backend.h"
+#include "gmm_mcl/map/component_grid.h"
+#include "gmm_mcl/map/gmm_map.h"
+#include "test_utils/synthetic_fixtures.h"
+
+namespace gmm_mcl {
+namespace {
+
+TEST(ComponentGridTest, QueryEqualsBruteForce) {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> pos(-20.0, 20.0), size(0.01, 1.0);
+  std::vector<Box3> boxes;
+  for (int i = 0; i < 3000; ++i) {
+    const Eigen::Vector3d c(pos(rng), pos(rng), 0.1 * pos(rng));
+    const Eigen::Vector3d h(size(rng), size(rng), size(rng));
+    boxes.push_back(Box3{c - h, c + h});
+  }
+  // A ground plane of 50 m, a component 1 km away.
+  boxes.push_back(Box3{Eigen::Vector3d(-25, -25, -0.05), Eigen::Vector3d(25, 25, 0.05)});
+  boxes.push_back(Box3{Eigen::Vector3d(1000, 0, 0), Eigen::Vector3d(1000.2, 0.2, 0.2)});
+  const ComponentGrid grid(boxes);
+  EXPECT_EQ(grid.largeCount(), 1u);
+  std::vector<int> got;
+  for (int q = 0; q < 200; ++q) {
+    const Eigen::Vector3d c(pos(rng), pos(rng), pos(rng) * 0.1);
+    const Eigen::Vector3d h = 3.0 * Eigen::Vector3d(size(rng), size(rng), size(rng));
+    Box3 region{c - h, c + h};
+    if (q == 0) region = Box3{Eigen::Vector3d(999, -1, -1), Eigen::Vector3d(1001, 1, 1)};
+    if (q == 1) region = Box3{Eigen::Vector3d::Constant(-2000), Eigen::Vector3d::Constant(2000)};
+    grid.query(region, &got);
+    std::vector<int> want;
+    for (size_t i = 0; i < boxes.size(); ++i) {
+      if (boxes[i].intersects(region)) want.push_back(static_cast<int>(i));
+    }
+    ASSERT_EQ(got, want) << "query " << q;
+  }
+  grid.query(Box3{}, &got);  // an empty region
+  EXPECT_TRUE(got.empty());
+}
+
+TEST(SurfaceAreaTest, FlatComponentIsItsDisc) {
+  // A uniform disc of radius r has variance r^2 / 4 along its two axes.
+  GaussianComponent c;
+  c.weight = 1.0;
+  c.cov_m2 = Eigen::Vector3d(0.25, 0.25, 1e-6).asDiagonal();  // r = 1 m
+  const GmmMap one({c}, "one component");
+  EXPECT_NEAR(one.surfaceArea(), M_PI, 1e-9);
+  EXPECT_NEAR(one.logWeightScale(), std::log(M_PI / kReferenceSurfaceAreaM2), 1e-12);
+}
+
+TEST(SurfaceAreaTest, GrowsWithTheTilingAndKeepsEveryModelWeight) {
+  const GmmMap& room = test::world().map;
+  const GmmMap building = tiledMap(room, 4, 3, 12.0);
+  ASSERT_EQ(building.size(), 12 * room.size());
+  EXPECT_NEAR(building.surfaceArea() / room.surfaceArea(), 12.0, 1e-6);
+  for (size_t i = 0; i < room.size(); i += 37) {
+    EXPECT_NEAR(building.modelLogWeight(i), room.modelLogWeight(i), 1e-6);
+    EXPECT_NEAR(building.packed()[i].log_norm, room.packed()[i].log_norm, 1e-5);
+  }
+}
+
+// The same room, the same frame, the true pose and a converged cloud around it: the room's own
+// map and the room as one of 100 in a 10 x 10 building. Without the surface normalisation the
+// building would score ln(100) = 4.6 nats per pixel lower wherever a pixel's density is above
+// the floor.
+TEST(BuildingScaleTest, RoomInsideAHundredRoomMapScoresAsTheRoomAlone) {
+  const GmmMap& room = test::world().map;
+  const GmmMap building = tiledMap(room, 10, 10, 14.0);
+  const Intrinsics K = test::smallCamera();
+  const FrameParams fp = test::frameParams(4);
+  const Eigen::Isometry3d T_map_base = test::referenceBasePose();
+  const DepthFrame frame = test::renderFrame(T_map_base, K, fp);
+  ASSERT_GT(frame.size(), 1000u);
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  const Particle truth = poseToParticle(T_map_base);
+  double roll_rad = 0.0, pitch_rad = 0.0, yaw_rad = 0.0;
+  rpyFromRotation(T_map_base.linear(), &roll_rad, &pitch_rad, &yaw_rad);
+  std::vector<RigidTransformF> poses;
+  for (int i = 0; i < 16; ++i) {
+    const Particle p = i == 0 ? truth : test::perturbed(truth, n01, rng);
+    poses.push_back(toRigidF(particleToPose(p, roll_rad, pitch_rad) * test::world().T_base_cam));
+  }
+  MeasurementParams params;
+  CpuBackend cpu(2);
+  BackendOutput own, inside;
+  cpu.setMap(room);
+  cpu.evaluate(frame, poses, params, &own);
+  cpu.setMap(building);
+  cpu.evaluate(frame, poses, params, &inside);
+  const double pixels = static_cast<double>(frame.size());
+  for (size_t i = 0; i < poses.size(); ++i) {
+    EXPECT_NEAR(inside.log_likelihood[i] / pixels, own.log_likelihood[i] / pixels, 0.05)
+        << "pose " << i;
+    EXPECT_EQ(inside.floor_hits[i], own.floor_hits[i]) << "pose " << i;
+  }
+  // The cost follows the view: what the building's cull keeps is the room's view and at most
+  // the parts of its neighbours within the frame's depth, not the map.
+  EXPECT_LE(inside.visible_components, 3 * own.visible_components);
+  EXPECT_LT(inside.visible_components, static_cast<int>(room.size()) * 3);
+}
+
+}  // namespace
+}  // namespace gmm_mcl
