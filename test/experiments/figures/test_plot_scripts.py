@@ -19,7 +19,11 @@ import subprocess
 import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-SCRIPTS = os.path.join(HERE, "..", "..", "scripts")
+# The package root: the folder above test/ (this file sits in test/experiments/figures).
+ROOT = HERE
+while os.path.basename(ROOT) != "test" and os.path.dirname(ROOT) != ROOT:
+    ROOT = os.path.dirname(ROOT)
+SCRIPTS = os.path.join(os.path.dirname(ROOT), "scripts")
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 MIN_PNG_BYTES = 5000  # a blank 1000x500 figure is about 4 kB; ours carry curves and text
 
