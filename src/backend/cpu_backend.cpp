@@ -28,25 +28,21 @@ void CpuBackend::evaluate(const DepthFrame& frame, const std::vector<RigidTransf
   const double t_cull = omp_get_wtime();
   T_cam_map_.resize(n);
   for (int i = 0; i < n; ++i) T_cam_map_[i] = invertRigid(T_map_cam[i]);
-  const float far_m = viewFarDepth(frame, params);
-  groupPosesByPlace(T_map_cam, std::max(1.0, 0.5 * static_cast<double>(far_m)), &group_order_,
-                    &group_begin_);
+  const ViewReach reach = viewReach(frame, params);
+  groupPosesByPlace(T_map_cam, viewGroupCell(reach), &group_order_, &group_begin_);
   const int groups = static_cast<int>(group_begin_.size()) - 1;
   visible_any_.assign(components_.size(), 0);
   double cull_s = omp_get_wtime() - t_cull;
   for (int g = 0; g < groups; ++g) {
     const double t0 = omp_get_wtime();
     const int first = group_begin_[g], count = group_begin_[g + 1] - group_begin_[g];
-    Box3 region;
     group_T_cam_map_.resize(count);
-    for (int k = 0; k < count; ++k) {
-      const int i = group_order_[first + k];
-      region.extend(viewBox(T_map_cam[i], frame.intrinsics, frame.grid, far_m));
-      group_T_cam_map_[k] = T_cam_map_[i];
-    }
-    map_grid_.query(region, &candidates_);
+    for (int k = 0; k < count; ++k) group_T_cam_map_[k] = T_cam_map_[group_order_[first + k]];
+    map_grid_.query(
+        groupViewBox(T_map_cam, group_order_.data() + first, count, frame.intrinsics, reach),
+        &candidates_, &grid_scratch_);
     cullToView(components_, candidates_.data(), static_cast<int>(candidates_.size()),
-               group_T_cam_map_.data(), count, frame.intrinsics, frame.grid, params, far_m,
+               group_T_cam_map_.data(), count, frame.intrinsics, frame.grid, params, reach,
                &visible_);
     const int m_view = static_cast<int>(visible_.size());
     view_components_.resize(m_view);
@@ -67,7 +63,7 @@ void CpuBackend::evaluate(const DepthFrame& frame, const std::vector<RigidTransf
         const double t1 = omp_get_wtime();
         const RigidTransformF& T_cam_map = T_cam_map_[i];
         computeMembership(view_components_, T_cam_map, frame.intrinsics, frame.grid, params,
-                          &s.projected, &s.valid, &s.membership);
+                          &s.projected, &s.valid, &s.membership, &reach);
         const EvalComponentF* eval = noisyEvalComponents(view_components_, view_eval_, s.valid,
                                                          T_cam_map, params.depth_noise, &s.noisy);
         const double t2 = omp_get_wtime();
@@ -104,10 +100,12 @@ void CpuBackend::evaluate(const DepthFrame& frame, const std::vector<RigidTransf
 
 void CpuBackend::membership(const DepthFrame& frame, const RigidTransformF& T_map_cam,
                             const MeasurementParams& params, PatchMembership* out) {
+  // As evaluate() sees it: the members within the pose's view volume.
+  const ViewReach reach = viewReach(frame, params);
   std::vector<ProjectedComponent> projected;
   std::vector<char> valid;
   computeMembership(components_, invertRigid(T_map_cam), frame.intrinsics, frame.grid, params,
-                    &projected, &valid, out);
+                    &projected, &valid, out, &reach);
 }
 
 }  // namespace gmm_mcl

@@ -44,6 +44,7 @@ DepthFrame prepareFrame(const DepthImage& image, const Intrinsics& intrinsics,
   }
   DepthFrame f;
   f.intrinsics = intrinsics;
+  f.max_range_m = params.max_range_m;
   f.grid = PatchGrid::forImage(image.width_px, image.height_px, params.patch_size_px);
   f.patch_begin.assign(f.grid.count() + 1, 0);
   // Pixel bounds in 64 bits: patch sizes and strides up to INT_MAX are valid parameters, and

@@ -59,7 +59,9 @@ void Localizer::prepareMap() {
     std::vector<GaussianComponent> blurred = map_.components();
     const double b2 = params_.lost.redraw_blur_m * params_.lost.redraw_blur_m;
     for (GaussianComponent& c : blurred) c.cov_m2 += b2 * Eigen::Matrix3d::Identity();
-    blurred_map_ = GmmMap(std::move(blurred), "blurred map");
+    // The same surface, blurred: the original's weights (its mapped surface), not the larger
+    // surface the blurred covariances would suggest.
+    blurred_map_ = GmmMap(std::move(blurred), "blurred map", map_.surfaceArea());
   }
   map_self_ll_ = gmm_mcl::mapSelfLogDensity(map_, params_.measurement.floor_log_density,
                                             params_.measurement.depth_noise);

@@ -7,6 +7,8 @@
 
 #include "gmm_mcl/common/timing.h"
 #include "gmm_mcl/filter/localizer.h"
+#include "gmm_mcl/measurement/membership.h"
+#include "gmm_mcl/measurement/projection.h"
 
 namespace gmm_mcl {
 
@@ -246,8 +248,29 @@ void Localizer::refineEstimate(const StepInput& in, StepResult* res) {
     rf = RefinementFrame::of(hostFrame(in));
     res->timings.frame_prep_ms += msSince(tp);
   }
-  res->refinement = refinePose(map_.packed(), rf, start, roll_rad_, pitch_rad_, params_.T_base_cam,
-                               params_.measurement, params_.refinement, sums);
+  // The components it can meet: the map grid's near the view of the particle mean, grown by the
+  // largest correction it may make (and some attitude), so that its cost follows the view and
+  // not the map (docs/building_scale.md).
+  const MeasurementParams& mp = params_.measurement;
+  const ViewReach reach = viewReach(rf.intrinsics, rf.grid.patch_size_px, rf.grid.cols,
+                                    rf.grid.rows, patchInflation(rf.grid.patch_size_px),
+                                    params_.frame.max_range_m, mp.sigma_bound, mp.depth_noise);
+  const Eigen::Isometry3d T_map_cam =
+      particleToPose(res->estimate.mean, roll_rad_, pitch_rad_) * params_.T_base_cam;
+  Box3 box = viewBox(toRigidF(T_map_cam), rf.intrinsics, reach);
+  constexpr double kAttitudeSlackRad = 0.1;
+  const double grow = params_.refinement.max_correction_m +
+                      static_cast<double>(reach.far_m) *
+                          (params_.refinement.max_correction_rad + kAttitudeSlackRad);
+  box.lo.array() -= grow;
+  box.hi.array() += grow;
+  map_.grid().query(box, &refine_index_);
+  refine_components_.resize(refine_index_.size());
+  for (size_t k = 0; k < refine_index_.size(); ++k) {
+    refine_components_[k] = map_.packed()[refine_index_[k]];
+  }
+  res->refinement = refinePose(refine_components_, rf, start, roll_rad_, pitch_rad_,
+                               params_.T_base_cam, params_.measurement, params_.refinement, sums);
   // Judged against the particle mean, whatever the start.
   const Particle& r = res->refinement.pose;
   const Particle& mean = res->estimate.mean;

@@ -86,13 +86,32 @@ ComponentGrid::ComponentGrid(const std::vector<Box3>& boxes, double cell_m) : bo
 }
 
 void ComponentGrid::query(const Box3& region, std::vector<int>* out) const {
+  query(region, out, nullptr);
+}
+
+void ComponentGrid::query(const Box3& region, std::vector<int>* out, Scratch* scratch) const {
   out->clear();
   if (region.empty() || boxes_.empty()) return;
+  if (scratch) {
+    if (scratch->mark.size() != boxes_.size() || ++scratch->epoch == 0) {
+      scratch->mark.assign(boxes_.size(), 0);
+      scratch->epoch = 1;
+    }
+  }
+  // Each component once: marked when taken (with scratch), else sorted and made unique below.
+  auto add = [&](int32_t i) {
+    if (scratch) {
+      if (scratch->mark[i] == scratch->epoch) return;
+      scratch->mark[i] = scratch->epoch;
+      if (!boxes_[i].intersects(region)) return;
+    }
+    out->push_back(i);
+  };
   const Eigen::Vector3i c0 = cellOf(region.lo), c1 = cellOf(region.hi);
   const Eigen::Vector3i n = c1 - c0 + Eigen::Vector3i::Ones();
   const double cells = static_cast<double>(n.x()) * n.y() * n.z();
   auto take = [&](size_t k) {
-    for (uint32_t e = begin_[k]; e < begin_[k + 1]; ++e) out->push_back(entries_[e]);
+    for (uint32_t e = begin_[k]; e < begin_[k + 1]; ++e) add(entries_[e]);
   };
   if (cells > static_cast<double>(keys_.size())) {
     // A region larger than the occupied part of the map: walk the occupied cells.
@@ -113,8 +132,9 @@ void ComponentGrid::query(const Box3& region, std::vector<int>* out) const {
       }
     }
   }
-  out->insert(out->end(), large_.begin(), large_.end());
+  for (int32_t i : large_) add(i);
   std::sort(out->begin(), out->end());
+  if (scratch) return;
   out->erase(std::unique(out->begin(), out->end()), out->end());
   // Only the boxes that reach the region itself (a cell is larger than the region's edge).
   out->erase(std::remove_if(out->begin(), out->end(),

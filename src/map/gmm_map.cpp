@@ -88,10 +88,11 @@ double estimateSurfaceArea(const std::vector<GaussianComponent>& components) {
   return area_per_weight.back().first;
 }
 
-GmmMap::GmmMap(std::vector<GaussianComponent> components, const std::string& source)
+GmmMap::GmmMap(std::vector<GaussianComponent> components, const std::string& source,
+               double surface_area_m2)
     : components_(std::move(components)) {
   validateComponents(components_, source);
-  surface_area_m2_ = estimateSurfaceArea(components_);
+  surface_area_m2_ = surface_area_m2 > 0.0 ? surface_area_m2 : estimateSurfaceArea(components_);
   log_weight_scale_ = std::log(surface_area_m2_ / kReferenceSurfaceAreaM2);
   packed_.resize(components_.size());
   half_extent_m_.resize(components_.size());

@@ -50,6 +50,32 @@ static inline ProjectConstants projectConstants(const RigidTransformF& T, const 
   return f;
 }
 
+// in_view[i] = componentInView for the m components of the structure of arrays in (mean x, y, z,
+// covariance 0..5: [9][m]) seen from T, one loop the compiler vectorises (projection.h's
+// sphereInView arithmetic, up to FMA contraction).
+__attribute__((noinline)) void inViewAll(const float* __restrict in, int m,
+                                         const RigidTransformF& T, const Intrinsics& K,
+                                         const ViewReach& r, float sigma_bound,
+                                         int* __restrict in_view) {
+  const float* __restrict mx = in, * __restrict my = in + m, * __restrict mz = in + 2 * m;
+  const float* __restrict s0 = in + 3 * m, * __restrict s3 = in + 6 * m;
+  const float* __restrict s5 = in + 8 * m;
+  float R[9], t[3];
+  for (int k = 0; k < 9; ++k) R[k] = T.R[k];
+  for (int k = 0; k < 3; ++k) t[k] = T.t[k];
+  const float fx = K.fx_px, fy = K.fy_px;
+#pragma omp simd
+  for (int i = 0; i < m; ++i) {
+    const float x = R[0] * mx[i] + R[1] * my[i] + R[2] * mz[i] + t[0];
+    const float y = R[3] * mx[i] + R[4] * my[i] + R[5] * mz[i] + t[1];
+    const float z = R[6] * mx[i] + R[7] * my[i] + R[8] * mz[i] + t[2];
+    const float rho = sigma_bound * sqrtVec(s0[i] + s3[i] + s5[i]) + r.margin_m;
+    in_view[i] = (z - rho <= r.far_m) & (fx * x - r.u0_px * z >= -rho * r.n_u0) &
+                 (r.u1_px * z - fx * x >= -rho * r.n_u1) & (fy * y - r.v0_px * z >= -rho * r.n_v0) &
+                 (r.v1_px * z - fy * y >= -rho * r.n_v1);
+  }
+}
+
 // projectComponent for m components at once over structure-of-arrays inputs (mean x, y, z and
 // the 6 covariance entries), one branch-free loop that the compiler vectorises (8 components
 // per AVX2 instruction). The expressions are projectComponent's, in the same order, but the
@@ -319,7 +345,7 @@ std::string MeasurementParams::validate() const {
 void computeMembership(const std::vector<ComponentF>& components, const RigidTransformF& T_cam_map,
                        const Intrinsics& K, const PatchGrid& grid, const MeasurementParams& params,
                        std::vector<ProjectedComponent>* projected, std::vector<char>* valid,
-                       PatchMembership* out) {
+                       PatchMembership* out, const ViewReach* reach) {
   const int m = static_cast<int>(components.size());
   const int num_patches = grid.count();
   const float inflate = patchInflation(grid.patch_size_px);
@@ -352,6 +378,12 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
                           n,          n + ms,     n + 2 * ms, n + 3 * ms, n + 4 * ms,  n + 5 * ms};
   projectAll(in, m, T_cam_map, K, grid, params.min_component_depth_m, params.sigma_bound, inflate,
              P);
+  // The pose's view volume, when given: a component outside it is no member (cullToView).
+  static thread_local std::vector<int> in_view;
+  if (reach) {
+    in_view.resize(ms);
+    inViewAll(in, m, T_cam_map, K, *reach, params.sigma_bound, in_view.data());
+  }
   // Pass 1: per component (ascending), the patches whose centre lies in its inflated ellipse,
   // from the vectorised projection; where that could decide differently from projectComponent
   // (P.exact, or a centre within P.margin of the ellipse), the component is redone with
@@ -363,6 +395,7 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
   size_t hits = 0;
   for (int i = 0; i < m; ++i) {
     run_begin[i] = static_cast<int>(hits);
+    if (reach && !in_view[i]) continue;
     const bool exact = P.exact[i] != 0;
     const int col0 = P.col0[i], col1 = P.col1[i], row0 = P.row0[i], row1 = P.row1[i];
     if (!exact && (!P.ok[i] || col0 > col1 || row0 > row1)) continue;

@@ -18,8 +18,8 @@ namespace {
 __attribute__((noinline)) void mayTouchGridAll(const float* __restrict in, int m, size_t stride,
                                                const RigidTransformF& T, const Intrinsics& K,
                                                const PatchGrid& grid, float min_depth_m,
-                                               float sigma_bound, float inflate_px, float far_m,
-                                               int* __restrict keep) {
+                                               float sigma_bound, float inflate_px,
+                                               const ViewReach& reach, int* __restrict keep) {
   const float* __restrict mx = in;
   const float* __restrict my = in + stride;
   const float* __restrict mz = in + 2 * stride;
@@ -51,47 +51,60 @@ __attribute__((noinline)) void mayTouchGridAll(const float* __restrict in, int m
     const int col1 = floorInt(clampTo((u + r - c0) * ips, -4.f, col_hi));
     const int row0 = ceilInt(clampTo((v - r - c0) * ips, -4.f, row_hi));
     const int row1 = floorInt(clampTo((v + r - c0) * ips, -4.f, row_hi));
-    // Beyond the frame's deepest pixel by more than the component's extent (sqrt of the trace
-    // bounds every standard deviation): no pixel lies in its reach.
-    const float beyond = z - sigma_bound * sqrtVec(tr[j]) - far_m;
-    keep[j] = (z >= near) & (beyond <= 0.f) & (col0 <= col1) & (col0 <= last_col) & (col1 >= 0) &
+    // In the view volume (projection.h's sphereInView, the same arithmetic).
+    const float rho = sigma_bound * sqrtVec(tr[j]) + reach.margin_m;
+    const bool in_view = (z - rho <= reach.far_m) &
+                         (fx * x - reach.u0_px * z >= -rho * reach.n_u0) &
+                         (reach.u1_px * z - fx * x >= -rho * reach.n_u1) &
+                         (fy * y - reach.v0_px * z >= -rho * reach.n_v0) &
+                         (reach.v1_px * z - fy * y >= -rho * reach.n_v1);
+    keep[j] = (z >= near) & in_view & (col0 <= col1) & (col0 <= last_col) & (col1 >= 0) &
               (row0 <= row1) & (row0 <= last_row) & (row1 >= 0);
   }
 }
 
 }  // namespace
 
-float viewFarDepth(const DepthFrame& frame, const MeasurementParams& params) {
-  if (frame.empty()) return 0.f;
-  const float z = *std::max_element(frame.z_m.begin(), frame.z_m.end());
-  const DepthNoiseModel& noise = params.depth_noise;
-  const float d = z - noise.z0_m;
-  const float sigma = noise.enabled() ? noise.a_m + noise.b_per_m * d * d : 0.f;
-  return z + params.sigma_bound * sigma;
+ViewReach viewReach(const DepthFrame& frame, const MeasurementParams& params) {
+  return viewReach(frame.intrinsics, frame.grid.patch_size_px, frame.grid.cols, frame.grid.rows,
+                   patchInflation(frame.grid.patch_size_px), frame.max_range_m, params.sigma_bound,
+                   params.depth_noise);
 }
 
-Box3 viewBox(const RigidTransformF& T_map_cam, const Intrinsics& K, const PatchGrid& grid,
-             float far_m) {
-  // The membership's reach beyond the grid: half a patch diagonal and the cull's slack.
-  const float reach = patchInflation(grid.patch_size_px) * 1.01f + 2.f;
-  const float u[2] = {-reach, static_cast<float>(grid.cols * grid.patch_size_px) + reach};
-  const float v[2] = {-reach, static_cast<float>(grid.rows * grid.patch_size_px) + reach};
+Box3 viewBox(const RigidTransformF& T_map_cam, const Intrinsics& K, const ViewReach& reach) {
+  if (!std::isfinite(reach.far_m)) {  // no depth bound: all of space
+    const double inf = std::numeric_limits<double>::infinity();
+    return Box3{Eigen::Vector3d::Constant(-inf), Eigen::Vector3d::Constant(inf)};
+  }
+  // The camera centre and the far corners of the planes' pyramid (x = u z / fx, y = v z / fy).
   Box3 box;
   box.extend(Eigen::Vector3d(T_map_cam.t[0], T_map_cam.t[1], T_map_cam.t[2]));
-  for (float uu : u) {
-    for (float vv : v) {
-      float p_cam[3], p_map[3];
-      backProject(K, uu, vv, far_m, p_cam);
+  for (float u : {reach.u0_px, reach.u1_px}) {
+    for (float v : {reach.v0_px, reach.v1_px}) {
+      const float p_cam[3] = {u * reach.far_m / K.fx_px, v * reach.far_m / K.fy_px, reach.far_m};
+      float p_map[3];
       transformPoint(T_map_cam, p_cam, p_map);
       box.extend(Eigen::Vector3d(p_map[0], p_map[1], p_map[2]));
     }
   }
+  box.lo.array() -= reach.margin_m;
+  box.hi.array() += reach.margin_m;
   return box;
 }
 
 void groupPosesByPlace(const std::vector<RigidTransformF>& T_map_cam, double cell_m,
                        std::vector<int>* order, std::vector<int>* begin) {
   const int n = static_cast<int>(T_map_cam.size());
+  // A cloud within one cell's extent (a tracking cloud) is one group wherever it lies.
+  Box3 centres;
+  for (const RigidTransformF& T : T_map_cam)
+    centres.extend(Eigen::Vector3d(T.t[0], T.t[1], T.t[2]));
+  if (n > 0 && ((centres.hi - centres.lo).array() <= cell_m).all()) {
+    order->resize(n);
+    for (int i = 0; i < n; ++i) (*order)[i] = i;
+    begin->assign({0, n});
+    return;
+  }
   std::vector<std::pair<std::array<long long, 3>, int>> keyed(n);
   for (int i = 0; i < n; ++i) {
     for (int a = 0; a < 3; ++a) {
@@ -111,17 +124,48 @@ void groupPosesByPlace(const std::vector<RigidTransformF>& T_map_cam, double cel
   begin->push_back(n);
 }
 
+double viewGroupCell(const ViewReach& reach) {
+  return std::isfinite(reach.far_m) ? std::max(1.0, 0.5 * static_cast<double>(reach.far_m)) : 1e300;
+}
+
+Box3 groupViewBox(const std::vector<RigidTransformF>& T_map_cam, const int* members, int count,
+                  const Intrinsics& K, const ViewReach& reach) {
+  Box3 region;
+  for (int k = 0; k < count; ++k) region.extend(viewBox(T_map_cam[members[k]], K, reach));
+  return region;
+}
+
+void viewCandidates(const ComponentGrid& grid, const std::vector<RigidTransformF>& T_map_cam,
+                    const Intrinsics& K, const ViewReach& reach, std::vector<int>* candidates) {
+  std::vector<int> order, begin, found;
+  groupPosesByPlace(T_map_cam, viewGroupCell(reach), &order, &begin);
+  candidates->clear();
+  static thread_local ComponentGrid::Scratch scratch;
+  for (size_t g = 0; g + 1 < begin.size(); ++g) {
+    grid.query(groupViewBox(T_map_cam, order.data() + begin[g], begin[g + 1] - begin[g], K, reach),
+               &found, &scratch);
+    candidates->insert(candidates->end(), found.begin(), found.end());
+  }
+  if (begin.size() > 2) {
+    std::sort(candidates->begin(), candidates->end());
+    candidates->erase(std::unique(candidates->begin(), candidates->end()), candidates->end());
+  }
+}
+
 void cullToView(const std::vector<ComponentF>& components, const RigidTransformF* T_cam_map,
                 int num_poses, const Intrinsics& K, const PatchGrid& grid,
                 const MeasurementParams& params, std::vector<int>* visible) {
-  cullToView(components, nullptr, -1, T_cam_map, num_poses, K, grid, params,
-             std::numeric_limits<float>::infinity(), visible);
+  cullToView(
+      components, nullptr, -1, T_cam_map, num_poses, K, grid, params,
+      viewReach(K, grid.patch_size_px, grid.cols, grid.rows, patchInflation(grid.patch_size_px),
+                std::numeric_limits<float>::infinity(), params.sigma_bound, params.depth_noise),
+      visible);
 }
 
 void cullToView(const std::vector<ComponentF>& components, const int* candidates,
                 int num_candidates, const RigidTransformF* T_cam_map, int num_poses,
                 const Intrinsics& K, const PatchGrid& grid, const MeasurementParams& params,
-                float far_m, std::vector<int>* visible) {
+                const ViewReach& reach, std::vector<int>* visible) {
   const int m = candidates ? num_candidates : static_cast<int>(components.size());
   const size_t ms = static_cast<size_t>(std::max(m, 0));
   const float inflate = patchInflation(grid.patch_size_px);
@@ -145,7 +189,7 @@ void cullToView(const std::vector<ComponentF>& components, const int* candidates
   int rest = m;
   for (int k = 0; k < num_poses && rest > 0; ++k) {
     mayTouchGridAll(in, rest, ms, T_cam_map[k], K, grid, params.min_component_depth_m,
-                    params.sigma_bound, inflate, far_m, keep.data());
+                    params.sigma_bound, inflate, reach, keep.data());
     int w = 0;
     for (int j = 0; j < rest; ++j) {
       if (keep[j]) {

@@ -29,6 +29,7 @@ TEST(ComponentGridTest, QueryEqualsBruteForce) {
   const ComponentGrid grid(boxes);
   EXPECT_EQ(grid.largeCount(), 1u);
   std::vector<int> got;
+  ComponentGrid::Scratch scratch;
   for (int q = 0; q < 200; ++q) {
     const Eigen::Vector3d c(pos(rng), pos(rng), pos(rng) * 0.1);
     const Eigen::Vector3d h = 3.0 * Eigen::Vector3d(size(rng), size(rng), size(rng));
@@ -36,6 +37,9 @@ TEST(ComponentGridTest, QueryEqualsBruteForce) {
     if (q == 0) region = Box3{Eigen::Vector3d(999, -1, -1), Eigen::Vector3d(1001, 1, 1)};
     if (q == 1) region = Box3{Eigen::Vector3d::Constant(-2000), Eigen::Vector3d::Constant(2000)};
     grid.query(region, &got);
+    std::vector<int> marked;
+    grid.query(region, &marked, &scratch);
+    EXPECT_EQ(marked, got) << "query " << q << " with marks";
     std::vector<int> want;
     for (size_t i = 0; i < boxes.size(); ++i) {
       if (boxes[i].intersects(region)) want.push_back(static_cast<int>(i));

@@ -27,6 +27,7 @@ class CpuBackend : public LikelihoodBackend {
   std::vector<EvalComponentF> eval_;        // the likelihood kernel's form of components_ (nats)
   std::vector<LikelihoodScratch> scratch_;  // one per thread
   ComponentGrid map_grid_;                  // the map's components by place (the view's candidates)
+  ComponentGrid::Scratch grid_scratch_;
   // Per update: the poses' inverses, the poses grouped by where their cameras are, and per
   // group the map grid's candidates, the view cull's list and the compact tables it selects.
   std::vector<RigidTransformF> T_cam_map_;

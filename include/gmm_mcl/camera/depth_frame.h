@@ -2,6 +2,7 @@
 // frame and grouped by image patch, the layout every backend consumes.
 #pragma once
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -42,6 +43,9 @@ struct DepthFrame {
   int total_pixels_sampled = 0;      // pixels on the stride grid
   int invalid_pixels = 0;            // of those: no measurement (0, NaN, Inf, 65535)
   int out_of_range_pixels = 0;       // of those: valid but outside the range window
+  // The far end of the range window it was prepared with (m): no used pixel is deeper, so the
+  // view cull drops what lies beyond it (infinite for a frame built by hand: no such cull).
+  float max_range_m = std::numeric_limits<float>::infinity();
 
   size_t size() const { return x_m.size(); }
   bool empty() const { return x_m.empty(); }

@@ -173,6 +173,9 @@ class Localizer {
   double pitch_rad_ = 0.0;
   bool have_refined_ = false;  // last_refined_: the last frame's refined pose, moved by odometry
   Particle last_refined_;
+  // The components the refinement can meet this frame (map indices, packed copies).
+  std::vector<int> refine_index_;
+  std::vector<ComponentF> refine_components_;
 };
 
 }  // namespace gmm_mcl

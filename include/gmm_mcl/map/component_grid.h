@@ -45,8 +45,15 @@ class ComponentGrid {
   // median box edge, at least 0.5 m).
   explicit ComponentGrid(const std::vector<Box3>& boxes, double cell_m = 0.0);
 
+  // Reusable marks of one caller (a thread): a query that is given them skips the sort that
+  // removes a component listed by several cells.
+  struct Scratch {
+    std::vector<uint32_t> mark;
+    uint32_t epoch = 0;
+  };
   // Sets *out to the components (ascending index) whose box intersects `region`.
   void query(const Box3& region, std::vector<int>* out) const;
+  void query(const Box3& region, std::vector<int>* out, Scratch* scratch) const;
 
   size_t size() const { return boxes_.size(); }
   double cellSize() const { return cell_m_; }

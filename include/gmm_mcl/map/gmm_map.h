@@ -40,9 +40,11 @@ class GmmMap {
  public:
   GmmMap() = default;
 
-  // Validates and precomputes; throws MapError naming `source` and the fault.
-  explicit GmmMap(std::vector<GaussianComponent> components,
-                  const std::string& source = "<memory>");
+  // Validates and precomputes; throws MapError naming `source` and the fault. surface_area_m2 > 0
+  // sets the mapped surface instead of estimating it (a map derived from another, such as one
+  // blurred for a coarse search, keeps the original's weights).
+  explicit GmmMap(std::vector<GaussianComponent> components, const std::string& source = "<memory>",
+                  double surface_area_m2 = 0.0);
 
   size_t size() const { return components_.size(); }
   bool empty() const { return components_.empty(); }

@@ -6,6 +6,7 @@
 
 #include "gmm_mcl/common/types.h"
 #include "gmm_mcl/internal/host_device.h"
+#include "gmm_mcl/measurement/measurement_params.h"
 
 namespace gmm_mcl {
 
@@ -116,6 +117,60 @@ GMM_MCL_HD bool componentMayTouchGrid(const ComponentF& c, const RigidTransformF
   // Each comparison is false for NaN, so a NaN bound culls.
   return col0 <= col1 && col0 <= static_cast<float>(cols - 1) && col1 >= 0.f && row0 <= row1 &&
          row0 <= static_cast<float>(rows - 1) && row1 >= 0.f;
+}
+
+// What the view culls (both backends) keep: a component whose sphere of sigma_bound standard
+// deviations (the square root of its covariance's trace bounds every one), grown by margin_m,
+// meets the camera's view volume: depth up to far_m, and inside the four planes through the
+// camera centre and the patch grid's edges grown by the membership's inflation (u0_px..u1_px,
+// v0_px..v1_px). Outside it, every used pixel's point lies more than sigma_bound standard
+// deviations from the component; the membership's linearised ellipse can still reach the grid
+// for a component almost in the camera's plane and metres to its side, and the cull drops it.
+struct ViewReach {
+  float far_m;     // the range window's far end plus margin_m (infinite: no depth bound)
+  float margin_m;  // sigma_bound times the depth noise's sigma at the range's far end
+  float u0_px, u1_px, v0_px, v1_px;
+  float n_u0, n_u1, n_v0, n_v1;  // the planes' normal lengths
+};
+
+// max_range_m infinite: no depth bound and no margin (the side planes still hold).
+GMM_MCL_HD ViewReach viewReach(const Intrinsics& K, int patch_size_px, int cols, int rows,
+                               float inflate_px, float max_range_m, float sigma_bound,
+                               const DepthNoiseModel& noise) {
+  ViewReach r;
+  const float d = max_range_m - noise.z0_m;
+  const float sigma =
+      noise.a_m > 0.f || noise.b_per_m > 0.f ? noise.a_m + noise.b_per_m * d * d : 0.f;
+  const bool bounded = max_range_m < 3.0e38f;  // finite (a NaN range is refused earlier)
+  r.margin_m = bounded ? sigma_bound * sigma : 0.f;
+  r.far_m = max_range_m + r.margin_m;
+  const float reach = inflate_px * 1.01f + 2.f;  // the cull's slack (componentMayTouchGrid)
+  r.u0_px = -reach - K.cx_px;
+  r.u1_px = static_cast<float>(cols * patch_size_px) + reach - K.cx_px;
+  r.v0_px = -reach - K.cy_px;
+  r.v1_px = static_cast<float>(rows * patch_size_px) + reach - K.cy_px;
+  r.n_u0 = sqrtf(K.fx_px * K.fx_px + r.u0_px * r.u0_px);
+  r.n_u1 = sqrtf(K.fx_px * K.fx_px + r.u1_px * r.u1_px);
+  r.n_v0 = sqrtf(K.fy_px * K.fy_px + r.v0_px * r.v0_px);
+  r.n_v1 = sqrtf(K.fy_px * K.fy_px + r.v1_px * r.v1_px);
+  return r;
+}
+
+// The test on a component's mean in the camera frame (x, y, z) and its covariance's trace.
+GMM_MCL_HD bool sphereInView(float x, float y, float z, float trace, const Intrinsics& K,
+                             const ViewReach& r, float sigma_bound) {
+  const float rho = sigma_bound * sqrtf(trace) + r.margin_m;
+  // Signed distances (scaled by each normal's length) to the planes fx x = u z, fy y = v z.
+  return z - rho <= r.far_m && K.fx_px * x - r.u0_px * z >= -rho * r.n_u0 &&
+         r.u1_px * z - K.fx_px * x >= -rho * r.n_u1 && K.fy_px * y - r.v0_px * z >= -rho * r.n_v0 &&
+         r.v1_px * z - K.fy_px * y >= -rho * r.n_v1;
+}
+
+GMM_MCL_HD bool componentInView(const ComponentF& c, const RigidTransformF& T_cam_map,
+                                const Intrinsics& K, const ViewReach& r, float sigma_bound) {
+  float m[3];
+  transformPoint(T_cam_map, c.mean_m, m);
+  return sphereInView(m[0], m[1], m[2], c.cov_m2[0] + c.cov_m2[3] + c.cov_m2[5], K, r, sigma_bound);
 }
 
 // True when pixel point (u, v) lies within or on the inflated ellipse. The quadratic form is

@@ -130,6 +130,7 @@ void CudaBackend::setMap(const GmmMap& map) {
                                   cudaMemcpyHostToDevice));
   }
   d.num_components = m;
+  d.grid = map.grid();
 }
 
 namespace {
@@ -209,7 +210,7 @@ void CudaBackend::evaluate(const DepthFrame& frame, const std::vector<RigidTrans
   const cuda::OutputLayout O(n, patches);
   d.results.reserve(O.total);
   d.h_results.reserve(O.total);
-  const Impl::DeviceFrameView view = d.view(L, frame.intrinsics, frame.grid);
+  const Impl::DeviceFrameView view = d.view(L, frame.intrinsics, frame.grid, frame.max_range_m);
   d.run(view, n, params, max_patch_pixels, false, out);
   d.last_transfer_ms += d.upload_end.msSince(d.upload_start);
 }
@@ -256,7 +257,7 @@ void CudaBackend::evaluateImage(const DepthImage& image, const Intrinsics& K,
   const cuda::OutputLayout O(n, patches);
   d.results.reserve(O.total);
   d.h_results.reserve(O.total);
-  Impl::DeviceFrameView view = d.view(L, K, grid);
+  Impl::DeviceFrameView view = d.view(L, K, grid, frame_params.max_range_m);
   view.patch_begin = reinterpret_cast<const int*>(d.results.data() + O.patch_begin);
   const cuda::FrameConfig fc = frameConfig(image, K, grid, frame_params);
   GMM_MCL_CUDA_CHECK(cuda::launchFramePrep(
@@ -329,7 +330,7 @@ CudaBackend::DeviceFrameInfo CudaBackend::prepareDeviceFrame(const DepthImage& i
     info.pixels = pb[patches];
   }
   const int side = (frame_params.patch_size_px + st - 1) / st;
-  d.setDeviceFrame(K, grid, L, side * side, info.pixels);
+  d.setDeviceFrame(K, grid, L, side * side, info.pixels, frame_params.max_range_m);
   return info;
 }
 
@@ -363,7 +364,8 @@ CudaBackend::DeviceFrameInfo CudaBackend::uploadDeviceFrame(const DepthFrame& fr
   }
   GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(d.dframe.data(), h, L.total, cudaMemcpyHostToDevice, s));
   GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(s));  // the staging buffer is free again
-  d.setDeviceFrame(frame.intrinsics, frame.grid, L, max_patch_pixels, info.pixels);
+  d.setDeviceFrame(frame.intrinsics, frame.grid, L, max_patch_pixels, info.pixels,
+                   frame.max_range_m);
   return info;
 }
 
@@ -390,6 +392,7 @@ void CudaBackend::evaluateDevicePoses(int n, const RigidTransformF* T_map_cam,
   v.patch_begin = reinterpret_cast<const int*>(dev + d.dframe_patch_begin_at);
   v.T_map_cam = T_map_cam;
   v.T_cam_map = T_cam_map;
+  v.max_range_m = d.dframe_max_range_m;
   d.device_batches = d.launchBatches(v, n, params, d.dframe_max_patch_pixels, log_likelihood,
                                      floor_hits, evaluations, relevant_pairs);
 }

@@ -6,6 +6,7 @@
 #include <cuda_runtime_api.h>
 
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -13,6 +14,7 @@
 #include "cuda/device_buffer.cuh"
 #include "cuda/kernels.cuh"
 #include "gmm_mcl/backend/cuda_backend.h"
+#include "gmm_mcl/map/component_grid.h"
 
 namespace gmm_mcl {
 namespace cuda {
@@ -103,6 +105,14 @@ struct CudaBackend::Impl {
   cuda::DeviceBuffer<EvalComponentF> cull_eval;
   cuda::PinnedBuffer<int> cull_count;
   int last_visible_components = -1;  // of the last cull (-1: the whole map)
+  // The map's component grid (host) and, in a large map, the cull's candidates from it: the
+  // poses read back, their inverses, the candidate list and its device copy.
+  ComponentGrid grid;
+  cuda::PinnedBuffer<RigidTransformF> cull_poses;
+  std::vector<RigidTransformF> host_T_map_cam;
+  std::vector<int> host_candidates;
+  cuda::DeviceBuffer<int> cull_candidates;
+  float dframe_max_range_m = std::numeric_limits<float>::infinity();
 
   struct DeviceFrameView;
   template <typename Layout>
@@ -114,7 +124,8 @@ struct CudaBackend::Impl {
     for (size_t i = 0; i < n; ++i) inv[i] = invertRigid(T_map_cam[i]);  // as the CPU backend
   }
   template <typename Layout>
-  DeviceFrameView view(const Layout& L, const Intrinsics& K, const PatchGrid& grid);
+  DeviceFrameView view(const Layout& L, const Intrinsics& K, const PatchGrid& grid,
+                       float max_range_m);
   void run(const DeviceFrameView& f, int n, const MeasurementParams& params, int max_patch_pixels,
            bool gpu_frame, BackendOutput* out);
   // Membership, likelihood and the per-particle reduction of n poses in batches, queued on the
@@ -143,7 +154,8 @@ struct CudaBackend::Impl {
   // Records the device frame just uploaded or prepared (offsets of its layout L).
   template <typename Layout>
   void setDeviceFrame(const Intrinsics& K, const PatchGrid& grid, const Layout& L,
-                      int max_patch_pixels, int pixels) {
+                      int max_patch_pixels, int pixels, float max_range_m) {
+    dframe_max_range_m = max_range_m;
     dframe_K = K;
     dframe_grid = grid;
     dframe_x = L.x;
@@ -168,11 +180,13 @@ struct CudaBackend::Impl::DeviceFrameView {
   const int* patch_begin;
   const RigidTransformF* T_map_cam;
   const RigidTransformF* T_cam_map;
+  float max_range_m;  // the frame's range window's far end (the view cull's depth)
 };
 
 template <typename Layout>
 CudaBackend::Impl::DeviceFrameView CudaBackend::Impl::view(const Layout& L, const Intrinsics& K,
-                                                           const PatchGrid& grid) {
+                                                           const PatchGrid& grid,
+                                                           float max_range_m) {
   unsigned char* dev = inputs.data();
   DeviceFrameView v;
   v.K = K;
@@ -183,6 +197,7 @@ CudaBackend::Impl::DeviceFrameView CudaBackend::Impl::view(const Layout& L, cons
   v.patch_begin = reinterpret_cast<const int*>(dev + L.patch_begin);
   v.T_map_cam = reinterpret_cast<const RigidTransformF*>(dev + L.T_map_cam);
   v.T_cam_map = reinterpret_cast<const RigidTransformF*>(dev + L.T_cam_map);
+  v.max_range_m = max_range_m;
   return v;
 }
 

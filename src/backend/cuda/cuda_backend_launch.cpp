@@ -1,11 +1,15 @@
 // The CUDA backend's per-update launches: the view cull, membership, likelihood and reduction
 // per batch of particles, the download of the results, and the membership table of one pose.
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <string>
 
 #include "cuda/cuda_backend_impl.h"
+#include "gmm_mcl/measurement/membership.h"
+#include "gmm_mcl/measurement/projection.h"
 
 namespace gmm_mcl {
 
@@ -24,6 +28,8 @@ constexpr size_t kMaskBudgetBytes = size_t(1) << 30;
 // it pays only for large products: `large` (1068 x 4000) and `scale` (100,000 x 1000) gain,
 // `paper` (1068 x 1000) would lose 8%.
 constexpr long long kViewCullMinPairs = 2000000;
+// From this many components on, the view cull tests only the map grid's candidates.
+constexpr int kGridCandidatesMinComponents = 20000;
 
 // Bitmask words per membership pass where the visible components need more (one pass below).
 constexpr int kMembershipPassWords = 32;
@@ -88,6 +94,9 @@ MembershipConfig membershipConfig(const Intrinsics& K, const PatchGrid& grid,
   cfg.inflate_px = patchInflation(grid.patch_size_px);
   cfg.floor_log_density = params.floor_log_density;
   cfg.depth_noise = params.depth_noise;
+  cfg.reach =
+      viewReach(K, grid.patch_size_px, grid.cols, grid.rows, cfg.inflate_px,
+                std::numeric_limits<float>::infinity(), params.sigma_bound, params.depth_noise);
   return cfg;
 }
 }  // namespace cuda
@@ -145,6 +154,26 @@ CudaBackend::Impl::ComponentSet CudaBackend::Impl::cullView(const cuda::Membersh
     return {num_components, components.data(), eval_components.data(), nullptr};
   }
   cudaStream_t s = stream.get();
+  // In a large map, only the grid's components near the poses' views are tested: the poses come
+  // back to the host (48 bytes each) and the map grid gives the candidates per group of poses.
+  const int* candidates = nullptr;
+  int num_candidates = 0;
+  if (num_components >= kGridCandidatesMinComponents && grid.size() > 0) {
+    cull_poses.reserve(n);
+    GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(cull_poses.data(), T_cam_map, n * sizeof(RigidTransformF),
+                                       cudaMemcpyDeviceToHost, s));
+    GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(s));
+    host_T_map_cam.resize(n);
+    for (int i = 0; i < n; ++i) host_T_map_cam[i] = invertRigid(cull_poses.data()[i]);
+    viewCandidates(grid, host_T_map_cam, cfg.K, cfg.reach, &host_candidates);
+    num_candidates = static_cast<int>(host_candidates.size());
+    cull_candidates.reserve(std::max(num_candidates, 1), s);
+    if (num_candidates > 0) {
+      GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(cull_candidates.data(), host_candidates.data(),
+                                         num_candidates * sizeof(int), cudaMemcpyHostToDevice, s));
+    }
+    candidates = cull_candidates.data();
+  }
   cull_flags.reserve(size_t(num_components) + 1, s);
   cull_index.reserve(size_t(num_components) + 1, s);
   cull_components.reserve(num_components, s);
@@ -155,7 +184,8 @@ CudaBackend::Impl::ComponentSet CudaBackend::Impl::cullView(const cuda::Membersh
   const cuda::ViewCullBuffers b{cull_flags.data(), cull_index.data(), cull_components.data(),
                                 cull_eval.data(), count};
   GMM_MCL_CUDA_CHECK(cuda::launchViewCull(n, num_components, cfg, components.data(),
-                                          eval_components.data(), T_cam_map, b, s));
+                                          eval_components.data(), T_cam_map, candidates,
+                                          num_candidates, b, s));
   GMM_MCL_CUDA_CHECK(
       cudaMemcpyAsync(cull_count.data(), count, sizeof(int), cudaMemcpyDeviceToHost, s));
   GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(s));  // the count sizes the launches below
@@ -182,7 +212,9 @@ int CudaBackend::Impl::launchBatches(const DeviceFrameView& f, int n,
                                      double* ll, int* hits, long long* evals, long long* pairs) {
   const int patches = f.grid.count();
   cudaStream_t s = stream.get();
-  const cuda::MembershipConfig cfg = cuda::membershipConfig(f.K, f.grid, params);
+  cuda::MembershipConfig cfg = cuda::membershipConfig(f.K, f.grid, params);
+  cfg.reach = viewReach(f.K, f.grid.patch_size_px, f.grid.cols, f.grid.rows, cfg.inflate_px,
+                        f.max_range_m, params.sigma_bound, params.depth_noise);
   ensureEvents(3);
   events[0].record(s);
   // Membership and likelihood run on the components some pose can see (bitmasks sized by them).
@@ -258,7 +290,8 @@ void CudaBackend::membership(const DepthFrame& frame, const RigidTransformF& T_m
   const RigidTransformF T_cam_map = invertRigid(T_map_cam);
   GMM_MCL_CUDA_CHECK(
       cudaMemcpyAsync(pose.data(), &T_cam_map, sizeof(T_cam_map), cudaMemcpyHostToDevice, s));
-  const cuda::MembershipConfig cfg = cuda::membershipConfig(frame.intrinsics, frame.grid, params);
+  cuda::MembershipConfig cfg = cuda::membershipConfig(frame.intrinsics, frame.grid, params);
+  cfg.reach = viewReach(frame, params);
   const Impl::ComponentSet set = d.cullView(cfg, pose.data(), 1);
   const int words = std::max((set.count + 31) / 32, 1);
   const int pass_words = membershipPassWords();

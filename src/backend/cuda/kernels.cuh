@@ -8,6 +8,7 @@
 #include "gmm_mcl/common/types.h"
 #include "gmm_mcl/internal/eval_component.h"
 #include "gmm_mcl/measurement/measurement_params.h"
+#include "gmm_mcl/measurement/projection.h"
 
 namespace gmm_mcl {
 namespace cuda {
@@ -23,6 +24,7 @@ struct MembershipConfig {
   float inflate_px;
   float floor_log_density;
   DepthNoiseModel depth_noise;  // off (a = b = 0): no per-particle evaluation forms
+  ViewReach reach;              // the view volume (view cull only; projection.h)
 };
 
 // Shared memory the membership kernel needs for a grid of `patches` and `words` bitmask words
@@ -63,10 +65,12 @@ struct ViewCullBuffers {
   EvalComponentF* eval;    // [M] compact copy (log2 form)
   int* count;              // [1] visible count
 };
+// candidates (num_candidates map indices, ascending; null: every component) limits the test to
+// the map grid's components near the poses' views.
 cudaError_t launchViewCull(int num_particles, int num_components, const MembershipConfig& cfg,
                            const ComponentF* components, const EvalComponentF* eval,
-                           const RigidTransformF* T_cam_map, const ViewCullBuffers& b,
-                           cudaStream_t stream);
+                           const RigidTransformF* T_cam_map, const int* candidates,
+                           int num_candidates, const ViewCullBuffers& b, cudaStream_t stream);
 
 // How the likelihood kernel maps work onto a warp: one warp per item (a band of
 // `band_patches` consecutive patches of one particle); `lanes` pixel groups of

@@ -73,11 +73,13 @@ __global__ void __launch_bounds__(kMembershipThreads, kMembershipMinBlocks)
   const int rounds = (c_end - c_begin + blockDim.x - 1) / blockDim.x;
   for (int round = 0; round < rounds; ++round) {
     const int i = c_begin + round * blockDim.x + threadIdx.x;
-    // Conservative cull (as the view cull): no patch centre within reach, no projection.
+    // The view cull's tests: no patch centre within reach, or outside the view volume (as the
+    // CPU backend's cull before its membership): no projection.
     const bool keep =
         i < c_end &&
         componentMayTouchGrid(components[i], T, cfg.K, cfg.patch_size_px, cfg.patch_cols,
-                              cfg.patch_rows, cfg.min_depth_m, cfg.sigma_bound, cfg.inflate_px);
+                              cfg.patch_rows, cfg.min_depth_m, cfg.sigma_bound, cfg.inflate_px) &&
+        componentInView(components[i], T, cfg.K, cfg.reach, cfg.sigma_bound);
     const uint32_t ballot = __ballot_sync(0xffffffffu, keep);
     if (keep) queue[queued + __popc(ballot & ((1u << lane) - 1u))] = i;
     queued += __popc(ballot);
@@ -165,11 +167,14 @@ constexpr int kCullParticles = 16;
 constexpr int kCullSlices = 256;
 
 __global__ void __launch_bounds__(kCullThreads)
-    viewCullKernel(int num_particles, int num_components, MembershipConfig cfg,
+    viewCullKernel(int num_particles, int num_tested, MembershipConfig cfg,
                    const ComponentF* __restrict__ components,
-                   const RigidTransformF* __restrict__ T_cam_map, int* visible) {
+                   const RigidTransformF* __restrict__ T_cam_map,
+                   const int* __restrict__ candidates, int* visible) {
   __shared__ RigidTransformF s_T[kCullParticles];
-  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  const int t = blockIdx.x * blockDim.x + threadIdx.x;
+  // The component this thread tests: a grid candidate, or the map's t-th.
+  const int i = t < num_tested ? (candidates ? candidates[t] : t) : -1;
   // Slices blockIdx.y, blockIdx.y + gridDim.y, ... (the grid's y extent is limited).
   for (int first = blockIdx.y * kCullParticles; first < num_particles;
        first += gridDim.y * kCullParticles) {
@@ -177,10 +182,11 @@ __global__ void __launch_bounds__(kCullThreads)
     __syncthreads();  // the previous slice's poses are no longer read
     for (int k = threadIdx.x; k < count; k += blockDim.x) s_T[k] = T_cam_map[first + k];
     __syncthreads();
-    if (i >= num_components || *reinterpret_cast<volatile int*>(visible + i)) continue;
+    if (i < 0 || *reinterpret_cast<volatile int*>(visible + i)) continue;
     const ComponentF c = components[i];
     for (int k = 0; k < count; ++k) {
-      if (componentMayTouchGrid(c, s_T[k], cfg.K, cfg.patch_size_px, cfg.patch_cols, cfg.patch_rows,
+      if (componentInView(c, s_T[k], cfg.K, cfg.reach, cfg.sigma_bound) &&
+          componentMayTouchGrid(c, s_T[k], cfg.K, cfg.patch_size_px, cfg.patch_cols, cfg.patch_rows,
                                 cfg.min_depth_m, cfg.sigma_bound, cfg.inflate_px)) {
         visible[i] = 1;
         break;
@@ -297,15 +303,16 @@ cudaError_t launchMembership(int num_particles, int num_components, int words, i
 
 cudaError_t launchViewCull(int num_particles, int num_components, const MembershipConfig& cfg,
                            const ComponentF* components, const EvalComponentF* eval,
-                           const RigidTransformF* T_cam_map, const ViewCullBuffers& b,
-                           cudaStream_t stream) {
+                           const RigidTransformF* T_cam_map, const int* candidates,
+                           int num_candidates, const ViewCullBuffers& b, cudaStream_t stream) {
   cudaError_t err = cudaMemsetAsync(b.visible, 0, sizeof(int) * (num_components + 1), stream);
   if (err != cudaSuccess) return err;
-  if (num_particles > 0 && num_components > 0) {
-    const dim3 grid((num_components + kCullThreads - 1) / kCullThreads,
+  const int tested = candidates ? num_candidates : num_components;
+  if (num_particles > 0 && tested > 0) {
+    const dim3 grid((tested + kCullThreads - 1) / kCullThreads,
                     min((num_particles + kCullParticles - 1) / kCullParticles, kCullSlices));
-    viewCullKernel<<<grid, kCullThreads, 0, stream>>>(num_particles, num_components, cfg,
-                                                      components, T_cam_map, b.visible);
+    viewCullKernel<<<grid, kCullThreads, 0, stream>>>(num_particles, tested, cfg, components,
+                                                      T_cam_map, candidates, b.visible);
   }
   compactKernel<<<1, kCompactThreads, 0, stream>>>(num_components, b.visible, b.index, b.count);
   if (num_components > 0) {

@@ -1,0 +1,56 @@
+#!/usr/bin/env bash
+# The building-scale cost table (docs/building_scale.md) on a GPU machine: the CUDA backend's
+# update and the localizer's tracking step and first update on one room's map and on the same
+# room tiled into 3 x 3, 7 x 7 and 10 x 10 rooms, with the camera in the original room.
+# Built and run there from the working tree and .deps/ (scripts/gpu_deps.sh, plus the tiled maps:
+# `gmm_mcl_inspect MAP --tile N --out .deps/7scenes_tiled_NxN.gmm`); with BASE_SRC (a source tree
+# of an earlier version whose .deps/ link points here) the same benchmark of that version first.
+#
+#   scripts/gpu_building.sh                 # logs under $OUT (the device tool) or build-gpu/logs
+#   BASE_SRC=.deps/base-src scripts/gpu_building.sh
+set -uo pipefail
+ROOT="$(cd "$(dirname "$0")/.." && pwd)"
+cd "$ROOT"
+LOGS="${OUT:-$ROOT/build-gpu/logs}"
+mkdir -p "$LOGS"
+MAPS="${MAPS:-$ROOT/.deps}"
+FRAMES="${FRAMES:-$ROOT/.deps/7scenes_frames30.bin}"
+ROOMS="${ROOMS:-redkitchen_m1000 tiled_3x3 tiled_7x7 tiled_10x10}"
+TARGETS="test_cuda_backend test_cuda_localizer test_cuda_particle_filter_weights"
+TARGETS+=" test_cuda_particle_filter_sampling test_cuda_particle_filter_likelihood gmm_mcl_bench"
+
+build() {  # SOURCE_ROOT TARGETS: scripts/gpu_check.sh's build step there (into its build-gpu)
+  (cd "$1" && GPU_CHECK_STEPS=build GPU_CHECK_TARGETS="$2" OUT="$LOGS/build_$(basename "$1")" \
+    bash scripts/gpu_check.sh)
+}
+bench() {  # LABEL BENCH MAP ARGS...
+  local label="$1" bin="$2" map="$3"
+  shift 3
+  "$bin" --backend cuda --map "$map" --frames-raw "$FRAMES" --frames 30 --warmup 3 --exact 0 "$@" \
+    > "$LOGS/bench_${label}.txt" 2>&1
+  grep -E "^\| (cuda|Localizer)" "$LOGS/bench_${label}.txt" | sed "s/^/$label /"
+}
+
+nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader
+if [[ -n "${BASE_SRC:-}" ]]; then
+  build "$BASE_SRC" "gmm_mcl_bench" &
+fi
+build "$ROOT" "$TARGETS"
+wait
+echo "== CUDA suites"
+for t in $TARGETS; do
+  [[ "$t" == test_* ]] || continue
+  "$ROOT/build-gpu/$t" > "$LOGS/$t.log" 2>&1
+  echo "$t: rc=$? $(grep -E '^\[  (PASSED|FAILED)' "$LOGS/$t.log" | tr '\n' ' ')"
+  grep -E -A6 "Failure" "$LOGS/$t.log" | head -40
+done
+for room in $ROOMS; do
+  map="$MAPS/7scenes_$room.gmm"
+  [[ -f "$map" ]] || { echo "no $map"; continue; }
+  echo "== $room"
+  if [[ -n "${BASE_SRC:-}" ]]; then
+    bench "base_$room" "$BASE_SRC/build-gpu/gmm_mcl_bench" "$map" --workload paper,cpu
+  fi
+  bench "new_$room" "$ROOT/build-gpu/gmm_mcl_bench" "$map" --workload paper,cpu
+  bench "new_step_$room" "$ROOT/build-gpu/gmm_mcl_bench" "$map" --workload cpu --step --budget-s 5
+done
