@@ -40,6 +40,9 @@ if step build; then
   # Boost: a system may have the headers and not the library (the H100 machine); a carried copy
   # is always used.
   [[ -d .deps/boost ]] && extra+=(-DGMM_MCL_BOOST_DIR="$ROOT/.deps/boost")
+  [[ -d .deps/png && ! -f /usr/include/png.h ]] && extra+=(-DPNG_PNG_INCLUDE_DIR="$ROOT/.deps/png/include" \
+    -DPNG_LIBRARY="$ROOT/.deps/png/lib/libpng16.so" -DZLIB_INCLUDE_DIR="$ROOT/.deps/png/include" \
+    -DZLIB_LIBRARY="$ROOT/.deps/png/lib/libz.so")
   cmake -S "$ROOT" -B "$BUILD" -DGMM_MCL_BUILD_ROS=OFF -DGMM_MCL_WITH_CUDA=ON -DGMM_MCL_BUILD_FIT=OFF \
     -DCMAKE_CUDA_ARCHITECTURES="$ARCH" -DCMAKE_BUILD_TYPE=Release "${extra[@]}" > "$LOGS/cmake.log" 2>&1 \
     || { cat "$LOGS/cmake.log"; exit 1; }

@@ -6,6 +6,7 @@
 #   .deps/googletest    googletest's sources (googletest)
 #   .deps/boost         boost::program_options: the headers it includes and its library
 #                       (libboost-program-options-dev; about 3.5 MB)
+#   .deps/png           libpng and zlib, headers and libraries (about 0.4 MB)
 # and the 7-Scenes inputs of the parity test and the benchmark, when the maps are built here
 # (scripts/build_map_7scenes.sh):
 #   .deps/7scenes_redkitchen_m1000.gmm, .deps/7scenes_redkitchen_m4000.gmm   (from build/maps)
@@ -34,6 +35,18 @@ lib="$(readlink -f "$(g++ -print-file-name=libboost_program_options.so)")"
 cp "$lib" "$DEPS/boost/lib/"
 cp "$lib" "$DEPS/boost/lib/libboost_program_options.so"
 echo "== $DEPS: eigen3, googletest, boost ($(du -sh "$DEPS/boost" | cut -f1))"
+# libpng and zlib (headers and libraries): the data-set readers and the tools that read depth
+# PNGs (replay, kidnap, render) build there too.
+rm -rf "$DEPS/png"
+mkdir -p "$DEPS/png/include" "$DEPS/png/lib"
+cp /usr/include/png.h /usr/include/pngconf.h /usr/include/pnglibconf.h /usr/include/zlib.h \
+  /usr/include/zconf.h "$DEPS/png/include/"
+for l in libpng16.so libz.so; do
+  real="$(readlink -f "$(g++ -print-file-name=$l)")"
+  cp "$real" "$DEPS/png/lib/$l"
+  cp "$real" "$DEPS/png/lib/$(objdump -p "$real" | sed -n 's/^ *SONAME *//p')"
+done
+echo "== $DEPS/png: libpng, zlib"
 
 for m in 7scenes_redkitchen_m1000.gmm 7scenes_redkitchen_m4000.gmm; do
   if [[ -f "$MAPS/$m" ]]; then

@@ -113,11 +113,13 @@ void Localizer::resetToPose(const Particle& pose, const Eigen::Vector4d& sigma) 
   have_refined_ = false;
 }
 
-InitRegion Localizer::mapBounds() const {
-  Eigen::Vector3d lo = map_.minBound(), hi = map_.maxBound();
-  for (size_t i = 0; i < map_.size(); ++i) {
-    lo = lo.cwiseMin(map_.components()[i].mean_m - map_.threeSigmaHalfExtent(i));
-    hi = hi.cwiseMax(map_.components()[i].mean_m + map_.threeSigmaHalfExtent(i));
+InitRegion Localizer::mapBounds() const { return gmm_mcl::mapBounds(map_); }
+
+InitRegion mapBounds(const GmmMap& map) {
+  Eigen::Vector3d lo = map.minBound(), hi = map.maxBound();
+  for (size_t i = 0; i < map.size(); ++i) {
+    lo = lo.cwiseMin(map.components()[i].mean_m - map.threeSigmaHalfExtent(i));
+    hi = hi.cwiseMax(map.components()[i].mean_m + map.threeSigmaHalfExtent(i));
   }
   InitRegion r;
   r.centre_m = 0.5 * (lo + hi);

@@ -214,11 +214,20 @@ Eigen::Matrix<double, 6, 6> covarianceFromMsg(const boost::array<double, 36>& c)
 }
 
 void markersFromMap(const GmmMap& map, const std::string& frame_id,
-                    visualization_msgs::MarkerArray* out) {
+                    visualization_msgs::MarkerArray* out, const std::vector<int>* only) {
   out->markers.clear();
-  out->markers.reserve(map.size());
+  out->markers.reserve((only ? only->size() : map.size()) + 1);
+  if (only) {
+    visualization_msgs::Marker clear;
+    clear.header.frame_id = frame_id;
+    clear.ns = "gmm";
+    clear.action = visualization_msgs::Marker::DELETEALL;
+    out->markers.push_back(clear);
+  }
   const double z_lo = map.minBound().z(), z_span = std::max(1e-6, map.maxBound().z() - z_lo);
-  for (size_t i = 0; i < map.size(); ++i) {
+  const size_t count = only ? only->size() : map.size();
+  for (size_t k = 0; k < count; ++k) {
+    const size_t i = only ? static_cast<size_t>((*only)[k]) : k;
     const GaussianComponent& c = map.components()[i];
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(c.cov_m2);
     Eigen::Matrix3d R = es.eigenvectors();

@@ -184,6 +184,7 @@ void LocalizationNodelet::onFrame(const std_msgs::Header& header, const DepthIma
   const double ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   publish(header, last_result_, T_map_base, depth, K, ms, gaps.warnings, gated);
+  markers_.follow(T_map_base.translation());
   if (!gated) {
     budgetUpdate(
         last_result_,
@@ -326,6 +327,7 @@ void LocalizationNodelet::applyOptions() {
   if (inputs_) inputs_->setOptions(opts_);
   gate_.setThresholds(opts_.update_min_d_m, opts_.update_min_a_rad);
   markers_.setPeriod(opts_.markers_period_s);
+  markers_.setLimits(opts_.markers_max, opts_.markers_radius_m);
   health_.setWarnLimits(opts_.warn_sigma_xy_m, opts_.warn_sigma_yaw_rad);
   budget_.configure(opts_.budget, params_);
   applyBudget();

@@ -86,6 +86,14 @@ void addOutputOptions(ParamTable<R>* t) {
                       kRuntime,
                       "~gmm_markers is published again this often while subscribed, and after a "
                       "time jump (rviz drops markers on a reset; 0 = once)"));
+  add(t, paramSpec<R>(
+             "markers_max", GMM_MCL_PARAM_FIELD(R, markers_max), "", g, {1, 1000000}, kRuntime,
+             "At most this many ellipsoids in ~gmm_markers: a larger map (a building) shows "
+             "those within markers_radius of the estimate, every k-th where still more"));
+  add(t, paramSpec<R>("markers_radius", GMM_MCL_PARAM_FIELD(R, markers_radius_m), "m", g,
+                      {0.5, 10000}, kRuntime,
+                      "How far from the estimate ~gmm_markers reaches in a map larger than "
+                      "markers_max; renewed when the estimate has moved a quarter of it"));
   add(t, paramSpec<R>("warn_sigma_xy", GMM_MCL_PARAM_FIELD(R, warn_sigma_xy_m), "m", g, {1e-3, 100},
                       kRuntime,
                       "/diagnostics warns while the estimate's x or y standard deviation is above "

@@ -209,7 +209,7 @@ std::unique_ptr<Localizer> makeLocalizer(LocalizerParams* core, const RosOptions
                                          std::string* error) {
   try {
     GmmMap map = loadMap(ros.map_path);
-    if (ros.init_from_map_bounds) core->init = Localizer(*core, map).mapBounds();
+    if (ros.init_from_map_bounds) core->init = mapBounds(map);
     return std::make_unique<Localizer>(*core, std::move(map));
   } catch (const std::exception& e) {
     *error = e.what();

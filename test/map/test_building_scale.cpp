@@ -7,8 +7,10 @@
 #include <random>
 
 #include "gmm_mcl/backend/cpu_backend.h"
+#include "gmm_mcl/filter/localizer.h"
 #include "gmm_mcl/map/component_grid.h"
 #include "gmm_mcl/map/gmm_map.h"
+#include "gmm_mcl/sim/step_input.h"
 #include "test_utils/synthetic_fixtures.h"
 
 namespace gmm_mcl {
@@ -110,6 +112,68 @@ TEST(BuildingScaleTest, RoomInsideAHundredRoomMapScoresAsTheRoomAlone) {
   // the parts of its neighbours within the frame's depth, not the map.
   EXPECT_LE(inside.visible_components, 3 * own.visible_components);
   EXPECT_LT(inside.visible_components, static_cast<int>(room.size()) * 3);
+}
+
+// Odd maps and views (the building issue's bad input): two copies of the room 1 km apart, a map
+// of one component, the room under a 50 m ground plane, and a camera that sees no map at all.
+// Each loads, steps on the room's frames with a finite estimate and the grid's memory bounded
+// by the component count; the camera that sees nothing gets the floor for every pixel.
+TEST(BuildingScaleTest, OddMapsAndAnEmptyViewStepCleanly) {
+  const GmmMap& room = test::world().map;
+  std::vector<GaussianComponent> far_apart = tiledMap(room, 2, 1, 1000.0).components();
+  GaussianComponent one;
+  one.weight = 1.0;
+  one.mean_m = Eigen::Vector3d(3, 3, 1.5);
+  one.cov_m2 = Eigen::Vector3d(0.5, 0.5, 0.01).asDiagonal();
+  std::vector<GaussianComponent> ground = room.components();
+  GaussianComponent plane;
+  plane.mean_m = Eigen::Vector3d(4, 3, -0.05);
+  plane.cov_m2 = Eigen::Vector3d(25.0 * 25.0 / 4.0, 25.0 * 25.0 / 4.0, 1e-4).asDiagonal();
+  plane.weight = 0.2;
+  for (GaussianComponent& c : ground) c.weight *= 0.8;
+  ground.push_back(plane);
+  const Eigen::Isometry3d T_map_base = test::referenceBasePose();
+  const Intrinsics K = test::smallCamera();
+  const DepthImage depth =
+      sim::renderDepth(test::world().scene, K, T_map_base * test::world().T_base_cam,
+                       DepthEncoding::kMono16Millimetres, 9.0);
+  double roll = 0.0, pitch = 0.0, yaw = 0.0;
+  rpyFromRotation(T_map_base.linear(), &roll, &pitch, &yaw);
+  struct Case {
+    const char* what;
+    GmmMap map;
+    Eigen::Isometry3d T_odom_base;
+  };
+  Eigen::Isometry3d away = T_map_base;
+  away.translation() += Eigen::Vector3d(0, 0, 500.0);  // high above every component
+  const std::vector<Case> cases = {
+      {"two buildings 1 km apart", GmmMap(far_apart, "far apart"), T_map_base},
+      {"one component", GmmMap({one}, "one"), T_map_base},
+      {"a 50 m ground plane", GmmMap(ground, "ground plane"), T_map_base},
+      {"a view of no map", room, away}};
+  for (const Case& c : cases) {
+    LocalizerParams p;
+    p.filter.num_particles = 200;
+    p.frame.pixel_stride = 8;
+    p.frame.max_range_m = 8.f;
+    p.T_base_cam = test::world().T_base_cam;
+    const Particle s = poseToParticle(c.T_odom_base);
+    p.init.centre_m = Eigen::Vector3d(s.x_m, s.y_m, s.z_m);
+    p.init.half_extent_m.setConstant(0.3);
+    p.init.yaw_centre_rad = s.yaw_rad;
+    Localizer loc(p, c.map);
+    EXPECT_LE(loc.map().grid().entryCount(), 64 * loc.map().size()) << c.what;
+    for (int f = 0; f < 3; ++f) {
+      const StepResult r =
+          loc.step(sim::frameInput(f / 30.0, c.T_odom_base, roll, pitch, depth, K));
+      ASSERT_EQ(r.status, StepStatus::kOk) << c.what << ": " << r.message;
+      EXPECT_TRUE(std::isfinite(r.estimate.mean.x_m) && std::isfinite(r.estimate.mean.yaw_rad))
+          << c.what;
+      if (&c == &cases.back()) {
+        EXPECT_EQ(r.floor_hit_fraction, 1.0) << c.what << ": no component in view";
+      }
+    }
+  }
 }
 
 }  // namespace

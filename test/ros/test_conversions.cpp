@@ -273,6 +273,19 @@ TEST(RosConversionsTest, ParticlesAndMarkers) {
   EXPECT_NEAR(m.scale.y, 6 * 0.1, 1e-9);
   EXPECT_NEAR(m.scale.z, 6 * 0.2, 1e-9);
   EXPECT_DOUBLE_EQ(m.pose.position.y, 2.0);
+
+  // Some components of a larger map (a building's, near the estimate): a DELETEALL first, so
+  // that rviz drops those shown before, then each listed one with its map index as id.
+  GaussianComponent d = c;
+  d.mean_m = Eigen::Vector3d(5, 6, 7);
+  c.weight = d.weight = 0.5;
+  const GmmMap two({c, d});
+  const std::vector<int> only = {1};
+  ros_conv::markersFromMap(two, "map", &markers, &only);
+  ASSERT_EQ(markers.markers.size(), 2u);
+  EXPECT_EQ(markers.markers[0].action, visualization_msgs::Marker::DELETEALL);
+  EXPECT_EQ(markers.markers[1].id, 1);
+  EXPECT_DOUBLE_EQ(markers.markers[1].pose.position.x, 5.0);
 }
 
 #ifdef GMM_MCL_HAVE_PNG

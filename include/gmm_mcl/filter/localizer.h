@@ -178,4 +178,8 @@ class Localizer {
   std::vector<ComponentF> refine_components_;
 };
 
+// The map's 3-sigma bounding box with any yaw: the region of a whole-map (global) start. Needs
+// no localizer (the nodelet reads it before making one).
+InitRegion mapBounds(const GmmMap& map);
+
 }  // namespace gmm_mcl

@@ -114,8 +114,10 @@ bool poseResetRequestFromMsg(const geometry_msgs::PoseWithCovarianceStamped& msg
 
 // The map's 3-sigma ellipsoids as SPHERE markers (scale = 6 sigma along the principal axes),
 // coloured by height, in `frame_id`.
+// `only` (map indices): those components alone, after a DELETEALL marker that clears the ones
+// shown before (a building's markers near the estimate).
 void markersFromMap(const GmmMap& map, const std::string& frame_id,
-                    visualization_msgs::MarkerArray* out);
+                    visualization_msgs::MarkerArray* out, const std::vector<int>* only = nullptr);
 
 }  // namespace ros_conv
 }  // namespace gmm_mcl

@@ -55,6 +55,10 @@ struct RosOptions {
   double save_pose_rate_hz = 0.5;
   double diagnostics_period_s = 1.0;
   double markers_period_s = 5.0;
+  // A map of more components than markers_max: ~gmm_markers holds those within markers_radius_m of
+  // the estimate (every k-th where still more), renewed as it moves (rviz stays usable).
+  int markers_max = 5000;
+  double markers_radius_m = 15.0;
   double warn_sigma_xy_m = 0.25;
   double warn_sigma_yaw_rad = 0.25;
   // The frame-rate budget (update_budget.h): what each update evaluates so that it keeps up
