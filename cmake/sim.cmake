@@ -1,7 +1,8 @@
 # Simulator (not the localizer's: the nodelet links none of it): gmm_mcl_sim from src/sim.
 # Synthetic scenes and rendering: the analytic box scene, triangle meshes and the PLY reader,
 # the BVH ray caster, the depth renderer with the structured-light sensor model, the procedural
-# mesh scene, trajectories. Tests, tools and the synthetic data sets build on it.
+# mesh scene, the procedural building world and walks through it, trajectories. Tests, tools and
+# the synthetic data sets build on it.
 add_library(gmm_mcl_sim STATIC
   src/sim/box_scene.cpp
   src/sim/mesh.cpp
@@ -12,6 +13,8 @@ add_library(gmm_mcl_sim STATIC
   src/sim/trajectory_io.cpp
   src/sim/mesh_scene.cpp
   src/sim/pose_scatter.cpp
+  src/sim/building_scene.cpp
+  src/sim/building_walk.cpp
 )
 target_link_libraries(gmm_mcl_sim PUBLIC gmm_mcl_core)
 target_compile_options(gmm_mcl_sim PRIVATE -fno-trapping-math -fno-math-errno)

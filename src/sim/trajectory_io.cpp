@@ -2,6 +2,7 @@
 
 #include <Eigen/SVD>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
@@ -91,6 +92,31 @@ void readReplicaCamera(const std::string& path, Intrinsics* K, double* depth_uni
   K->cx_px = static_cast<float>(v[4]);
   K->cy_px = static_cast<float>(v[5]);
   *depth_units_per_m = v[6];
+}
+
+void writeTumTrajectory(const std::string& path, const std::vector<double>& stamps_s,
+                        const std::vector<Eigen::Isometry3d>& T_world_frame,
+                        const std::string& comment) {
+  if (stamps_s.size() != T_world_frame.size()) {
+    throw std::runtime_error(path + ": " + std::to_string(stamps_s.size()) + " stamps for " +
+                             std::to_string(T_world_frame.size()) + " poses");
+  }
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error(path + ": cannot write the trajectory");
+  std::istringstream lines(comment);
+  std::string line;
+  while (std::getline(lines, line)) out << "# " << line << '\n';
+  out << "# timestamp tx ty tz qx qy qz qw\n";
+  for (size_t i = 0; i < stamps_s.size(); ++i) {
+    const Eigen::Isometry3d& T = T_world_frame[i];
+    const Eigen::Quaterniond q(T.linear());
+    const Eigen::Vector3d& t = T.translation();
+    char buf[256];
+    std::snprintf(buf, sizeof(buf), "%.6f %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n", stamps_s[i], t.x(),
+                  t.y(), t.z(), q.x(), q.y(), q.z(), q.w());
+    out << buf;
+  }
+  if (!out) throw std::runtime_error(path + ": write failed");
 }
 
 }  // namespace sim

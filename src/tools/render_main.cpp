@@ -1,6 +1,7 @@
-// gmm_mcl_render: renders depth from a triangle mesh (the built-in synthetic scene or a PLY)
-// along a trajectory (the built-in drone trajectory, a traj.txt of camera-to-world 4x4 rows, or
-// a TUM trajectory of the camera) into a TUM RGB-D folder: depth/<t>.png (5000 units per
+// gmm_mcl_render: renders depth from a triangle mesh (the built-in synthetic scene, the
+// procedural building world of a seed, or a PLY) along a trajectory (the built-in drone
+// trajectory, a walk through the building, a traj.txt of camera-to-world 4x4 rows, or a TUM
+// trajectory of the camera) into a TUM RGB-D folder: depth/<t>.png (5000 units per
 // metre), depth.txt, groundtruth.txt (t tx ty tz qx qy qz qw, camera optical frame to world),
 // intrinsics.txt and gravity-direction.txt (the data-set library's writer, which its TUM reader
 // reads back). The structured-light sensor model is on by default, seeded per frame.
@@ -21,6 +22,8 @@
 #include "gmm_mcl/datasets/sequence_writer.h"
 #include "gmm_mcl/datasets/tum_sequence.h"
 #include "gmm_mcl/map/gmm_map_io.h"
+#include "gmm_mcl/sim/building_scene.h"
+#include "gmm_mcl/sim/building_walk.h"
 #include "gmm_mcl/sim/mesh_renderer.h"
 #include "gmm_mcl/sim/mesh_scene.h"
 #include "gmm_mcl/sim/trajectory_io.h"
@@ -30,12 +33,18 @@ namespace gmm_mcl {
 namespace {
 
 const char* kUsage =
-    "usage: gmm_mcl_render --out DIR [--mesh FILE.ply] [--trajectory FILE] [--camera SPEC]\n"
+    "usage: gmm_mcl_render --out DIR [--mesh FILE.ply | --building SEED [--walk W]]\n"
+    "                      [--trajectory FILE] [--camera SPEC]\n"
     "                      [--first I] [--frames N] [--stride K] [--rate HZ] [--start-time S]\n"
     "                      [--seed S] [--no-noise] [--dropout P] [--max-range M]\n"
-    "                      [--down GX,GY,GZ] [--width PX]\n"
-    "                      [--save-map FILE.gmm] [--save-mesh FILE.ply] [--quiet]\n"
+    "                      [--down GX,GY,GZ] [--width PX] [--save-map FILE.gmm]\n"
+    "                      [--map-spacing M] [--save-mesh FILE.ply]\n"
+    "                      [--save-trajectory FILE.txt] [--quiet]\n"
     "  --mesh        a PLY mesh (default: the built-in room with boxes and cylinders)\n"
+    "  --building    the procedural building world of this seed (docs/sim.md): 60 x 56 m, 36\n"
+    "                rooms, corridors, doors, furniture\n"
+    "  --walk W      with --building and no --trajectory: the camera flies walk W (a seed) from\n"
+    "                room to room (default 1; 900 frames unless --frames)\n"
     "  --trajectory  camera-to-world poses: 16 numbers a line (row-major 4x4, Replica traj.txt)\n"
     "                or TUM 't tx ty tz qx qy qz qw' (default: the built-in drone trajectory)\n"
     "  --camera      cam_params.json (Replica) or fx,fy,cx,cy,width,height (default: f = 585 px\n"
@@ -47,7 +56,11 @@ const char* kUsage =
     "  --no-noise    ideal depth (only the range window of --max-range)\n"
     "  --dropout P   probability that a pixel is missing at random (default 0.005)\n"
     "  --down        gravity direction in world coordinates (default 0,0,-1: z up)\n"
-    "  --save-map    the built-in scene's tiled GMM (0.4 m tiles, 1.5 cm normal sigma)\n";
+    "  --save-map    the built-in scene's or the building's tiled GMM (1.5 cm normal sigma)\n"
+    "  --map-spacing its tile size (default 0.4 m for the built-in scene, 0.375 m for the\n"
+    "                building: about 100,000 components)\n"
+    "  --save-trajectory  the poses rendered, as a TUM trajectory of the camera\n"
+    "  Without --out, only the --save-* files are written (nothing is rendered).\n";
 
 // True when the first pose line of a file has 16 numbers (a 4x4 matrix per line).
 bool isMatrixTrajectory(const std::string& path) {
@@ -133,8 +146,10 @@ Intrinsics cameraFromFlag(const std::string& camera, int width_px) {
 }
 
 int run(int argc, char** argv) {
-  std::string out, mesh_path, traj_path, camera, save_map, save_mesh, down = "0,0,-1";
-  int first = 0, frames = -1, stride = 1, width_px = 640;
+  std::string out, mesh_path, traj_path, camera, save_map, save_mesh, save_traj, down = "0,0,-1";
+  int first = 0, frames = -1, stride = 1, width_px = 640, building_seed = -1;
+  uint64_t walk_seed = 1;
+  double map_spacing_m = 0.0;     // 0: the scene's default
   sim::SensorNoiseParams sensor;  // Kinect v1 class defaults (docs/sim.md)
   double rate_hz = 30.0, start_s = 0.0, max_range_m = 10.0;
   uint64_t seed = 1;
@@ -146,12 +161,18 @@ int run(int argc, char** argv) {
            {"start-time", &start_s}, {"seed", &seed}, {"no-noise", cli::Clear{&noise}},
            {"dropout", &sensor.random_dropout}, {"max-range", &max_range_m}, {"down", &down},
            {"width", &width_px}, {"save-map", &save_map}, {"save-mesh", &save_mesh},
-           {"quiet", &quiet}});
+           {"building", &building_seed}, {"walk", &walk_seed}, {"map-spacing", &map_spacing_m},
+           {"save-trajectory", &save_traj}, {"quiet", &quiet}});
   // clang-format on
   cl.parse(argc, argv);
   const std::string sensor_err = sensor.validate();
   if (!sensor_err.empty()) throw std::runtime_error("sensor model: " + sensor_err);
-  if (out.empty()) cl.fail("--out is needed");
+  const bool save_only = out.empty();
+  if (save_only && save_map.empty() && save_mesh.empty() && save_traj.empty()) {
+    cl.fail("--out is needed (or at least one of --save-map, --save-mesh, --save-trajectory)");
+  }
+  if (building_seed >= 0 && !mesh_path.empty()) cl.fail("--building and --mesh exclude each other");
+  if (map_spacing_m < 0.0) cl.fail("--map-spacing must be positive");
   if (stride < 1 || first < 0 || !(rate_hz > 0.0) || !(max_range_m > 0.0) || width_px < 16) {
     cl.fail("--stride >= 1, --first >= 0, --rate > 0, --max-range > 0 and --width >= 16");
   }
@@ -159,13 +180,57 @@ int run(int argc, char** argv) {
   // Mesh.
   std::shared_ptr<const sim::MeshBvh> bvh;
   std::string source;
-  const bool builtin = mesh_path.empty();
-  if (builtin) {
+  const bool builtin = mesh_path.empty() && building_seed < 0;
+  std::unique_ptr<sim::BuildingScene> building;
+  if (building_seed >= 0) {
+    using Clock = std::chrono::steady_clock;
+    auto msSince = [](Clock::time_point t) {
+      return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+    };
+    sim::BuildingParams params;
+    params.seed = static_cast<uint64_t>(building_seed);
+    auto t0 = Clock::now();
+    building.reset(new sim::BuildingScene(sim::makeBuilding(params)));
+    const double plan_ms = msSince(t0);
+    t0 = Clock::now();
+    const sim::Mesh mesh = sim::meshFromBuilding(*building);
+    const double mesh_ms = msSince(t0);
+    t0 = Clock::now();
+    bvh = std::make_shared<const sim::MeshBvh>(mesh);
+    const double bvh_ms = msSince(t0);
+    const Eigen::Vector3d size = building->bounds().max_m - building->bounds().min_m;
+    if (!quiet) {
+      std::printf(
+          "building seed %d: %.1f x %.1f x %.1f m (%.0f m^2), %d rooms + corridors, %zu doors, "
+          "%zu boxes (%zu walls and lintels), %zu cylinders, %zu triangles, %.1f m^2 of surface; "
+          "plan and furniture %.0f ms, mesh %.0f ms, BVH %.0f ms\n",
+          building_seed, size.x(), size.y(), size.z(), size.x() * size.y(), building->roomCount(),
+          building->doors.size(), building->primitives.boxes.size(), building->wall_box_count,
+          building->primitives.cylinders.size(), mesh.triangles.size(), mesh.area_m2(), plan_ms,
+          mesh_ms, bvh_ms);
+    }
+    source = "gmm_mcl building world, seed " + std::to_string(building_seed);
+    if (!save_mesh.empty()) sim::savePlyMesh(mesh, save_mesh, {}, source);
+    if (!save_map.empty()) {
+      const double spacing = map_spacing_m > 0.0 ? map_spacing_m : sim::kBuildingMapSpacingM;
+      t0 = Clock::now();
+      const GmmMap map = sim::tileBuilding(*building, spacing, sim::kBuildingMapNormalSigmaM);
+      const double tile_ms = msSince(t0);
+      saveMap(map, save_map);
+      if (!quiet) {
+        std::printf("%s: %zu components (%.3f m tiles), %.0f ms\n", save_map.c_str(), map.size(),
+                    spacing, tile_ms);
+      }
+    }
+  } else if (builtin) {
     const sim::MeshScene scene = sim::makeDefaultMeshScene();
     bvh = scene.bvh;
     source = "gmm_mcl built-in mesh scene";
     if (!save_mesh.empty()) sim::savePlyMesh(scene.mesh, save_mesh);
-    if (!save_map.empty()) saveMap(sim::tileScene(scene.primitives, 0.4, 0.015), save_map);
+    if (!save_map.empty()) {
+      saveMap(sim::tileScene(scene.primitives, map_spacing_m > 0.0 ? map_spacing_m : 0.4, 0.015),
+              save_map);
+    }
   } else {
     const auto t0 = std::chrono::steady_clock::now();
     const sim::Mesh mesh = sim::loadPlyMesh(mesh_path);
@@ -179,15 +244,36 @@ int run(int argc, char** argv) {
     }
     source = mesh_path;
     if (!save_mesh.empty()) sim::savePlyMesh(mesh, save_mesh);
-    if (!save_map.empty()) throw std::runtime_error("--save-map is for the built-in scene only");
+    if (!save_map.empty()) {
+      throw std::runtime_error("--save-map is for the built-in scene and the building only");
+    }
   }
 
+  if (save_only && save_traj.empty()) return 0;  // only the mesh or the map
   const Intrinsics K = cameraFromFlag(camera, width_px);
 
   // Trajectory (camera-to-world, optical frame) and stamps.
   std::vector<Eigen::Isometry3d> poses;
   std::vector<double> stamps;
-  if (traj_path.empty()) {
+  if (traj_path.empty() && building) {
+    sim::BuildingWalkParams wp;
+    wp.seed = walk_seed;
+    wp.frames = first + (frames > 0 ? frames : 900) * stride;
+    wp.rate_hz = rate_hz;
+    const auto t0 = std::chrono::steady_clock::now();
+    const sim::BuildingWalk walk = sim::makeBuildingWalk(*building, wp);
+    const double ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    poses = walk.T_world_cam;
+    if (!quiet) {
+      int rooms = 0;
+      for (int s : walk.spaces) rooms += building->spaces[s].corridor ? 0 : 1;
+      std::printf(
+          "walk %llu: %zu poses, %.1f m flown, %zu spaces in turn (%d room visits), %.0f ms\n",
+          static_cast<unsigned long long>(walk_seed), poses.size(), walk.length_m,
+          walk.spaces.size(), rooms, ms);
+    }
+  } else if (traj_path.empty()) {
     const int n = frames > 0 ? frames * stride : 300 * stride;
     const std::vector<Eigen::Isometry3d> base = sim::makeTrajectory(n);
     for (const auto& T : base) poses.push_back(T * sim::defaultBaseToCamera());
@@ -226,6 +312,11 @@ int run(int argc, char** argv) {
   if (kept_poses.empty()) {
     throw std::runtime_error("no poses from --first " + std::to_string(first) + " on");
   }
+  if (!save_traj.empty()) {
+    sim::writeTumTrajectory(save_traj, kept_stamps, kept_poses,
+                            "camera (optical frame) to world, from " + source);
+  }
+  if (save_only) return 0;
   RenderedSequence seq(bvh, K, kept_stamps, kept_poses, R_aligned_world, max_range_m, noise, sensor,
                        seed, source, quiet);
   TumWriteOptions options;

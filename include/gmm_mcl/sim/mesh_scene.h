@@ -42,6 +42,23 @@ Mesh meshFromScene(const PrimitiveScene& scene, int cylinder_segments = 48);
 // second moments plus normal_sigma_m^2 along the surface normal as covariance.
 GmmMap tileScene(const PrimitiveScene& scene, double spacing_m, double normal_sigma_m);
 
+// Scenes of many primitives against each other (the building: walls meeting walls, furniture
+// against walls and on shelves): like meshFromScene and tileScene, but every box face and every
+// face of the room keeps only its part that can be seen, the part where the space in front of it
+// lies inside the room and outside every other box (faces touching another box or lying inside
+// one are left out, wholly or in part). Faces longer than max_face_m are cut into equal pieces
+// first (a flat BVH-friendly mesh). Cylinders are meshed and tiled as by meshFromScene and
+// tileScene, less a cap that rests on a box (or hangs from one) over its whole area; other parts
+// of cylinders hidden by boxes or by other cylinders are kept.
+Mesh visibleMeshFromScene(const PrimitiveScene& scene, int cylinder_segments = 24,
+                          double max_face_m = 8.0);
+// Tiles the same visible surfaces: each piece of a face on a grid of about spacing_m, each tile's
+// Gaussian from the moments of its visible part only (12 x 12 quadrature, plus the variance of a
+// quadrature cell so that a whole tile's moments are exact); tiles less than 3 % visible are
+// left out. Weights are the visible areas, normalised.
+GmmMap tileVisibleScene(const PrimitiveScene& scene, double spacing_m, double normal_sigma_m,
+                        double max_face_m = 8.0);
+
 // The default scene ready to render: primitives, mesh, BVH.
 struct MeshScene {
   PrimitiveScene primitives;

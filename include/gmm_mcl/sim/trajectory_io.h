@@ -21,5 +21,13 @@ std::vector<Eigen::Isometry3d> readMatrixTrajectory(const std::string& path);
 // bad key.
 void readReplicaCamera(const std::string& path, Intrinsics* K, double* depth_units_per_m);
 
+// Writes a TUM trajectory: '#' lines (the comment's lines, then the field names), then
+// "t tx ty tz qx qy qz qw" per pose (stamps 6 decimals, the rest 9), which readTumTrajectory and
+// gmm_mcl_render --trajectory read back. Throws std::runtime_error naming the file when it
+// cannot be written, or when the counts differ.
+void writeTumTrajectory(const std::string& path, const std::vector<double>& stamps_s,
+                        const std::vector<Eigen::Isometry3d>& T_world_frame,
+                        const std::string& comment = "");
+
 }  // namespace sim
 }  // namespace gmm_mcl
