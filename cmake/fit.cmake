@@ -6,6 +6,7 @@ add_library(gmm_mcl_fit STATIC
   src/fit/em_fitter.cpp
   src/fit/em_init.cpp
   src/fit/em_prune_grid.cpp
+  src/fit/block_fitter.cpp
   src/fit/seven_scenes_cloud.cpp
   src/fit/map_inspect.cpp
 )

@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <unordered_map>
 
@@ -27,6 +28,53 @@ uint64_t voxelKey(const Eigen::Vector3f& p, float voxel_m) {
     key = (key << 21) | static_cast<uint64_t>(static_cast<int64_t>(q) + kVoxelKeyBias);
   }
   return key;
+}
+
+// The rigid motion of tile (ix, iy) for a source whose x, y bounds are [lo, hi].
+struct TileLayout {
+  Eigen::Vector2d centre_m;
+  double spacing_m = 0.0;
+  Eigen::Vector3f apply(const Eigen::Vector3f& p, int ix, int iy) const {
+    const double dx = p.x() - centre_m.x(), dy = p.y() - centre_m.y();
+    double rx = dx, ry = dy;
+    switch ((ix + iy) % 4) {  // exact quarter turns
+      case 1:
+        rx = -dy, ry = dx;
+        break;
+      case 2:
+        rx = -dx, ry = -dy;
+        break;
+      case 3:
+        rx = dy, ry = -dx;
+        break;
+      default:
+        break;
+    }
+    return Eigen::Vector3f(static_cast<float>(centre_m.x() + rx + ix * spacing_m),
+                           static_cast<float>(centre_m.y() + ry + iy * spacing_m), p.z());
+  }
+};
+
+TileLayout tileLayout(const std::vector<Eigen::Vector3f>& points, const TileParams& params,
+                      const char* what) {
+  const std::string fault = params.validate();
+  if (!fault.empty()) throw FitError(std::string("tiling parameters: ") + fault);
+  Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector2d hi = -lo;
+  for (const auto& p : points) {
+    if (!p.allFinite()) continue;
+    lo = lo.cwiseMin(p.head<2>().cast<double>());
+    hi = hi.cwiseMax(p.head<2>().cast<double>());
+  }
+  if (!(lo.x() <= hi.x())) throw FitError(std::string("tiling: the ") + what + " has no points");
+  const double copies = static_cast<double>(params.nx) * params.ny;
+  if (copies * static_cast<double>(points.size()) > 4294967295.0) {
+    throw FitError(std::string("tiling: more than 2^32 points in the tiled ") + what);
+  }
+  TileLayout t;
+  t.centre_m = 0.5 * (lo + hi);
+  t.spacing_m = params.spacing_m > 0.0 ? params.spacing_m : (hi - lo).maxCoeff() + kTileGapM;
+  return t;
 }
 
 struct VoxelSum {
@@ -172,6 +220,58 @@ PointCloud sampleMeshSurface(const TriangleMesh& mesh, size_t count, uint64_t se
     const Eigen::Vector3d c = mesh.vertices_m[tri[2]].cast<double>();
     const Eigen::Vector3d p = (1.0 - r1) * a + r1 * (1.0 - r2) * b + r1 * r2 * c;
     out.push_back(p.cast<float>());
+  }
+  return out;
+}
+
+void splitHoldout(const PointCloud& points, double fraction, uint64_t seed, PointCloud* train,
+                  PointCloud* held_out) {
+  if (!(fraction >= 0.0 && fraction < 1.0)) {
+    throw FitError("hold-out fraction must be in [0, 1) (got " + std::to_string(fraction) + ")");
+  }
+  train->clear();
+  held_out->clear();
+  train->reserve(static_cast<size_t>((1.0 - fraction) * static_cast<double>(points.size())) + 16);
+  FitRandom rng(seed ^ 0x486F6C644F757431ull);  // a stream of its own, not the fit's
+  for (const auto& p : points) (rng.uniform() < fraction ? held_out : train)->push_back(p);
+}
+
+std::string TileParams::validate() const {
+  std::ostringstream err;
+  if (nx < 1 || ny < 1) err << "nx and ny must be >= 1 (got " << nx << ", " << ny << "); ";
+  if (!(spacing_m >= 0.0) || !std::isfinite(spacing_m)) {
+    err << "spacing_m must be finite and >= 0 (0 = automatic); ";
+  }
+  std::string s = err.str();
+  if (s.size() >= 2) s.resize(s.size() - 2);
+  return s;
+}
+
+PointCloud tileCloud(const PointCloud& cloud, const TileParams& params) {
+  const TileLayout layout = tileLayout(cloud, params, "cloud");
+  PointCloud out;
+  out.reserve(cloud.size() * static_cast<size_t>(params.nx) * static_cast<size_t>(params.ny));
+  for (int iy = 0; iy < params.ny; ++iy) {
+    for (int ix = 0; ix < params.nx; ++ix) {
+      for (const auto& p : cloud) out.push_back(layout.apply(p, ix, iy));
+    }
+  }
+  return out;
+}
+
+TriangleMesh tileMesh(const TriangleMesh& mesh, const TileParams& params) {
+  const TileLayout layout = tileLayout(mesh.vertices_m, params, "mesh");
+  TriangleMesh out;
+  for (int iy = 0; iy < params.ny; ++iy) {
+    for (int ix = 0; ix < params.nx; ++ix) {
+      TriangleMesh copy;
+      copy.triangles = mesh.triangles;
+      copy.vertices_m.reserve(mesh.vertices_m.size());
+      for (const auto& v : mesh.vertices_m) {
+        copy.vertices_m.push_back(v.allFinite() ? layout.apply(v, ix, iy) : v);
+      }
+      out.append(copy);
+    }
   }
   return out;
 }

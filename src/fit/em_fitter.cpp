@@ -32,6 +32,11 @@ constexpr double kLog2Pi = 1.8378770664093453;
 // Responsibilities below this are not accumulated (their effect is below double rounding of a
 // component's sums).
 constexpr double kMinResponsibility = 1e-12;
+// A candidate whose density is below e^-50 (2e-22) of the point's largest adds nothing to the
+// sum of densities (>= 1 in units of the largest) above double rounding for fewer than 10^5
+// candidates, and its responsibility is below kMinResponsibility: exp() is skipped (its
+// underflow path was a quarter of the E-step's time).
+constexpr double kNegligibleLogRatio = -50.0;
 // Statistics accumulated per component: N, S1 (3), S2 upper triangle (6).
 constexpr int kStats = 10;
 
@@ -177,7 +182,8 @@ EStepResult eStep(const PointsSoA& pts, const Model& model, const PruneGrid& gri
           }
           double s = 0.0;
           for (size_t j = 0; j < nc; ++j) {
-            tp[j] = std::exp(tp[j] - tmax);
+            const double d = tp[j] - tmax;
+            tp[j] = d < kNegligibleLogRatio ? 0.0 : std::exp(d);
             s += tp[j];
           }
           ll += tmax + std::log(s);
@@ -280,90 +286,150 @@ std::string EmParams::validate() const {
   return s;
 }
 
-EmResult fitGmm(const PointCloud& points, const EmParams& params, const EmProgress& progress) {
-  const std::string fault = params.validate();
-  if (!fault.empty()) throw FitError("EM parameters: " + fault);
+namespace {
+
+void checkPoints(const PointCloud& points) {
   size_t non_finite = 0;
   for (const auto& p : points) non_finite += p.allFinite() ? 0 : 1;
   if (non_finite > 0) {
     throw FitError("EM: " + std::to_string(non_finite) + " of " + std::to_string(points.size()) +
                    " points are NaN or Inf (drop them first)");
   }
-  const size_t m = static_cast<size_t>(params.components);
-  if (points.size() < m) {
-    throw FitError("EM: " + std::to_string(points.size()) + " points are fewer than the " +
-                   std::to_string(m) + " components requested");
-  }
-  const Clock::time_point t0 = Clock::now();
-  const double reg = params.reg_covar_m2;
-  FitRandom rng(params.seed);
-  EmResult result;
+}
 
-  // Initialisation on the points in input order.
-  Model model;
-  model.comps = initialComponents(toSoA(points), m, params, &rng);
-  model.prepare(reg);
+// The pruning grid over the points, sized from the model's components.
+PointsSoA gridFor(const PointCloud& points, const Model& model, const EmParams& params,
+                  PruneGrid* grid) {
+  grid->exact = params.prune_sigma == 0.0;
+  const double cell_m = pruneCellSize(points, model.half_extent_1sigma_m, params, grid->exact);
+  return buildGrid(points, cell_m, params.chunks, grid);
+}
 
-  // Pruning grid, sized from the initial components.
+// EM iterations from the prepared model until converged or params.max_iterations; the result's
+// components, history, final log-likelihood and times (init_s: until the grid is built).
+void iterate(const PointCloud& points, const EmParams& params, Clock::time_point t0,
+             const EmProgress& progress, Model* model, EmResult* result) {
   PruneGrid grid;
-  grid.exact = params.prune_sigma == 0.0;
-  const double cell_m = pruneCellSize(points, model.half_extent_1sigma_m, params, grid.exact);
-  const PointsSoA pts = buildGrid(points, cell_m, params.chunks, &grid);
+  const PointsSoA pts = gridFor(points, *model, params, &grid);
   const size_t chunks = grid.chunk_cells.size() - 1;
-  result.init_s = secondsSince(t0);
-
+  result->init_s = secondsSince(t0);
+  const double reg = params.reg_covar_m2;
   const double n = static_cast<double>(points.size());
   double prev_ll = -std::numeric_limits<double>::infinity();
   std::vector<double> acc;
-  int loaded = model.loaded;
+  int loaded = model->loaded;
   for (int it = 1; it <= params.max_iterations; ++it) {
     if (!grid.exact) {
-      updateCandidates(model.comps, model.half_extent_1sigma_m, params.prune_sigma, &grid);
+      updateCandidates(model->comps, model->half_extent_1sigma_m, params.prune_sigma, &grid);
     }
-    const EStepResult e = eStep(pts, model, grid, &acc);
+    const EStepResult e = eStep(pts, *model, grid, &acc);
     const double ll = e.sum_log_likelihood / n;
     if (!std::isfinite(ll)) throw FitError("EM: log-likelihood became non-finite");
-    mStep(acc, chunks, points.size(), reg, &model);
-    model.prepare(reg);
-    loaded = std::max(loaded, model.loaded);
-    result.iterations = it;
+    mStep(acc, chunks, points.size(), reg, model);
+    model->prepare(reg);
+    loaded = std::max(loaded, model->loaded);
+    result->iterations = it;
     EmIteration rec;
     rec.iteration = it;
     rec.mean_log_likelihood = ll;
     rec.elapsed_s = secondsSince(t0);
     rec.mean_candidates = e.evaluations / n;
-    result.history.push_back(rec);
+    result->history.push_back(rec);
     if (progress) progress(rec);
     if (std::abs(ll - prev_ll) < params.tolerance) {
-      result.converged = true;
+      result->converged = true;
       break;
     }
     prev_ll = ll;
   }
   // Log-likelihood of the returned parameters.
   if (!grid.exact) {
-    updateCandidates(model.comps, model.half_extent_1sigma_m, params.prune_sigma, &grid);
+    updateCandidates(model->comps, model->half_extent_1sigma_m, params.prune_sigma, &grid);
   }
-  result.final_mean_log_likelihood = eStep(pts, model, grid, nullptr).sum_log_likelihood / n;
-  result.regularised_components = loaded;
-  for (const auto& c : model.comps) {
-    result.empty_components += (c.weight * n < 1e-6) ? 1 : 0;
+  result->final_mean_log_likelihood = eStep(pts, *model, grid, nullptr).sum_log_likelihood / n;
+  result->regularised_components = loaded;
+  for (const auto& c : model->comps) {
+    result->empty_components += (c.weight * n < 1e-6) ? 1 : 0;
   }
-  result.components = std::move(model.comps);
-  result.total_s = secondsSince(t0);
+  result->components = std::move(model->comps);
+  result->total_s = secondsSince(t0);
+}
+
+}  // namespace
+
+EmResult fitGmm(const PointCloud& points, const EmParams& params, const EmProgress& progress) {
+  const std::string fault = params.validate();
+  if (!fault.empty()) throw FitError("EM parameters: " + fault);
+  checkPoints(points);
+  const size_t m = static_cast<size_t>(params.components);
+  if (points.size() < m) {
+    throw FitError("EM: " + std::to_string(points.size()) + " points are fewer than the " +
+                   std::to_string(m) + " components requested");
+  }
+  const Clock::time_point t0 = Clock::now();
+  FitRandom rng(params.seed);
+  EmResult result;
+  // Initialisation on the points in input order.
+  Model model;
+  model.comps = initialComponents(toSoA(points), m, params, &rng);
+  model.prepare(params.reg_covar_m2);
+  iterate(points, params, t0, progress, &model, &result);
   return result;
 }
 
-double meanLogLikelihood(const std::vector<GaussianComponent>& components,
-                         const PointCloud& points) {
+EmResult refineGmm(const PointCloud& points, std::vector<GaussianComponent> initial,
+                   const EmParams& params, const EmProgress& progress) {
+  if (initial.empty()) throw FitError("EM refinement: no components");
+  EmParams p = params;
+  p.components = static_cast<int>(initial.size());
+  p.init = EmInit::kKMeans;
+  p.initial_means_m.clear();
+  p.kmeans_max_points = std::max(p.kmeans_max_points, initial.size());
+  const std::string fault = p.validate();
+  if (!fault.empty()) throw FitError("EM parameters: " + fault);
+  checkPoints(points);
+  if (points.empty()) throw FitError("EM refinement: no points");
+  double weight_sum = 0.0;
+  for (size_t k = 0; k < initial.size(); ++k) {
+    const GaussianComponent& c = initial[k];
+    if (!(c.weight > 0.0) || !std::isfinite(c.weight) || !c.mean_m.allFinite() ||
+        !c.cov_m2.allFinite()) {
+      throw FitError("EM refinement: component " + std::to_string(k) +
+                     " has a non-positive weight or a non-finite value");
+    }
+    weight_sum += c.weight;
+  }
+  for (auto& c : initial) c.weight /= weight_sum;
+  const Clock::time_point t0 = Clock::now();
+  EmResult result;
+  Model model;
+  model.comps = std::move(initial);
+  model.prepare(p.reg_covar_m2);
+  iterate(points, p, t0, progress, &model, &result);
+  return result;
+}
+
+double meanLogLikelihood(const std::vector<GaussianComponent>& components, const PointCloud& points,
+                         double prune_sigma) {
   if (components.empty()) throw FitError("meanLogLikelihood: no components");
   if (points.empty()) throw FitError("meanLogLikelihood: no points");
+  if (!(prune_sigma == 0.0 || prune_sigma >= 3.0) || !std::isfinite(prune_sigma)) {
+    throw FitError("meanLogLikelihood: prune_sigma must be 0 (exact) or >= 3");
+  }
   Model model;
   model.comps = components;
   model.prepare(0.0);
   PruneGrid grid;
-  grid.exact = true;
-  const PointsSoA pts = buildGrid(points, 1e9, 64, &grid);
+  PointsSoA pts;
+  if (prune_sigma == 0.0) {
+    grid.exact = true;
+    pts = buildGrid(points, 1e9, 64, &grid);
+  } else {
+    EmParams p;
+    p.prune_sigma = prune_sigma;
+    pts = gridFor(points, model, p, &grid);
+    updateCandidates(model.comps, model.half_extent_1sigma_m, prune_sigma, &grid);
+  }
   return eStep(pts, model, grid, nullptr).sum_log_likelihood / static_cast<double>(points.size());
 }
 

@@ -20,28 +20,41 @@ struct Centers {
   size_t size() const { return x.size(); }
 };
 
-// Index of the nearest center to point i, and its squared distance.
-inline int nearest(const Centers& c, double px, double py, double pz, double* d2_out) {
-  int best = 0;
-  double bd = std::numeric_limits<double>::infinity();
+// Index of the nearest center to a point (the first of equals); d2 is scratch for c.size()
+// squared distances (the distances vectorise, the branch-free minimum too).
+inline int nearest(const Centers& c, double px, double py, double pz, double* d2) {
   const size_t m = c.size();
+  const double* cx = c.x.data();
+  const double* cy = c.y.data();
+  const double* cz = c.z.data();
   for (size_t k = 0; k < m; ++k) {
-    const double dx = px - c.x[k], dy = py - c.y[k], dz = pz - c.z[k];
-    const double d2 = dx * dx + dy * dy + dz * dz;
-    if (d2 < bd) {
-      bd = d2;
-      best = static_cast<int>(k);
-    }
+    const double dx = px - cx[k], dy = py - cy[k], dz = pz - cz[k];
+    d2[k] = dx * dx + dy * dy + dz * dz;
   }
-  if (d2_out) *d2_out = bd;
-  return best;
+  // Eight independent minima (a dependency chain of one would bound the loop).
+  double lane[8];
+  for (int q = 0; q < 8; ++q) lane[q] = std::numeric_limits<double>::infinity();
+  size_t k8 = 0;
+  for (; k8 + 8 <= m; k8 += 8) {
+    for (int q = 0; q < 8; ++q) lane[q] = std::min(lane[q], d2[k8 + q]);
+  }
+  for (; k8 < m; ++k8) lane[0] = std::min(lane[0], d2[k8]);
+  double best = lane[0];
+  for (int q = 1; q < 8; ++q) best = std::min(best, lane[q]);
+  size_t k = 0;
+  while (k + 1 < m && !(d2[k] <= best)) ++k;
+  return static_cast<int>(k);
 }
 
 void assignAll(const PointsSoA& pts, const Centers& c, std::vector<int>* labels) {
   labels->resize(pts.size());
-#pragma omp parallel for schedule(dynamic, 2048)
-  for (long i = 0; i < static_cast<long>(pts.size()); ++i) {
-    (*labels)[i] = nearest(c, pts.x[i], pts.y[i], pts.z[i], nullptr);
+#pragma omp parallel
+  {
+    std::vector<double> d2(c.size());
+#pragma omp for schedule(dynamic, 2048)
+    for (long i = 0; i < static_cast<long>(pts.size()); ++i) {
+      (*labels)[i] = nearest(c, pts.x[i], pts.y[i], pts.z[i], d2.data());
+    }
   }
 }
 

@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 #include <cstddef>
+#include <cstdint>
 #include <limits>
 #include <vector>
 
@@ -47,6 +48,7 @@ struct PruneGrid {
   double cell_m = 1.0;
   std::vector<size_t> cell_begin;           // occupied cell c holds sorted points [b[c], b[c+1])
   std::vector<Eigen::Vector3i> cell_index;  // integer cell coordinates of occupied cell c
+  std::vector<uint64_t> cell_key;           // (x << 42) | (y << 21) | z of cell c, ascending
   std::vector<size_t> cand_begin;           // candidates of cell c: cand[cand_begin[c]..]
   std::vector<int> cand;
   std::vector<size_t> chunk_cells;  // chunk i holds cells [chunk_cells[i], [i+1])
@@ -57,8 +59,10 @@ struct PruneGrid {
 // Sorts points into grid cells (stable, deterministic) and returns the permuted SoA.
 PointsSoA buildGrid(const PointCloud& cloud, double cell_m, int chunks, PruneGrid* grid);
 
-// Each occupied cell's candidates: the components whose box of prune_sigma times their 1-sigma
-// half extents overlaps it.
+// Each occupied cell's candidates (ascending): the components whose box of prune_sigma times
+// their 1-sigma half extents overlaps it. Work follows the boxes, not cells x components: each
+// component visits the occupied cells under its box (a full scan only for boxes larger than the
+// occupied grid).
 void updateCandidates(const std::vector<GaussianComponent>& comps,
                       const std::vector<Eigen::Vector3d>& half_extent_1sigma_m, double prune_sigma,
                       PruneGrid* grid);

@@ -176,5 +176,41 @@ TEST(EmFitterTest, StorableMapRepairsIllConditionedCovariance) {
   EXPECT_NO_THROW(decodeMap(encodeMap(map), "<test>"));
 }
 
+TEST(EmFitterTest, RefineContinuesEm) {
+  const PointCloud pts = twoBlobs(6000, 5);
+  EmParams p = smallParams(8);
+  p.max_iterations = 5;
+  const EmResult start = fitGmm(pts, p);
+  const EmResult more = refineGmm(pts, start.components, p);
+  EXPECT_EQ(more.components.size(), 8u);
+  // EM never lowers the log-likelihood; its first iteration scores the given components.
+  EXPECT_NEAR(more.history.front().mean_log_likelihood, start.final_mean_log_likelihood, 1e-9);
+  EXPECT_GE(more.final_mean_log_likelihood, start.final_mean_log_likelihood - 1e-9);
+  expectStorable(more, p.reg_covar_m2);
+  std::vector<GaussianComponent> bad = start.components;
+  bad[2].weight = 0.0;
+  EXPECT_THROW(refineGmm(pts, bad, p), FitError);
+  EXPECT_THROW(refineGmm(pts, {}, p), FitError);
+  EXPECT_THROW(refineGmm(PointCloud(), start.components, p), FitError);
+}
+
+// Many small components over a wide cloud: the pruned scoring (each point against the
+// components whose 6-sigma box overlaps its grid cell) agrees with the exact one.
+TEST(EmFitterTest, PrunedScoringMatchesExactForManyComponents) {
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> u(0.f, 1.f);
+  std::normal_distribution<float> g(0.f, 0.01f);
+  PointCloud pts;
+  for (int i = 0; i < 40000; ++i) pts.emplace_back(40.f * u(rng), 30.f * u(rng), g(rng));
+  EmParams p = smallParams(2000);
+  p.max_iterations = 3;
+  p.kmeans_iterations = 2;
+  const EmResult r = fitGmm(pts, p);
+  const double exact = meanLogLikelihood(r.components, pts);
+  EXPECT_NEAR(meanLogLikelihood(r.components, pts, 6.0), exact, 1e-9 * std::abs(exact));
+  EXPECT_NEAR(r.final_mean_log_likelihood, exact, 1e-9 * std::abs(exact));
+  EXPECT_THROW(meanLogLikelihood(r.components, pts, 1.0), FitError);
+}
+
 }  // namespace
 }  // namespace gmm_mcl

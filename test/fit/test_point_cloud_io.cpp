@@ -203,5 +203,58 @@ TEST(MeshSamplingTest, AreaUniform) {
   EXPECT_THROW(sampleMeshSurface(TriangleMesh(), 10, 1), FitError);
 }
 
+TEST(HoldoutTest, SeededSplitKeepsEveryPointOnce) {
+  PointCloud pts;
+  for (int i = 0; i < 20000; ++i) pts.emplace_back(static_cast<float>(i), 0.f, 0.f);
+  PointCloud train, held, train2, held2;
+  splitHoldout(pts, 0.1, 7, &train, &held);
+  EXPECT_EQ(train.size() + held.size(), pts.size());
+  EXPECT_NEAR(static_cast<double>(held.size()) / pts.size(), 0.1, 0.01);
+  for (size_t i = 1; i < held.size(); ++i) EXPECT_LT(held[i - 1].x(), held[i].x());  // in order
+  splitHoldout(pts, 0.1, 7, &train2, &held2);
+  EXPECT_EQ(held, held2);
+  splitHoldout(pts, 0.1, 8, &train2, &held2);
+  EXPECT_NE(held, held2);
+  splitHoldout(pts, 0.0, 7, &train2, &held2);
+  EXPECT_TRUE(held2.empty());
+  EXPECT_THROW(splitHoldout(pts, 1.0, 7, &train2, &held2), FitError);
+  EXPECT_THROW(splitHoldout(pts, -0.1, 7, &train2, &held2), FitError);
+}
+
+TEST(TileTest, CopiesTurnedAndShifted) {
+  // An L of two points in a 2 x 1 m box centred at (1, 0.5).
+  const PointCloud l = {{0.f, 0.f, 1.f}, {2.f, 1.f, 2.f}};
+  TileParams t;
+  t.nx = 2;
+  t.ny = 2;
+  const PointCloud out = tileCloud(l, t);
+  ASSERT_EQ(out.size(), 8u);
+  // Spacing: the larger extent (2 m) + kTileGapM.
+  const float s = static_cast<float>(2.0 + kTileGapM);
+  EXPECT_TRUE(out[0].isApprox(l[0]));                                  // (0, 0) as is
+  EXPECT_TRUE(out[2].isApprox(Eigen::Vector3f(1.5f + s, -0.5f, 1.f)))  // (1, 0): a quarter turn
+      << out[2].transpose();
+  EXPECT_TRUE(out[6].isApprox(Eigen::Vector3f(2.f + s, 1.f + s, 1.f)))  // (1, 1): a half turn
+      << out[6].transpose();
+  EXPECT_EQ(out[7].z(), 2.f);
+  t.spacing_m = 10.0;
+  EXPECT_NEAR(tileCloud(l, t)[2].x(), 11.5f, 1e-5);
+  t.nx = 0;
+  EXPECT_NE(t.validate(), "");
+  EXPECT_THROW(tileCloud(l, t), FitError);
+  EXPECT_THROW(tileCloud(PointCloud(), TileParams()), FitError);
+
+  TriangleMesh mesh;
+  mesh.vertices_m = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  mesh.triangles = {{0, 1, 2}};
+  TileParams three;
+  three.nx = 3;
+  const TriangleMesh tiled = tileMesh(mesh, three);
+  EXPECT_EQ(tiled.triangles.size(), 3u);
+  EXPECT_EQ(tiled.vertices_m.size(), 9u);
+  EXPECT_NEAR(tiled.area_m2(), 3.0 * mesh.area_m2(), 1e-6);
+  EXPECT_EQ(tiled.check(), "");
+}
+
 }  // namespace
 }  // namespace gmm_mcl

@@ -63,4 +63,29 @@ class VoxelAccumulator {
 // index out of range.
 PointCloud sampleMeshSurface(const TriangleMesh& mesh, size_t count, uint64_t seed);
 
+// Splits points into a training and a held-out set: each point is held out with probability
+// `fraction` (in [0, 1)), deterministic for `seed`; both keep the input order. Throws FitError
+// for a fraction outside [0, 1).
+void splitHoldout(const PointCloud& points, double fraction, uint64_t seed, PointCloud* train,
+                  PointCloud* held_out);
+
+// A synthetic large scene from a small one (measurements at building scale): nx x ny copies on
+// a grid in x, y, copy (ix, iy) turned by (ix + iy) * 90 degrees about the vertical axis through
+// the centre of the source's x, y bounds, then shifted by (ix, iy) * spacing_m (as tiledMap in
+// map/gmm_map.h lays out copies of a fitted map).
+constexpr double kTileGapM = 2.0;  // automatic spacing: larger x, y extent of the source + this
+struct TileParams {
+  int nx = 1, ny = 1;
+  double spacing_m = 0.0;  // 0 = automatic
+
+  // Empty when valid, otherwise every fault found.
+  std::string validate() const;
+};
+
+// The tiled copies of a cloud (copy after copy; non-finite points stay so) or of a mesh
+// (vertices and triangles, sampled afterwards so that copies get independent samples). Throws
+// FitError for invalid parameters, an empty input, or more than 2^32 points/vertices.
+PointCloud tileCloud(const PointCloud& cloud, const TileParams& params);
+TriangleMesh tileMesh(const TriangleMesh& mesh, const TileParams& params);
+
 }  // namespace gmm_mcl

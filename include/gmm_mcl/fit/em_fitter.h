@@ -84,9 +84,19 @@ using EmProgress = std::function<void(const EmIteration&)>;
 EmResult fitGmm(const PointCloud& points, const EmParams& params,
                 const EmProgress& progress = EmProgress());
 
-// Mean log-likelihood per point of a mixture on points (exact, all components, double).
-double meanLogLikelihood(const std::vector<GaussianComponent>& components,
-                         const PointCloud& points);
+// EM from given components instead of an initialisation (e.g. to reconcile the blocks of a
+// block fit, block_fitter.h): the iterations, stopping rule, pruning and determinism of fitGmm;
+// params' component count and initialisation fields are ignored, the weights are normalised.
+// Throws FitError for invalid parameters, no points, non-finite points or components, or a
+// non-positive weight.
+EmResult refineGmm(const PointCloud& points, std::vector<GaussianComponent> initial,
+                   const EmParams& params, const EmProgress& progress = EmProgress());
+
+// Mean log-likelihood per point of a mixture on points (double). prune_sigma 0: exact, every
+// component for every point; >= 3: the E-step's pruning (only components whose prune_sigma box
+// overlaps the point's grid cell), for large maps.
+double meanLogLikelihood(const std::vector<GaussianComponent>& components, const PointCloud& points,
+                         double prune_sigma = 0.0);
 
 // Builds a GmmMap whose covariances stay symmetric positive-definite after the map file's
 // float32 rounding: any component whose rounded covariance fails a Cholesky test has its
