@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
 # CI's shortened unseen-scene evaluation (scripts/eval_unseen.sh; docs/unseen_scenes.md): the
-# first 150 frames (5 s) of the Replica segment from pose 0, rendered from the mesh with the
-# 640x480 camera and the sensor model, against a map fitted to points sampled on the mesh; and
-# 150 frames of 7-Scenes against a map fitted to frames 5, 15, ..., 995. One seeded trial each
-# on the CPU backend with the default settings, from the DESIGN.md start (4 m cube, yaw range
-# pi): each must converge within 5 s of sensor time, end under 10 cm, and have a refined ATE
-# under 3 cm. Exit 77 (skip) without the data sets.
+# first 250 frames of the Replica segment from pose 0, rendered from the mesh with the 640x480
+# camera and the sensor model, against a map fitted to points sampled on the mesh; and 250 frames
+# of 7-Scenes against a map fitted to frames 5, 15, ..., 995. One seeded trial each on the CPU
+# backend with the default settings, from the DESIGN.md start (4 m cube, yaw range pi): each must
+# converge within 5 s of sensor time (150 frames) and succeed as the protocol says (converged,
+# the last 100 frames under 10 cm: 250 frames leave the 5 s and that tail; with 150 the tail
+# demanded convergence within 1.7 s), and have a refined ATE under 3 cm. Exit 77 (skip) without
+# the data sets.
 # usage: unseen_scene_test.sh WORK_DIR GMM_FIT GMM_MCL_RENDER GMM_MCL_REPLAY GMM_MCL_KIDNAP
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
@@ -19,7 +21,7 @@ for f in replica_office0/office0_mesh.ply 7scenes_redkitchen/data/frame-000000.d
   fi
 done
 rm -rf "$WORK"
-FRAMES=150 REPLAY_FRAMES=150 TRIALS=1 FIRST_SEED=1 SEGMENTS=0 BACKEND=cpu THREADS=2 \
+FRAMES=250 REPLAY_FRAMES=250 TRIALS=1 FIRST_SEED=1 SEGMENTS=0 BACKEND=cpu THREADS=2 \
   PROTOCOLS="start 7s-disjoint" GMM_MCL_DATASETS="$DATASETS" \
   bash "$ROOT/scripts/eval_unseen.sh" "$WORK"
 status=0
