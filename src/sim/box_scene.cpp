@@ -11,10 +11,6 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-Box box(double x0, double y0, double z0, double x1, double y1, double z1) {
-  return Box{Eigen::Vector3d(x0, y0, z0), Eigen::Vector3d(x1, y1, z1)};
-}
-
 // Slab test: entry and exit distances of a ray through a box.
 bool slabs(const Box& b, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double* t_in,
            double* t_out) {
@@ -80,18 +76,18 @@ void tileBoxFaces(const Box& b, bool skip_bottom, double spacing, double normal_
 
 BoxScene makeDefaultScene() {
   BoxScene s;
-  s.room = box(0.0, 0.0, 0.0, 8.0, 6.0, 3.0);
+  s.room = makeBox(0.0, 0.0, 0.0, 8.0, 6.0, 3.0);
   s.blocks = {
-      box(0.0, 0.0, 0.0, 2.2, 0.6, 0.9),   // long low cabinet along the south wall
-      box(5.6, 4.2, 0.0, 8.0, 6.0, 2.1),   // tall wardrobe in the north-east corner
-      box(3.2, 2.4, 0.0, 4.4, 3.1, 0.75),  // table in the middle
-      box(0.0, 3.6, 0.0, 0.5, 5.2, 1.6),   // shelf on the west wall
-      box(6.7, 0.8, 0.0, 7.3, 1.4, 1.1),   // pillar-like box near the east wall
-      box(2.0, 5.5, 0.0, 3.4, 6.0, 1.9),   // bookcase on the north wall
-      box(7.6, 1.9, 0.9, 8.0, 3.3, 1.6),   // wall-mounted cupboard on the east wall
-      box(1.0, 1.9, 0.0, 1.5, 2.3, 0.45),  // low stool
-      box(4.6, 0.0, 1.2, 5.8, 0.35, 1.5),  // shelf board on the south wall
-      box(0.0, 1.2, 2.3, 0.3, 3.0, 3.0),   // beam under the ceiling
+      makeBox(0.0, 0.0, 0.0, 2.2, 0.6, 0.9),   // long low cabinet along the south wall
+      makeBox(5.6, 4.2, 0.0, 8.0, 6.0, 2.1),   // tall wardrobe in the north-east corner
+      makeBox(3.2, 2.4, 0.0, 4.4, 3.1, 0.75),  // table in the middle
+      makeBox(0.0, 3.6, 0.0, 0.5, 5.2, 1.6),   // shelf on the west wall
+      makeBox(6.7, 0.8, 0.0, 7.3, 1.4, 1.1),   // pillar-like box near the east wall
+      makeBox(2.0, 5.5, 0.0, 3.4, 6.0, 1.9),   // bookcase on the north wall
+      makeBox(7.6, 1.9, 0.9, 8.0, 3.3, 1.6),   // wall-mounted cupboard on the east wall
+      makeBox(1.0, 1.9, 0.0, 1.5, 2.3, 0.45),  // low stool
+      makeBox(4.6, 0.0, 1.2, 5.8, 0.35, 1.5),  // shelf board on the south wall
+      makeBox(0.0, 1.2, 2.3, 0.3, 3.0, 3.0),   // beam under the ceiling
   };
   return s;
 }

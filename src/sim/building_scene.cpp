@@ -65,22 +65,6 @@ void cut(const PlanRect& r, int axis, double at, double width, PlanRect* below, 
   above->lo_m[axis] = at + width;
 }
 
-Box box3(double x0, double y0, double z0, double x1, double y1, double z1) {
-  Box b;
-  b.min_m = Eigen::Vector3d(x0, y0, z0);
-  b.max_m = Eigen::Vector3d(x1, y1, z1);
-  return b;
-}
-
-Cylinder cyl(double x, double y, double r, double z0, double z1) {
-  Cylinder c;
-  c.centre_m = Eigen::Vector2d(x, y);
-  c.radius_m = r;
-  c.z_min_m = z0;
-  c.z_max_m = z1;
-  return c;
-}
-
 // ---- floor plan ----
 
 struct Cell {
@@ -480,13 +464,13 @@ Item shelf(Rng* r, double max_len, double H) {
   const double h = r->uniform(1.5, std::min(2.4, H - 0.3));
   const int n = r->between(3, 6);
   const double L = it.length, D = it.depth;
-  it.boxes.push_back(box3(0, 0, 0, L, 0.02, h));
-  it.boxes.push_back(box3(0, 0.02, 0, 0.03, D, h));
-  it.boxes.push_back(box3(L - 0.03, 0.02, 0, L, D, h));
+  it.boxes.push_back(makeBox(0, 0, 0, L, 0.02, h));
+  it.boxes.push_back(makeBox(0, 0.02, 0, 0.03, D, h));
+  it.boxes.push_back(makeBox(L - 0.03, 0.02, 0, L, D, h));
   const double step = (h - 0.03) / (n - 1);
   for (int b = 0; b < n; ++b) {
     const double z = b * step;
-    it.boxes.push_back(box3(0.03, 0.02, z, L - 0.03, D, z + 0.03));
+    it.boxes.push_back(makeBox(0.03, 0.02, z, L - 0.03, D, z + 0.03));
     if (b + 1 == n || !r->chance(0.75)) continue;
     // Things on the board: boxes of different sizes, left to right.
     double x = 0.03 + r->uniform(0.0, 0.2);
@@ -494,7 +478,7 @@ Item shelf(Rng* r, double max_len, double H) {
       const double w = r->uniform(0.12, 0.5), d = r->uniform(0.15, D - 0.04);
       const double ht = r->uniform(0.08, std::max(0.09, std::min(0.4, step - 0.1)));
       if (x + w > L - 0.04) break;
-      it.boxes.push_back(box3(x, 0.02, z + 0.03, x + w, 0.02 + d, z + 0.03 + ht));
+      it.boxes.push_back(makeBox(x, 0.02, z + 0.03, x + w, 0.02 + d, z + 0.03 + ht));
       x += w + r->uniform(0.02, 0.4);
     }
   }
@@ -506,13 +490,13 @@ Item cabinet(Rng* r, double max_len) {
   it.length = r->uniform(0.6, std::min(1.6, max_len));
   it.depth = r->uniform(0.4, 0.6);
   const double h = r->uniform(0.7, 1.25);
-  it.boxes.push_back(box3(0, 0, 0, it.length, it.depth, h));
+  it.boxes.push_back(makeBox(0, 0, 0, it.length, it.depth, h));
   if (r->chance(0.5)) {  // something on top
     const double w = r->uniform(0.2, 0.5), x = r->uniform(0.05, it.length - w - 0.02);
-    it.boxes.push_back(box3(x, 0.05, h, x + w, it.depth - 0.05, h + r->uniform(0.1, 0.4)));
+    it.boxes.push_back(makeBox(x, 0.05, h, x + w, it.depth - 0.05, h + r->uniform(0.1, 0.4)));
   } else if (r->chance(0.5)) {
-    it.cylinders.push_back(
-        cyl(r->uniform(0.2, it.length - 0.2), 0.5 * it.depth, 0.08, h, h + r->uniform(0.2, 0.35)));
+    it.cylinders.push_back(makeCylinder(r->uniform(0.2, it.length - 0.2), 0.5 * it.depth, 0.08, h,
+                                        h + r->uniform(0.2, 0.35)));
   }
   return it;
 }
@@ -521,17 +505,17 @@ Item counter(Rng* r, double max_len, double H) {
   Item it;
   it.length = r->uniform(1.8, std::max(1.9, std::min(5.0, max_len)));
   it.depth = 0.62;
-  it.boxes.push_back(box3(0, 0, 0, it.length, 0.6, 0.88));
-  it.boxes.push_back(box3(0, 0, 0.88, it.length, 0.62, 0.92));  // worktop
-  if (r->chance(0.6)) {                                         // wall cabinets above
+  it.boxes.push_back(makeBox(0, 0, 0, it.length, 0.6, 0.88));
+  it.boxes.push_back(makeBox(0, 0, 0.88, it.length, 0.62, 0.92));  // worktop
+  if (r->chance(0.6)) {                                            // wall cabinets above
     const double x0 = r->uniform(0.0, 0.3 * it.length);
-    it.boxes.push_back(box3(x0, 0, 1.45, it.length - r->uniform(0.0, 0.3 * it.length), 0.35,
-                            std::min(H - 0.5, 2.15)));
+    it.boxes.push_back(makeBox(x0, 0, 1.45, it.length - r->uniform(0.0, 0.3 * it.length), 0.35,
+                               std::min(H - 0.5, 2.15)));
   }
   if (r->chance(0.5)) {  // a machine on the worktop
     const double x = r->uniform(0.1, it.length - 0.6);
     it.boxes.push_back(
-        box3(x, 0.05, 0.92, x + r->uniform(0.3, 0.5), 0.45, 0.92 + r->uniform(0.2, 0.5)));
+        makeBox(x, 0.05, 0.92, x + r->uniform(0.3, 0.5), 0.45, 0.92 + r->uniform(0.2, 0.5)));
   }
   return it;
 }
@@ -541,19 +525,19 @@ Item desk(Rng* r, double max_len) {
   const double L = r->uniform(1.1, std::min(1.8, max_len)), D = r->uniform(0.6, 0.8), h = 0.74;
   it.length = L;
   it.depth = D + 0.65;
-  it.boxes.push_back(box3(0, 0, h - 0.03, L, D, h));
-  it.boxes.push_back(box3(0, 0, 0, 0.03, D, h - 0.03));
-  it.boxes.push_back(box3(L - 0.03, 0, 0, L, D, h - 0.03));
-  it.boxes.push_back(box3(0.03, 0, 0.35, L - 0.03, 0.02, h - 0.03));
+  it.boxes.push_back(makeBox(0, 0, h - 0.03, L, D, h));
+  it.boxes.push_back(makeBox(0, 0, 0, 0.03, D, h - 0.03));
+  it.boxes.push_back(makeBox(L - 0.03, 0, 0, L, D, h - 0.03));
+  it.boxes.push_back(makeBox(0.03, 0, 0.35, L - 0.03, 0.02, h - 0.03));
   if (r->chance(0.8)) {  // a monitor on a foot
     const double x = r->uniform(0.1, L - 0.65), w = r->uniform(0.45, 0.6);
-    it.boxes.push_back(box3(x + 0.5 * w - 0.1, 0.08, h, x + 0.5 * w + 0.1, 0.2, h + 0.1));
-    it.boxes.push_back(box3(x, 0.12, h + 0.1, x + w, 0.16, h + 0.1 + r->uniform(0.3, 0.4)));
+    it.boxes.push_back(makeBox(x + 0.5 * w - 0.1, 0.08, h, x + 0.5 * w + 0.1, 0.2, h + 0.1));
+    it.boxes.push_back(makeBox(x, 0.12, h + 0.1, x + w, 0.16, h + 0.1 + r->uniform(0.3, 0.4)));
   }
   if (r->chance(0.7)) {  // a chair
     const double x = r->uniform(0.25, L - 0.25);
-    it.boxes.push_back(box3(x - 0.23, D + 0.1, 0, x + 0.23, D + 0.56, 0.46));
-    it.boxes.push_back(box3(x - 0.23, D + 0.51, 0.46, x + 0.23, D + 0.56, 0.95));
+    it.boxes.push_back(makeBox(x - 0.23, D + 0.1, 0, x + 0.23, D + 0.56, 0.46));
+    it.boxes.push_back(makeBox(x - 0.23, D + 0.51, 0.46, x + 0.23, D + 0.56, 0.95));
   }
   return it;
 }
@@ -563,11 +547,11 @@ Item sofa(Rng* r, double max_len) {
   const double L = r->uniform(1.5, std::min(2.8, max_len)), D = r->uniform(0.8, 0.95);
   it.length = L;
   it.depth = D;
-  it.boxes.push_back(box3(0, 0, 0, L, D, 0.42));
-  it.boxes.push_back(box3(0, 0, 0.42, L, 0.22, r->uniform(0.8, 0.95)));
+  it.boxes.push_back(makeBox(0, 0, 0, L, D, 0.42));
+  it.boxes.push_back(makeBox(0, 0, 0.42, L, 0.22, r->uniform(0.8, 0.95)));
   const double arm = r->uniform(0.6, 0.7);
-  it.boxes.push_back(box3(0, 0.22, 0.42, 0.2, D, arm));
-  it.boxes.push_back(box3(L - 0.2, 0.22, 0.42, L, D, arm));
+  it.boxes.push_back(makeBox(0, 0.22, 0.42, 0.2, D, arm));
+  it.boxes.push_back(makeBox(L - 0.2, 0.22, 0.42, L, D, arm));
   return it;
 }
 
@@ -576,7 +560,7 @@ Item whiteboard(Rng* r, double max_len) {
   it.length = r->uniform(1.0, std::min(2.6, max_len));
   it.depth = 0.03;
   const double z0 = r->uniform(0.8, 1.0);
-  it.boxes.push_back(box3(0, 0, z0, it.length, 0.03, z0 + r->uniform(0.7, 1.2)));
+  it.boxes.push_back(makeBox(0, 0, z0, it.length, 0.03, z0 + r->uniform(0.7, 1.2)));
   it.gap = 0.4;
   return it;
 }
@@ -585,9 +569,9 @@ Item bench(Rng* r, double max_len) {
   Item it;
   it.length = r->uniform(1.2, std::min(2.5, max_len));
   it.depth = 0.45;
-  it.boxes.push_back(box3(0, 0, 0.4, it.length, 0.45, 0.45));
-  it.boxes.push_back(box3(0.1, 0.05, 0, 0.2, 0.4, 0.4));
-  it.boxes.push_back(box3(it.length - 0.2, 0.05, 0, it.length - 0.1, 0.4, 0.4));
+  it.boxes.push_back(makeBox(0, 0, 0.4, it.length, 0.45, 0.45));
+  it.boxes.push_back(makeBox(0.1, 0.05, 0, 0.2, 0.4, 0.4));
+  it.boxes.push_back(makeBox(it.length - 0.2, 0.05, 0, it.length - 0.1, 0.4, 0.4));
   return it;
 }
 
@@ -598,7 +582,7 @@ Item lockers(Rng* r, double max_len) {
   it.depth = 0.45;
   const double h = r->uniform(1.7, 1.95);
   for (int i = 0; i < n; ++i) {  // one box each, with a slight step between them
-    it.boxes.push_back(box3(i * 0.45, 0, 0, (i + 1) * 0.45 - 0.01, 0.45 - 0.01 * (i % 2), h));
+    it.boxes.push_back(makeBox(i * 0.45, 0, 0, (i + 1) * 0.45 - 0.01, 0.45 - 0.01 * (i % 2), h));
   }
   return it;
 }
@@ -607,7 +591,7 @@ Item pilaster(Rng* r, double H) {
   Item it;
   it.length = r->uniform(0.3, 0.6);
   it.depth = r->uniform(0.12, 0.3);
-  it.boxes.push_back(box3(0, 0, 0, it.length, it.depth, H));
+  it.boxes.push_back(makeBox(0, 0, 0, it.length, it.depth, H));
   it.gap = 0.5;
   return it;
 }
@@ -616,7 +600,7 @@ Item wallPartition(Rng* r, double max_depth, double H) {
   Item it;
   it.length = 0.1;
   it.depth = r->uniform(1.4, std::max(1.5, max_depth));
-  it.boxes.push_back(box3(0, 0, 0, 0.1, it.depth, r->chance(0.5) ? H : r->uniform(1.6, 2.2)));
+  it.boxes.push_back(makeBox(0, 0, 0, 0.1, it.depth, r->chance(0.5) ? H : r->uniform(1.6, 2.2)));
   it.gap = 1.0;
   return it;
 }
@@ -628,10 +612,10 @@ Item table(Rng* r, double max_len) {
   it.length = L + 0.4;
   it.depth = W + 1.2;
   const double x0 = 0.2, y0 = 0.6;
-  it.boxes.push_back(box3(x0, y0, h - 0.04, x0 + L, y0 + W, h));
+  it.boxes.push_back(makeBox(x0, y0, h - 0.04, x0 + L, y0 + W, h));
   for (int i = 0; i < 4; ++i) {
     const double x = i % 2 ? x0 + L - 0.1 : x0 + 0.05, y = i / 2 ? y0 + W - 0.1 : y0 + 0.05;
-    it.boxes.push_back(box3(x, y, 0, x + 0.05, y + 0.05, h - 0.04));
+    it.boxes.push_back(makeBox(x, y, 0, x + 0.05, y + 0.05, h - 0.04));
   }
   const int per_side = std::max(1, static_cast<int>(L / 0.7));
   for (int side = 0; side < 2; ++side) {
@@ -639,12 +623,12 @@ Item table(Rng* r, double max_len) {
       if (r->chance(0.25)) continue;
       const double x = x0 + (c + 0.5) * L / per_side + r->uniform(-0.08, 0.08);
       if (side == 0) {
-        it.boxes.push_back(box3(x - 0.22, 0.05, 0, x + 0.22, 0.5, 0.46));
-        it.boxes.push_back(box3(x - 0.22, 0.05, 0.46, x + 0.22, 0.1, 0.92));
+        it.boxes.push_back(makeBox(x - 0.22, 0.05, 0, x + 0.22, 0.5, 0.46));
+        it.boxes.push_back(makeBox(x - 0.22, 0.05, 0.46, x + 0.22, 0.1, 0.92));
       } else {
         const double y = y0 + W;
-        it.boxes.push_back(box3(x - 0.22, y + 0.05, 0, x + 0.22, y + 0.5, 0.46));
-        it.boxes.push_back(box3(x - 0.22, y + 0.45, 0.46, x + 0.22, y + 0.5, 0.92));
+        it.boxes.push_back(makeBox(x - 0.22, y + 0.05, 0, x + 0.22, y + 0.5, 0.46));
+        it.boxes.push_back(makeBox(x - 0.22, y + 0.45, 0.46, x + 0.22, y + 0.5, 0.92));
       }
     }
   }
@@ -657,15 +641,16 @@ Item roundTable(Rng* r) {
   const double s = 2.0 * (rad + 0.55);
   it.length = it.depth = s;
   const double c = 0.5 * s;
-  it.cylinders.push_back(cyl(c, c, rad, 0.71, 0.75));
-  it.cylinders.push_back(cyl(c, c, 0.05, 0.03, 0.71));
-  it.cylinders.push_back(cyl(c, c, 0.25, 0.0, 0.03));
+  it.cylinders.push_back(makeCylinder(c, c, rad, 0.71, 0.75));
+  it.cylinders.push_back(makeCylinder(c, c, 0.05, 0.03, 0.71));
+  it.cylinders.push_back(makeCylinder(c, c, 0.25, 0.0, 0.03));
   const int stools = r->between(0, 4);
   const double a0 = r->uniform(0.0, 2.0 * M_PI);
   for (int i = 0; i < stools; ++i) {
     const double a = a0 + 2.0 * M_PI * i / std::max(stools, 3);
-    it.cylinders.push_back(cyl(c + (rad + 0.32) * std::cos(a), c + (rad + 0.32) * std::sin(a), 0.17,
-                               0.0, r->uniform(0.42, 0.5)));
+    it.cylinders.push_back(makeCylinder(c + (rad + 0.32) * std::cos(a),
+                                        c + (rad + 0.32) * std::sin(a), 0.17, 0.0,
+                                        r->uniform(0.42, 0.5)));
   }
   return it;
 }
@@ -675,11 +660,11 @@ Item column(Rng* r, double H) {
   if (r->chance(0.6)) {
     const double rad = r->uniform(0.15, 0.35);
     it.length = it.depth = 2.0 * rad;
-    it.cylinders.push_back(cyl(rad, rad, rad, 0.0, H));
+    it.cylinders.push_back(makeCylinder(rad, rad, rad, 0.0, H));
   } else {
     const double s = r->uniform(0.3, 0.6);
     it.length = it.depth = s;
-    it.boxes.push_back(box3(0, 0, 0, s, s, H));
+    it.boxes.push_back(makeBox(0, 0, 0, s, s, H));
   }
   it.gap = 1.0;
   return it;
@@ -696,7 +681,7 @@ Item drums(Rng* r) {
   for (int i = 0; i < n; ++i) {
     const int cx = i % cols, cy = i / cols;
     const double x = rad + cx * (2.0 * rad + 0.04), y = rad + cy * (2.0 * rad + 0.04);
-    it.cylinders.push_back(cyl(x, y, rad, 0.0, h + r->uniform(-0.03, 0.03)));
+    it.cylinders.push_back(makeCylinder(x, y, rad, 0.0, h + r->uniform(-0.03, 0.03)));
   }
   return it;
 }
@@ -710,7 +695,7 @@ Item crates(Rng* r) {
   const int n = r->between(1, 3);
   for (int i = 0; i < n; ++i) {
     const double h = r->uniform(0.3, 0.8);
-    it.boxes.push_back(box3(x0, y0, z, x1, y1, z + h));
+    it.boxes.push_back(makeBox(x0, y0, z, x1, y1, z + h));
     z += h;
     const double nw = (x1 - x0) * r->uniform(0.5, 0.9), nd = (y1 - y0) * r->uniform(0.5, 0.9);
     x0 += r->uniform(0.0, x1 - x0 - nw);
@@ -726,8 +711,8 @@ Item plant(Rng* r) {
   Item it;
   const double leaves = r->uniform(0.3, 0.45);
   it.length = it.depth = 2.0 * leaves;
-  it.cylinders.push_back(cyl(leaves, leaves, r->uniform(0.16, 0.22), 0.0, 0.45));
-  it.cylinders.push_back(cyl(leaves, leaves, leaves, 0.45, 0.45 + r->uniform(0.5, 1.1)));
+  it.cylinders.push_back(makeCylinder(leaves, leaves, r->uniform(0.16, 0.22), 0.0, 0.45));
+  it.cylinders.push_back(makeCylinder(leaves, leaves, leaves, 0.45, 0.45 + r->uniform(0.5, 1.1)));
   it.gap = 0.6;
   return it;
 }
@@ -737,15 +722,15 @@ Item machine(Rng* r, double H) {
   const double L = r->uniform(0.8, 1.8), D = r->uniform(0.7, 1.4), h = r->uniform(1.0, 1.8);
   it.length = L;
   it.depth = D;
-  it.boxes.push_back(box3(0, 0, 0, L, D, h));
+  it.boxes.push_back(makeBox(0, 0, 0, L, D, h));
   if (r->chance(0.5)) {
     const double rad = r->uniform(0.15, std::min(0.35, 0.45 * std::min(L, D)));
     it.cylinders.push_back(
-        cyl(rad + 0.05, rad + 0.05, rad, h, std::min(H - 0.3, h + r->uniform(0.3, 0.8))));
+        makeCylinder(rad + 0.05, rad + 0.05, rad, h, std::min(H - 0.3, h + r->uniform(0.3, 0.8))));
   } else {
     const double x = r->uniform(0.0, 0.5 * L);
     it.boxes.push_back(
-        box3(x, 0.0, h, x + r->uniform(0.2, 0.5 * L), D * 0.5, h + r->uniform(0.2, 0.5)));
+        makeBox(x, 0.0, h, x + r->uniform(0.2, 0.5 * L), D * 0.5, h + r->uniform(0.2, 0.5)));
   }
   return it;
 }
@@ -830,7 +815,7 @@ class Furnisher {
       const double x = rng_->uniform(f.lo_m.x() + 0.2, f.hi_m.x() - sx - 0.2);
       const double y = rng_->uniform(f.lo_m.y() + 0.2, f.hi_m.y() - sy - 0.2);
       const double drop = rng_->uniform(0.12, 0.4);
-      scene_->boxes.push_back(box3(x, y, H - drop - 0.06, x + sx, y + sy, H - drop));
+      scene_->boxes.push_back(makeBox(x, y, H - drop - 0.06, x + sx, y + sy, H - drop));
     }
     if (beam) {
       const PlanRect& f = free_[rng_->below(static_cast<int>(free_.size()))];
@@ -877,7 +862,7 @@ class Furnisher {
     for (const Box& b : it.boxes) {
       const PlanRect r = placedRect(b.min_m.head<2>(), b.max_m.head<2>(), q, origin);
       scene_->boxes.push_back(
-          box3(r.lo_m.x(), r.lo_m.y(), b.min_m.z(), r.hi_m.x(), r.hi_m.y(), b.max_m.z()));
+          makeBox(r.lo_m.x(), r.lo_m.y(), b.min_m.z(), r.hi_m.x(), r.hi_m.y(), b.max_m.z()));
     }
     for (const Cylinder& c : it.cylinders) {
       Cylinder w = c;
@@ -1115,7 +1100,7 @@ BuildingScene makeBuilding(const BuildingParams& params) {
   b.params = params;
   b.spaces = plan.spaces;
   b.doors = plan.doors;
-  b.primitives.room = box3(0.0, 0.0, 0.0, params.width_m, params.length_m, params.height_m);
+  b.primitives.room = makeBox(0.0, 0.0, 0.0, params.width_m, params.length_m, params.height_m);
   buildWalls(plan, params, &b.primitives);
   b.wall_box_count = b.primitives.boxes.size();
   Rng rng(draw ^ 0x5bd1e9955bd1e995ull);  // furniture: its own stream

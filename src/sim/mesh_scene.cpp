@@ -456,15 +456,6 @@ void addCylinder(const Cylinder& c, const Box& room, int segments, Mesh* m, bool
   }
 }
 
-Cylinder cylinder(double x, double y, double r, double z0, double z1) {
-  Cylinder c;
-  c.centre_m = Eigen::Vector2d(x, y);
-  c.radius_m = r;
-  c.z_min_m = z0;
-  c.z_max_m = z1;
-  return c;
-}
-
 }  // namespace
 
 PrimitiveScene makeDefaultPrimitiveScene() {
@@ -473,12 +464,12 @@ PrimitiveScene makeDefaultPrimitiveScene() {
   s.room = boxes.room;
   s.boxes = boxes.blocks;
   s.cylinders = {
-      cylinder(1.0, 4.8, 0.20, 0.0, 3.0),     // column from floor to ceiling, north-west
-      cylinder(2.7, 0.95, 0.35, 0.0, 1.0),    // drum beside the low cabinet
-      cylinder(6.2, 1.5, 0.25, 0.0, 0.6),     // round stool near the east pillar
-      cylinder(7.0, 3.65, 0.45, 0.70, 0.75),  // round side-table top ...
-      cylinder(7.0, 3.65, 0.05, 0.0, 0.70),   // ... on one leg
-      cylinder(3.8, 2.75, 0.30, 2.6, 3.0),    // ceiling lamp above the table
+      makeCylinder(1.0, 4.8, 0.20, 0.0, 3.0),     // column from floor to ceiling, north-west
+      makeCylinder(2.7, 0.95, 0.35, 0.0, 1.0),    // drum beside the low cabinet
+      makeCylinder(6.2, 1.5, 0.25, 0.0, 0.6),     // round stool near the east pillar
+      makeCylinder(7.0, 3.65, 0.45, 0.70, 0.75),  // round side-table top ...
+      makeCylinder(7.0, 3.65, 0.05, 0.0, 0.70),   // ... on one leg
+      makeCylinder(3.8, 2.75, 0.30, 2.6, 3.0),    // ceiling lamp above the table
   };
   return s;
 }

@@ -18,6 +18,11 @@ struct Box {
   Eigen::Vector3d max_m;
 };
 
+// The box with corners (x0, y0, z0) and (x1, y1, z1) (m).
+inline Box makeBox(double x0, double y0, double z0, double x1, double y1, double z1) {
+  return Box{Eigen::Vector3d(x0, y0, z0), Eigen::Vector3d(x1, y1, z1)};
+}
+
 struct BoxScene {
   Box room;                 // seen from inside
   std::vector<Box> blocks;  // solid furniture, seen from outside

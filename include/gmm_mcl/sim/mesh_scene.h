@@ -24,6 +24,16 @@ struct Cylinder {
   double z_max_m = 0.0;
 };
 
+// The cylinder of radius r (m) about (x, y) from z0 to z1.
+inline Cylinder makeCylinder(double x, double y, double r, double z0, double z1) {
+  Cylinder c;
+  c.centre_m = Eigen::Vector2d(x, y);
+  c.radius_m = r;
+  c.z_min_m = z0;
+  c.z_max_m = z1;
+  return c;
+}
+
 struct PrimitiveScene {
   Box room;                         // seen from inside
   std::vector<Box> boxes;           // solid, seen from outside
