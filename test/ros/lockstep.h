@@ -65,6 +65,33 @@ inline bool waitFor(const std::function<bool()>& done, double limit_s = kWaitLim
   return done();
 }
 
+// Nodes per topic as the master lists them: publishers (kPublishers) or subscribers.
+enum class Side { kPublishers = 0, kSubscribers = 1 };
+inline bool nodesOnMaster(Side side, std::map<std::string, int>* count) {
+  XmlRpc::XmlRpcValue request, response, payload;
+  request[0] = ros::this_node::getName();
+  if (!ros::master::execute("getSystemState", request, response, payload, false)) return false;
+  if (payload.getType() != XmlRpc::XmlRpcValue::TypeArray || payload.size() < 2) return false;
+  XmlRpc::XmlRpcValue& topics = payload[static_cast<int>(side)];
+  for (int i = 0; i < topics.size(); ++i) {
+    (*count)[static_cast<std::string>(topics[i][0])] = topics[i][1].size();
+  }
+  return true;
+}
+// Registering is not connecting: a message published before the connection is made is lost
+// (a loaded machine), and a wait for what it causes fails. These hold once every node the
+// master lists on the other side of the topic is connected (this one included).
+inline bool connectedToAll(const ros::Publisher& pub) {
+  std::map<std::string, int> listed;
+  return nodesOnMaster(Side::kSubscribers, &listed) && listed[pub.getTopic()] > 0 &&
+         static_cast<int>(pub.getNumSubscribers()) >= listed[pub.getTopic()];
+}
+inline bool connectedToAll(const ros::Subscriber& sub) {
+  std::map<std::string, int> listed;
+  return nodesOnMaster(Side::kPublishers, &listed) && listed[sub.getTopic()] > 0 &&
+         static_cast<int>(sub.getNumPublishers()) >= listed[sub.getTopic()];
+}
+
 // The simulated clock, driven by the test.
 class Clock {
  public:
@@ -80,7 +107,7 @@ class Clock {
     if (t > now_) set(t);
   }
   const ros::Time& now() const { return now_; }
-  bool connected() const { return pub_.getNumSubscribers() > 0; }
+  bool connected() const { return connectedToAll(pub_); }
 
  private:
   ros::Publisher pub_;
@@ -106,6 +133,16 @@ class Observer {
     subs_.push_back(nh.subscribe(ns + "/pose", 1000, &Observer::onPose, this));
     subs_.push_back(nh.subscribe("/diagnostics", 1000, &Observer::onDiag, this));
     subs_.push_back(nh.subscribe("/tf", 1000, &Observer::onTf, this));
+  }
+  // Waits until the nodelet's ~status, ~pose and /diagnostics are connected to this observer:
+  // one ~status lost before that fails the wait for it (seen once in CI, a loaded machine).
+  bool waitConnected() {
+    return waitFor([&] {
+      for (size_t i = 0; i < 3; ++i) {
+        if (!connectedToAll(subs_[i])) return false;
+      }
+      return true;
+    });
   }
   void onStatus(const FilterStatusConstPtr& m) { statuses.push_back(*m); }
   void onPose(const geometry_msgs::PoseWithCovarianceStampedConstPtr& m) { poses.push_back(*m); }
@@ -261,7 +298,7 @@ class BagPlayer {
     return waitFor([&] {
       if (publishers_[frame_topic_].getNumSubscribers() == 0) return false;
       std::map<std::string, int> listed;
-      if (!subscribersOnMaster(&listed)) return false;
+      if (!nodesOnMaster(Side::kSubscribers, &listed)) return false;
       for (auto& p : publishers_) {
         if (static_cast<int>(p.second.getNumSubscribers()) < listed[p.first]) return false;
       }
@@ -285,18 +322,6 @@ class BagPlayer {
   }
 
  private:
-  // Subscriber nodes per topic, as the master lists them.
-  static bool subscribersOnMaster(std::map<std::string, int>* count) {
-    XmlRpc::XmlRpcValue request, response, payload;
-    request[0] = ros::this_node::getName();
-    if (!ros::master::execute("getSystemState", request, response, payload, false)) return false;
-    if (payload.getType() != XmlRpc::XmlRpcValue::TypeArray || payload.size() < 2) return false;
-    XmlRpc::XmlRpcValue& subscribers = payload[1];
-    for (int i = 0; i < subscribers.size(); ++i) {
-      (*count)[static_cast<std::string>(subscribers[i][0])] = subscribers[i][1].size();
-    }
-    return true;
-  }
   static ros::Time frameHeaderStamp(const rosbag::MessageInstance& m) {
     if (auto image = m.instantiate<sensor_msgs::Image>()) return image->header.stamp;
     if (auto cloud = m.instantiate<sensor_msgs::PointCloud2>()) return cloud->header.stamp;

@@ -60,7 +60,7 @@ inline double errorOfFrame(const ros::Time& t, int k) {
 // Resets the filter to the robot's true pose (the service answers once it is applied) and
 // tracks a few frames: the precondition of most cases.
 inline bool ensureTracking() {
-  if (!w->robot.waitForNodelet()) return false;
+  if (!w->robot.waitForNodelet() || !w->obs.waitConnected()) return false;
   w->robot.publishStaticExtrinsics();  // latched; the first case sends its first frame without
   ResetToPose srv;
   srv.request.pose.header.frame_id = "map";

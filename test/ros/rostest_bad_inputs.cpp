@@ -48,6 +48,7 @@ TEST(BadInputsTest, NodeSaysWhatIsWrongAndRecovers) {
   Observer obs(nh);
   SyntheticRobot robot(nh, &clock);
   ASSERT_TRUE(robot.waitForNodelet());
+  ASSERT_TRUE(obs.waitConnected());
   robot.publishStaticExtrinsics();
   double step = 0;
   int k = 0;

@@ -94,6 +94,9 @@ TEST(GroundTruthOdometryTest, LocalizerConvergesOnACowAndLadyLayoutBag) {
   ASSERT_TRUE(player.waitForSubscribers()) << "the nodelet does not subscribe " << cloud_topic;
   ASSERT_TRUE(
       lockstep::waitFor([&] { return ros::service::exists("/gmm_mcl/reset_to_pose", false); }));
+  ASSERT_TRUE(obs.waitConnected());
+  ASSERT_TRUE(lockstep::waitFor([&] { return rec.subs_[1].getNumPublishers() > 0; }))
+      << "the nodelet's ~pose does not connect";
   const ros::Time t0 = player.frameStamp(0);
   bool tracked = false;
   for (int i = 0; i < player.frames(); ++i) {

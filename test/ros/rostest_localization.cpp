@@ -80,6 +80,7 @@ TEST(LocalizationBagTest, TracksResetsAndPublishesTf) {
   Clock clock(nh);
   BagPlayer player(nh, bagPath(), "/camera/depth/image_raw", &clock);
   ASSERT_TRUE(player.waitForSubscribers()) << "the nodelet does not subscribe the depth image";
+  ASSERT_TRUE(obs.waitConnected()) << "the nodelet's outputs do not connect";
   ros::Publisher init_pub =
       nh.advertise<geometry_msgs::PoseWithCovarianceStamped>("/initialpose", 1, true);
   const ros::Time t0 = player.frameStamp(0);
@@ -197,6 +198,7 @@ TEST(LocalizationBagTest, LoopedBagResets) {
   Clock clock(nh);
   BagPlayer player(nh, bagPath(), "/camera/depth/image_raw", &clock);
   ASSERT_TRUE(player.waitForSubscribers());
+  ASSERT_TRUE(obs.waitConnected());
   double loop_s = 5.0;
   ros::param::param("~loop_duration", loop_s, 5.0);
   const ros::Time t0 = player.frameStamp(0);

@@ -33,6 +33,7 @@ World* w = nullptr;
 
 TEST(NodeletTest, FirstFrameWaitsForTf) {
   ASSERT_TRUE(w->robot.waitForNodelet({"/gmm_mcl", "/gmm_mcl_start"}));
+  ASSERT_TRUE(w->obs.waitConnected() && w->start_obs.waitConnected());
   // The first frame, before any tf (neither the static extrinsics nor odometry).
   SyntheticRobot::Frame no_tf;
   no_tf.odom_tf = false;

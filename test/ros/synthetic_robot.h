@@ -8,8 +8,8 @@
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/Imu.h>
+#include <tf2_msgs/TFMessage.h>
 #include <tf2_ros/static_transform_broadcaster.h>
-#include <tf2_ros/transform_broadcaster.h>
 
 #include <cstring>
 #include <limits>
@@ -51,6 +51,7 @@ class SyntheticRobot {
         image_pub_(nh.advertise<sensor_msgs::Image>("/camera/depth/image_raw", 100)),
         info_pub_(nh.advertise<sensor_msgs::CameraInfo>("/camera/depth/camera_info", 100)),
         imu_pub_(nh.advertise<sensor_msgs::Imu>("/imu/data", 2000)),
+        tf_pub_(nh.advertise<tf2_msgs::TFMessage>("/tf", 100)),
         t0_(1000.0),
         rng_(7) {
     K_.width_px = 160;
@@ -78,9 +79,10 @@ class SyntheticRobot {
       if (!ros::service::waitForService(ns + "/reset_to_pose", ros::Duration(kWaitLimitS)))
         return false;
     }
+    // /tf too (odometry at a frame's stamp): a frame whose odometry was lost waits for good.
     return waitFor([&] {
-      return image_pub_.getNumSubscribers() > 0 && info_pub_.getNumSubscribers() > 0 &&
-             imu_pub_.getNumSubscribers() > 0 && clock_->connected();
+      return connectedToAll(image_pub_) && connectedToAll(info_pub_) && connectedToAll(imu_pub_) &&
+             connectedToAll(tf_pub_) && clock_->connected();
     });
   }
   void publishStaticExtrinsics() {
@@ -90,7 +92,7 @@ class SyntheticRobot {
         extrinsics(), "base_link", "camera_depth_optical_frame", ros::Time(0)));
   }
   void publishOdometry(const ros::Time& t, const Eigen::Isometry3d& T_map_base) {
-    tf_.sendTransform(ros_conv::transformStamped(T_odom_base(T_map_base), "odom", "base_link", t));
+    sendTf(ros_conv::transformStamped(T_odom_base(T_map_base), "odom", "base_link", t));
   }
   void publishImu(const ros::Time& t, double roll_rad, double pitch_rad) {
     sensor_msgs::Imu imu;
@@ -113,7 +115,7 @@ class SyntheticRobot {
       T_base_cam.linear() =
           T_base_cam.linear() *
           Eigen::AngleAxisd(f.extrinsics_jitter_deg * M_PI / 180, axis).toRotationMatrix();
-      tf_.sendTransform(ros_conv::transformStamped(T_base_cam, "base_link", f.camera_frame, t));
+      sendTf(ros_conv::transformStamped(T_base_cam, "base_link", f.camera_frame, t));
     }
     if (f.imu) {
       double roll, pitch, yaw;
@@ -157,12 +159,18 @@ class SyntheticRobot {
   }
 
  private:
+  // What tf2_ros::TransformBroadcaster does, with a publisher whose connections can be checked.
+  void sendTf(const geometry_msgs::TransformStamped& t) {
+    tf2_msgs::TFMessage m;
+    m.transforms.push_back(t);
+    tf_pub_.publish(m);
+  }
+
   Clock* clock_;
   sim::BoxScene scene_;
   std::vector<Eigen::Isometry3d> truth_;
   Intrinsics K_;
-  ros::Publisher image_pub_, info_pub_, imu_pub_;
-  tf2_ros::TransformBroadcaster tf_;
+  ros::Publisher image_pub_, info_pub_, imu_pub_, tf_pub_;
   tf2_ros::StaticTransformBroadcaster static_tf_;
   Eigen::Isometry3d T_map_odom_ = Eigen::Isometry3d::Identity();
   ros::Time t0_;
