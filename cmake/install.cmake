@@ -16,13 +16,23 @@ endif()
 install(TARGETS gmm_mcl_core
         LIBRARY DESTINATION ${GMM_MCL_INSTALL_LIB}
         ARCHIVE DESTINATION ${GMM_MCL_INSTALL_LIB})
-install(DIRECTORY include/gmm_mcl/ DESTINATION ${GMM_MCL_INSTALL_INCLUDE})
+# The API's headers (docs/architecture.md "API"): the umbrella gmm_mcl.h and the core's parts,
+# with ROS the nodelet's. Not internal/ (the core's private helpers, included by its sources
+# only) nor the headers of the static libraries that are not installed (sim, datasets, fit,
+# replay, bench, experiments, cli, ros_tools); the CUDA parts' headers are beside their sources.
+install(FILES include/gmm_mcl/gmm_mcl.h DESTINATION ${GMM_MCL_INSTALL_INCLUDE})
+foreach(part map camera measurement backend filter common)
+  install(DIRECTORY include/gmm_mcl/${part} DESTINATION ${GMM_MCL_INSTALL_INCLUDE})
+endforeach()
+if(GMM_MCL_BUILD_ROS)
+  install(DIRECTORY include/gmm_mcl/ros DESTINATION ${GMM_MCL_INSTALL_INCLUDE})
+endif()
 
 # The offline tools (those this configuration defines: the map builder may be off; without
 # boost program_options none is built, and none is installed).
 if(TARGET gmm_mcl_cli)
-  set(GMM_MCL_INSTALLED_TOOLS gmm_mcl_fit_tool gmm_mcl_inspect gmm_mcl_replay_tool gmm_mcl_score
-      gmm_mcl_bench gmm_mcl_kidnap gmm_mcl_render gmm_mcl_sim_demo gmm_mcl_figures_tool)
+  set(GMM_MCL_INSTALLED_TOOLS gmm_mcl_fit_tool gmm_mcl_inspect gmm_mcl_load_map gmm_mcl_replay_tool
+      gmm_mcl_score gmm_mcl_bench gmm_mcl_kidnap gmm_mcl_render gmm_mcl_sim_demo gmm_mcl_figures_tool)
   foreach(tool ${GMM_MCL_INSTALLED_TOOLS})
     if(TARGET ${tool})
       install(TARGETS ${tool} RUNTIME DESTINATION ${GMM_MCL_INSTALL_BIN})

@@ -38,6 +38,13 @@ target_include_directories(gmm_mcl_ros PUBLIC
 target_include_directories(gmm_mcl_ros SYSTEM PUBLIC ${catkin_INCLUDE_DIRS}
   ${CATKIN_DEVEL_PREFIX}/${CATKIN_GLOBAL_INCLUDE_DESTINATION})
 target_link_libraries(gmm_mcl_ros PUBLIC gmm_mcl_core ${catkin_LIBRARIES})
+# A point cloud or mesh given as ~map is fitted on load by the map builder's library
+# (fit/fit_on_load.h; static, so its code is inside the nodelet's library). Without the map
+# builder (GMM_MCL_BUILD_FIT=OFF) such a map is refused with a message naming gmm_mcl_fit.
+if(GMM_MCL_BUILD_FIT)
+  target_link_libraries(gmm_mcl_ros PRIVATE gmm_mcl_fit)
+  target_compile_definitions(gmm_mcl_ros PRIVATE GMM_MCL_HAVE_FIT_ON_LOAD)
+endif()
 add_dependencies(gmm_mcl_ros ${PROJECT_NAME}_generate_messages_cpp ${PROJECT_NAME}_gencfg)
 
 # Standalone node: the same nodelet, loaded in-process.

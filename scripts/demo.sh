@@ -2,7 +2,7 @@
 # The offline job on the built-in default scene: installs what is missing, builds, runs the
 # localizer on the synthetic room (a triangle mesh with box furniture and cylinders, depth ray
 # cast through a BVH with a structured-light sensor model) from a uniform 4 m cube / pi yaw
-# start and prints the error. Extra arguments go to gmm_mcl_sim_demo (--frames, --particles,
+# start and prints the error. Extra arguments go to gmm_mcl_sim_demo (--frames, --num-particles,
 # --seed, --weighting, --scene mesh|box, --no-sensor-noise, ...).
 set -euo pipefail
 source "$(dirname "$0")/common.sh"

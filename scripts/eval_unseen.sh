@@ -40,7 +40,7 @@ export OMP_NUM_THREADS="${THREADS:-$(( $(nproc) / JOBS > 0 ? $(nproc) / JOBS : 1
 read -r -a EXTRA_ARGS <<< "${EXTRA:-}"
 REPLAY_ARGS=()
 [[ -n "${REPLAY_FRAMES:-}" ]] && REPLAY_ARGS+=(--frames "$REPLAY_FRAMES")
-[[ -n "${PARTICLES:-}" ]] && EXTRA_ARGS+=(--particles "$PARTICLES")
+[[ -n "${PARTICLES:-}" ]] && EXTRA_ARGS+=(--num-particles "$PARTICLES")
 [[ -n "${MIN_PARTICLES:-}" ]] && EXTRA_ARGS+=(--min-particles "$MIN_PARTICLES")
 GMM_FIT="$(find_tool gmm_mcl_fit GMM_FIT)"
 RENDER="$(find_tool gmm_mcl_render GMM_MCL_RENDER)"
@@ -92,18 +92,18 @@ for p in $PROTOCOLS; do
     start)
       for first in $SEGMENTS; do
         run_trials "$OUT/start_seg$first" "$REPLAY" --format tum --dataset "$OUT/replica_seg$first" \
-          --map "$MAP" --stride "$STRIDE" --backend "$BACKEND" --out "$OUT/start_seg$first" --quiet \
+          --map "$MAP" --pixel-stride "$STRIDE" --backend "$BACKEND" --out "$OUT/start_seg$first" --quiet \
           "${REPLAY_ARGS[@]}" "${EXTRA_ARGS[@]}"
       done ;;
     map)
       first="${SEGMENTS%% *}"
       run_trials "$OUT/map_seg$first" "$REPLAY" --format tum --dataset "$OUT/replica_seg$first" \
-        --map "$MAP" --init map --stride "$STRIDE" --backend "$BACKEND" --out "$OUT/map_seg$first" \
+        --map "$MAP" --init map --pixel-stride "$STRIDE" --backend "$BACKEND" --out "$OUT/map_seg$first" \
         --quiet "${REPLAY_ARGS[@]}" "${EXTRA_ARGS[@]}" ;;
     kidnap)
       for first in $SEGMENTS; do
         run_trials "$OUT/kidnap_seg$first" "$KIDNAP" --scene tum --dataset "$OUT/replica_seg$first" \
-          --map "$MAP" --stride "$STRIDE" --backend "$BACKEND" --out "$OUT/kidnap_seg$first" \
+          --map "$MAP" --pixel-stride "$STRIDE" --backend "$BACKEND" --out "$OUT/kidnap_seg$first" \
           "${EXTRA_ARGS[@]}"
       done ;;
     7s-disjoint|7s|7s-m4000)
@@ -118,7 +118,7 @@ for p in $PROTOCOLS; do
       fi
       if [[ -n "${SEVEN_TUM:-}" ]]; then source7=(--format tum --dataset "$SEVEN_TUM")
       else source7=(--dataset "$SEVEN"); fi
-      run_trials "$OUT/$p" "$REPLAY" "${source7[@]}" --map "$map7" --stride "$STRIDE" \
+      run_trials "$OUT/$p" "$REPLAY" "${source7[@]}" --map "$map7" --pixel-stride "$STRIDE" \
         --backend "$BACKEND" --out "$OUT/$p" --quiet "${REPLAY_ARGS[@]}" "${EXTRA_ARGS[@]}" ;;
     *) echo "unknown protocol '$p'" >&2; exit 2 ;;
   esac

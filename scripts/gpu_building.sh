@@ -66,6 +66,8 @@ for room in $ROOMS; do
   echo "== $room"
   if [[ -n "${BASE_SRC:-}" ]]; then
     bench "base_$room" "$BASE_SRC/build-gpu/gmm_mcl_bench" "$map" --workload paper,cpu
+    bench "base_step_$room" "$BASE_SRC/build-gpu/gmm_mcl_bench" "$map" --workload cpu --step \
+      --budget-s 5
   fi
   bench "new_$room" "$ROOT/build-gpu/gmm_mcl_bench" "$map" --workload paper,cpu
   bench "new_step_$room" "$ROOT/build-gpu/gmm_mcl_bench" "$map" --workload cpu --step --budget-s 5
@@ -79,7 +81,7 @@ if step global && [[ -n "${GLOBAL_MAP:-}" ]]; then
       > "$LOGS/memory_$name.txt" &
     smi=$!
     "$ROOT/build-gpu/gmm_mcl_replay" --format tum --dataset "$seq" --map "$GLOBAL_MAP" \
-      --backend cuda --init map --trials "$TRIALS" --frames "$GLOBAL_FRAMES" --stride 8 \
+      --backend cuda --init map --trials "$TRIALS" --frames "$GLOBAL_FRAMES" --pixel-stride 8 \
       --out "$LOGS/global_$name" > "$LOGS/global_$name.txt" 2>&1
     echo "$name: rc=$?, GPU memory peak $(sort -n "$LOGS/memory_$name.txt" | tail -1) MiB"
     kill $smi 2> /dev/null
@@ -91,8 +93,8 @@ if step global && [[ -n "${GLOBAL_MAP:-}" ]]; then
     nvidia-smi --query-gpu=memory.used --format=csv,noheader,nounits -lms 100 > "$LOGS/memory_$n.txt" &
     smi=$!
     "$ROOT/build-gpu/gmm_mcl_replay" --format tum --dataset "$seq" --map "$GLOBAL_MAP" \
-      --backend cuda --init map --trials 1 --frames "${MEMORY_FRAMES:-10}" --stride 8 \
-      --particles "$n" --min-particles "$n" ${MEMORY_ARGS:---lost-candidates-per-particle 1} \
+      --backend cuda --init map --trials 1 --frames "${MEMORY_FRAMES:-10}" --pixel-stride 8 \
+      --num-particles "$n" --min-particles "$n" ${MEMORY_ARGS:---lost-candidates-per-particle 1} \
       --out "$LOGS/memory_run_$n" > "$LOGS/memory_run_$n.txt" 2>&1
     echo "$n particles: rc=$?, GPU memory peak $(sort -n "$LOGS/memory_$n.txt" | tail -1) MiB" \
       "(idle $(head -1 "$LOGS/memory_$n.txt") MiB), mean step" \

@@ -83,7 +83,7 @@ if [[ " $STEPS " == *" replay "* ]]; then
     extra=()
     [[ "$filter" == host ]] && extra=(--host-filter)
     timeout "${REPLAY_TIMEOUT:-200}" "$bin/gmm_mcl_replay" --map "$GMM_MCL_MAP" --format tum \
-      --dataset "$BUNDLE/data/7scenes_tum8" --backend cuda --stride 8 --trials "${TRIALS:-2}" \
+      --dataset "$BUNDLE/data/7scenes_tum8" --backend cuda --pixel-stride 8 --trials "${TRIALS:-2}" \
       --quiet --out "$LOGS/replay_$filter" "${extra[@]}" > "$LOGS/replay_$filter.log" 2>&1
     note "== replay, particle set on the $filter: exit $? at $(elapsed)"
     grep -E "^gmm_mcl replay|^trial|^\|" "$LOGS/replay_$filter.log" | tee -a "$SUMMARY"

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Tuning sweep on the GPU machine (after scripts/gpu_check.sh has built build-gpu): the CUDA
-# benchmark under likelihood shapes (GMM_MCL_CUDA_SHAPE=GROUPSxPX), band sizes
-# (GMM_MCL_CUDA_BAND) and, when SWEEP_MINBLOCKS is set, a second build whose likelihood kernel
+# benchmark under likelihood shapes (--cuda-likelihood-shape GROUPSxPX), band sizes
+# (--cuda-band-patches; both parameters of the table, docs/parameters.md) and, when SWEEP_MINBLOCKS is set, a second build whose likelihood kernel
 # is compiled for that many resident blocks per SM. Prints one line per run.
 #   SWEEP="paper:32x2:10 paper:16x4:10 cpu:8x2:10" scripts/gpu_sweep.sh
 set -uo pipefail
@@ -26,8 +26,8 @@ fi
 for b in "${builds[@]}"; do
   for run in ${SWEEP:-paper:32x2:10}; do
     IFS=: read -r wl shape band <<< "$run"
-    line=$(GMM_MCL_CUDA_SHAPE="$shape" GMM_MCL_CUDA_BAND="$band" "$b/gmm_mcl_bench" "${args[@]}" \
-      --workload "$wl" 2>/dev/null | grep "^| cuda")
+    line=$("$b/gmm_mcl_bench" "${args[@]}" --cuda-likelihood-shape "$shape" \
+      --cuda-band-patches "$band" --workload "$wl" 2>/dev/null | grep "^| cuda")
     echo "$(basename "$b") $wl $shape band $band: $(echo "$line" | awk -F'|' '{print "upd/s",$9,"memb",$11,"lik",$12,"update",$14,"peak",$17}')"
   done
 done

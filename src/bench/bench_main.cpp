@@ -20,13 +20,9 @@
 #include <vector>
 
 #include "bench_tool.h"
-#include "gmm_mcl/backend/cpu_backend.h"
 #include "gmm_mcl/cli/command_line.h"
 #include "gmm_mcl/cli/report_errors.h"
 #include "gmm_mcl/map/gmm_map_io.h"
-#if defined(GMM_MCL_HAVE_CUDA)
-#include "gmm_mcl/backend/cuda_backend.h"
-#endif
 
 namespace gmm_mcl {
 namespace bench {
@@ -52,8 +48,8 @@ const char* kUsage =
     "  --frames-raw FILE           raw frame file (bench --export-frames writes one)\n"
     "  --synthetic                 synthetic box scene and its map instead of 7-Scenes\n"
     "  --frames N (100) --warmup N (3) --budget-s S (20) --min-timed N (3)\n"
-    "  --threads N (CPU)  --particles N (override)  --seed S  --spread-m M (0.5) --spread-rad R "
-    "(0.3)\n"
+    "  --threads N (CPU)  --num-particles N (override; --particles also)  --seed S\n"
+    "  --spread-m M (0.5) --spread-rad R (0.3)\n"
     "  --cuda-host-prep            CUDA: prepare frames on the host and upload the points\n"
     "                              (default: the raw image is uploaded and prepared on the GPU)\n"
     "  --export-frames FILE        write the loaded frames as a raw file and exit\n"
@@ -61,7 +57,9 @@ const char* kUsage =
     "                              form for all particles)\n"
     "  --step                      the whole filter step per stage at each workload's N (scale:\n"
     "                              100,000; cpu: 1068): the particle set on the host and, with\n"
-    "                              CUDA, on the GPU; then Localizer::step with either filter\n";
+    "                              CUDA, on the GPU; then Localizer::step with either filter\n"
+    "  --cuda-likelihood-shape GxP, --cuda-band-patches N, ...: the CUDA backend's tuning (the\n"
+    "                              parameter table's cuda_* parameters, listed under --help)\n";
 
 Options parseOptions(int argc, char** argv) {
   Options opt;
@@ -73,12 +71,16 @@ Options parseOptions(int argc, char** argv) {
             {"frames-dir", &opt.frames_dir}, {"frames-raw", &opt.frames_raw},
             {"export-frames", &opt.export_frames}, {"frames", &opt.frames}, {"warmup", &opt.warmup},
             {"budget-s", &opt.budget_s}, {"min-timed", &opt.min_timed}, {"threads", &opt.threads},
-            {"particles", &opt.particles}, {"seed", &opt.seed},
+            {"num-particles", &opt.particles}, {"seed", &opt.seed},
             {"no-depth-noise", cli::Clear{&opt.depth_noise}}, {"spread-m", &opt.spread_m},
             {"spread-rad", &opt.spread_rad}, {"synthetic", &opt.synthetic},
             {"cuda-host-prep", &opt.cuda_host_prep}, {"step", &opt.step}});
   // clang-format on
+  cl.alias("particles", "num-particles");
+  LocalizerParams tuning;  // only its cuda_* group is read
+  cl.addLocalizerParams(&tuning, {}, {"cuda"});
   cl.parse(argc, argv);
+  opt.cuda = tuning.cuda;
   if (opt.frames < 1 || opt.warmup < 0) throw std::invalid_argument("--frames >= 1, --warmup >= 0");
   if (opt.patch_px < 1) throw std::invalid_argument("--patch must be >= 1");
   if (opt.exact_particles < 0 || opt.exact_frames < 0) {
@@ -186,40 +188,38 @@ void printSettings(const Options& opt) {
 
 struct Candidate {
   std::unique_ptr<LikelihoodBackend> backend;
-  double peak = 0.0;  // FP32 peak, GFLOP/s (CUDA)
+  double peak = 0.0;  // FP32 peak, GFLOP/s (a device backend)
 };
 
-// The listed backends that can run here (each said on stdout).
+// The listed backends that can run here (each said on stdout), made by the core's factory.
 std::vector<Candidate> makeBackends(const Options& opt) {
+  BackendOptions options;
+  options.cpu_threads = opt.threads;
+  options.cuda = opt.cuda;
   std::vector<Candidate> backends;
   if (listed(opt.backends, "cpu")) {
     Candidate c;
-    c.backend = std::make_unique<CpuBackend>(opt.threads);
+    c.backend = makeBackend("cpu", nullptr, options);
     std::printf("# cpu: %d OpenMP threads\n",
                 opt.threads > 0 ? opt.threads : omp_get_max_threads());
     backends.push_back(std::move(c));
   }
   if (listed(opt.backends, "cuda")) {
-#if defined(GMM_MCL_HAVE_CUDA)
     std::string why;
-    if (cudaDeviceCount(&why) > 0) {
-      std::unique_ptr<CudaBackend> cb = std::make_unique<CudaBackend>(0);
-      const CudaDeviceInfo& d = cb->deviceInfo();
+    Candidate c;
+    c.backend = makeBackend("cuda", &why, options);
+    if (const DeviceBackend* device = c.backend->device()) {
+      const BackendDeviceInfo& d = device->deviceInfo();
       std::printf(
           "# cuda: %s, sm_%d, %d SMs x %d FP32 lanes at %.2f GHz = %.1f TFLOP/s FP32 peak; "
           "%g FLOP counted per evaluation\n",
           d.name.c_str(), d.compute_capability, d.multiprocessors, d.fp32_lanes_per_sm, d.clock_ghz,
-          d.fp32_peak_gflops * 1e-3, kCudaFlopsPerEvaluation);
-      Candidate c;
+          d.fp32_peak_gflops * 1e-3, d.flops_per_evaluation);
       c.peak = d.fp32_peak_gflops;
-      c.backend = std::move(cb);
       backends.push_back(std::move(c));
     } else {
       std::printf("# cuda: skipped (%s)\n", why.c_str());
     }
-#else
-    std::printf("# cuda: not built (GMM_MCL_WITH_CUDA=OFF)\n");
-#endif
   }
   return backends;
 }

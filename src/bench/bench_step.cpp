@@ -11,13 +11,9 @@
 #include "gmm_mcl/common/timing.h"
 #include "gmm_mcl/filter/localizer.h"
 #include "gmm_mcl/filter/lost_detector.h"
-#include "gmm_mcl/filter/particle_filter.h"
+#include "gmm_mcl/filter/particle_filter_base.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/replay/replay.h"
-#if defined(GMM_MCL_HAVE_CUDA)
-#include "gmm_mcl/backend/cuda_backend.h"
-#include "gmm_mcl/filter/cuda_particle_filter.h"
-#endif
 
 namespace gmm_mcl {
 namespace bench {
@@ -81,12 +77,9 @@ StepRow runFilterStep(LikelihoodBackend* backend, bool device, const Workload& w
   fp.num_particles = n;
   fp.min_particles = n > kDefaultParticleCount ? kDefaultParticleCount : 0;
   fp.seed = opt.seed;
-  std::unique_ptr<ParticleFilterBase> filter;
-#if defined(GMM_MCL_HAVE_CUDA)
-  if (device)
-    filter = std::make_unique<CudaParticleFilter>(fp, dynamic_cast<CudaBackend*>(backend));
-#endif
-  if (!filter) filter = std::make_unique<ParticleFilter>(fp);
+  std::string why;
+  std::unique_ptr<ParticleFilterBase> filter = makeParticleFilter(fp, backend, device, &why);
+  if (device && !why.empty()) throw BackendError(why);
   row.what =
       std::string(device ? "device filter" : "host filter") + ", " + backend->name() + " backend";
   FrameParams frp;
@@ -146,10 +139,7 @@ StepRow runFilterStep(LikelihoodBackend* backend, bool device, const Workload& w
     filter->estimate();
     filter->effectiveSampleSize();
     const Clock::time_point t5 = Clock::now();
-#if defined(GMM_MCL_HAVE_CUDA)
-    if (auto* d = dynamic_cast<CudaParticleFilter*>(filter.get())) d->resample();
-#endif
-    if (auto* h = dynamic_cast<ParticleFilter*>(filter.get())) h->resample();
+    filter->resample();
     filter->synchronize();
     const Clock::time_point t6 = Clock::now();
     filter->recoverFrame(pixels, region);
@@ -192,6 +182,7 @@ StepRow runLocalizerStep(const std::string& backend, bool device, const Workload
   lp.frame.pixel_stride = w.stride_px;
   lp.frame.patch_size_px = opt.patch_px;
   lp.T_base_cam = opticalToBase();
+  lp.cuda = opt.cuda;
   if (!opt.depth_noise) lp.measurement.depth_noise.a_m = lp.measurement.depth_noise.b_per_m = 0.f;
   const int nf = static_cast<int>(frames.images.size());
   std::vector<Eigen::Isometry3d> T_map_base(nf);
@@ -260,11 +251,7 @@ void runSteps(const std::vector<LikelihoodBackend*>& backends, const GmmMap& map
     for (const Workload& w : kWorkloads) {
       if (!listed(opt.workloads, w.name) || w.large_map) continue;
       for (int device = 0; device < 2; ++device) {
-        bool is_cuda = false;
-#if defined(GMM_MCL_HAVE_CUDA)
-        is_cuda = dynamic_cast<CudaBackend*>(b) != nullptr;
-#endif
-        if (device && !is_cuda) continue;
+        if (device && b->device() == nullptr) continue;
         rows.push_back(runFilterStep(b, device != 0, w, frames, opt));
         std::fprintf(stderr, "# done %s / %s: %.2f ms\n", rows.back().what.c_str(), w.name,
                      rows.back().total);

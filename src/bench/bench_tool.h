@@ -38,7 +38,7 @@ struct Options {
   double budget_s = 20.0;  // timed seconds per (backend, workload), at least min_timed frames
   int min_timed = 3;
   int threads = 0;
-  int particles = 0;  // override
+  int particles = 0;  // override (--num-particles)
   int patch_px = FrameParams().patch_size_px;
   int exact_particles = 2;  // per checked frame: particle 0 (the true pose) and spread ones
   int exact_frames = 2;     // the first timed frames
@@ -49,6 +49,7 @@ struct Options {
   bool cuda_host_prep = false;  // CUDA: prepare frames on the host (prepareFrame) and upload points
   bool depth_noise = true;      // the depth-noise model (per-particle evaluation forms)
   bool step = false;            // the whole filter step per stage (--step)
+  CudaTuningParams cuda;        // the CUDA backend's tuning (the table's cuda_* flags)
 };
 
 // Whether `name` is in the comma-separated list (or the list is "all").

@@ -12,9 +12,6 @@
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/measurement/likelihood.h"
 #include "gmm_mcl/sim/pose_scatter.h"
-#if defined(GMM_MCL_HAVE_CUDA)
-#include "gmm_mcl/backend/cuda_backend.h"
-#endif
 
 namespace gmm_mcl {
 namespace bench {
@@ -88,10 +85,8 @@ Row runWorkload(LikelihoodBackend* backend, double fp32_peak_gflops, const Workl
                 const GmmMap& map, const FrameSet& frames, const Options& opt) {
   Row row;
   row.backend = backend->name();
-#if defined(GMM_MCL_HAVE_CUDA)
-  if (dynamic_cast<CudaBackend*>(backend))
-    row.backend = opt.cuda_host_prep ? "cuda (host prep)" : "cuda (GPU prep)";
-#endif
+  DeviceBackend* device = backend->device();
+  if (device) row.backend += opt.cuda_host_prep ? " (host prep)" : " (GPU prep)";
   row.workload = w.name;
   row.particles = opt.particles > 0 ? opt.particles : w.particles;
   row.stride = w.stride_px;
@@ -114,19 +109,15 @@ Row runWorkload(LikelihoodBackend* backend, double fp32_peak_gflops, const Workl
                           opt.seed * 7919u + static_cast<unsigned>(f));
     double prep = 0.0, total = 0.0, used_pixels = 0.0;
     const double cpu0 = processCpuMs();
-#if defined(GMM_MCL_HAVE_CUDA)
-    auto* cuda_backend = dynamic_cast<CudaBackend*>(backend);
-    if (cuda_backend && !opt.cuda_host_prep) {
-      // Frame preparation on the GPU: the update uploads the raw image.
+    if (device && !opt.cuda_host_prep) {
+      // Frame preparation on the device: the update uploads the raw image.
       const auto t0 = std::chrono::steady_clock::now();
-      cuda_backend->evaluateImage(frames.images[f], frames.K, fp, particles, mp, &out);
+      device->evaluateImage(frames.images[f], frames.K, fp, particles, mp, &out);
       const auto t2 = std::chrono::steady_clock::now();
-      prep = cuda_backend->lastFramePrepMs();
+      prep = device->lastFramePrepMs();
       total = std::chrono::duration<double, std::milli>(t2 - t0).count();
-      used_pixels = cuda_backend->lastFramePixels();
-    } else
-#endif
-    {
+      used_pixels = device->lastFramePixels();
+    } else {
       const auto t0 = std::chrono::steady_clock::now();
       const DepthFrame frame = prepareFrame(frames.images[f], frames.K, fp);
       const auto t1 = std::chrono::steady_clock::now();
@@ -149,9 +140,7 @@ Row runWorkload(LikelihoodBackend* backend, double fp32_peak_gflops, const Workl
     prep_ms.push_back(prep);
     memb_ms.push_back(out.projection_membership_ms);
     lik_ms.push_back(out.likelihood_ms);
-#if defined(GMM_MCL_HAVE_CUDA)
-    if (auto* cb = dynamic_cast<CudaBackend*>(backend)) xfer_ms.push_back(cb->lastTransferMs());
-#endif
+    if (device) xfer_ms.push_back(device->lastTransferMs());
     pixels.push_back(used_pixels);
     cpp.push_back(out.patches_with_pixels > 0
                       ? double(out.relevant_pairs) /
@@ -188,13 +177,10 @@ Row runWorkload(LikelihoodBackend* backend, double fp32_peak_gflops, const Workl
     if (lik_ms[i] > 0) rate.push_back(evals[i] / (lik_ms[i] * 1e-3) * 1e-9);
   }
   row.kernel_gevals_per_s = median(rate);
-#if defined(GMM_MCL_HAVE_CUDA)
-  if (fp32_peak_gflops > 0 && dynamic_cast<CudaBackend*>(backend)) {
-    row.peak_fraction = row.kernel_gevals_per_s * kCudaFlopsPerEvaluation / fp32_peak_gflops;
+  if (fp32_peak_gflops > 0 && device) {
+    row.peak_fraction =
+        row.kernel_gevals_per_s * device->deviceInfo().flops_per_evaluation / fp32_peak_gflops;
   }
-#else
-  (void)fp32_peak_gflops;
-#endif
   exactErrors(map, frames, fp, mp, checked, check_per_frame, &row);
   return row;
 }

@@ -82,11 +82,35 @@ void CommandLine::addLocalizerParams(LocalizerParams* values, const std::set<std
   table_values_ = values;
   for (const ParamSpec<LocalizerParams>& p : localizerParamTable()) {
     if (skip.count(p.name) || (!groups.empty() && !groups.count(p.group))) continue;
-    const std::string name = flagName(p.name);
-    std::string help =
-        p.help + " (" + p.defaultValue().toString() + (p.unit.empty() ? "" : " " + p.unit) + ")";
-    table_options_.add_options()(name.c_str(), po::value<std::string>(), help.c_str());
     table_flags_.insert(p.name);
+  }
+}
+
+void CommandLine::describeDefault(const std::string& param, const std::string& text) {
+  described_defaults_[param] = text;
+}
+
+void CommandLine::particleRangeByBackend(const std::string* backend) {
+  range_backend_ = backend;
+  int lowest, cpu_most, cuda_most;
+  defaultParticleRange("cpu", &lowest, &cpu_most);
+  defaultParticleRange("cuda", &lowest, &cuda_most);
+  describeDefault("num_particles", std::to_string(cpu_most) + " with the cpu backend, " +
+                                       std::to_string(cuda_most) + " with cuda");
+  describeDefault("min_particles", std::to_string(lowest) + ", at most --num-particles");
+}
+
+void CommandLine::addTableOptions() {
+  for (const ParamSpec<LocalizerParams>& p : localizerParamTable()) {
+    if (!table_flags_.count(p.name)) continue;
+    const auto described = described_defaults_.find(p.name);
+    const std::string shown =
+        described != described_defaults_.end()
+            ? described->second
+            : p.get(*table_values_).toString() + (p.unit.empty() ? "" : " " + p.unit);
+    const std::string name = flagName(p.name);
+    const std::string help = p.help + " (" + shown + ")";
+    table_options_.add_options()(name.c_str(), po::value<std::string>(), help.c_str());
   }
 }
 
@@ -117,6 +141,7 @@ void CommandLine::fail(const std::string& why) const {
 }
 
 void CommandLine::parse(int argc, char** argv) {
+  if (table_values_) addTableOptions();
   std::vector<std::string> args;
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
@@ -182,6 +207,13 @@ void CommandLine::parse(int argc, char** argv) {
     if (why.empty()) why = p.check(v);
     if (!why.empty()) fail("--" + name + ": " + why);
     p.set(table_values_, v);
+  }
+  if (range_backend_) {
+    int default_min, default_max;
+    defaultParticleRange(*range_backend_, &default_min, &default_max);
+    ParticleFilterParams& f = table_values_->filter;
+    if (!given("num-particles")) f.num_particles = default_max;
+    if (!given("min-particles")) f.min_particles = std::min(default_min, f.num_particles);
   }
 }
 

@@ -43,7 +43,11 @@ Localizer::Localizer(const LocalizerParams& params, GmmMap map,
       backend_(std::move(backend)),
       region_(params.init) {
   if (map_.empty()) throw std::invalid_argument("localizer: the map is empty");
-  if (!backend_) backend_ = makeBackend(params_.backend, &backend_warning_);
+  if (!backend_) {
+    BackendOptions options;
+    options.cuda = params_.cuda;
+    backend_ = makeBackend(params_.backend, &backend_warning_, options);
+  }
   prepareMap();
   std::string why;
   filter_ = makeParticleFilter(params_.filter, backend_.get(), params_.device_filter, &why);
@@ -69,10 +73,15 @@ void Localizer::prepareMap() {
 
 void Localizer::setParams(const LocalizerParams& params) {
   validated(params);
+  const CudaTuningParams &c = params.cuda, &c0 = params_.cuda;
   if (params.backend != params_.backend || params.filter.seed != params_.filter.seed ||
-      params.device_filter != params_.device_filter) {
+      params.device_filter != params_.device_filter || c.likelihood_shape != c0.likelihood_shape ||
+      c.stage_members != c0.stage_members || c.band_patches != c0.band_patches ||
+      c.view_cull_min_pairs != c0.view_cull_min_pairs ||
+      c.membership_pass_words != c0.membership_pass_words || c.place_groups != c0.place_groups) {
     throw std::invalid_argument(
-        "localizer parameters: backend, device_filter and seed are fixed at construction");
+        "localizer parameters: backend, device_filter, seed and the cuda_* tuning are fixed at "
+        "construction");
   }
   const MeasurementParams& m = params.measurement;
   const MeasurementParams& m0 = params_.measurement;

@@ -359,6 +359,44 @@ void addBackendParams(ParamTable<P>* t) {
                       "every frame (reported in /diagnostics)"));
 }
 
+// The CUDA backend's kernel tuning (docs/cuda_backend.md): the measured choices unless set.
+void addCudaParams(ParamTable<P>* t) {
+  const char* g = "cuda";
+  {
+    ParamSpec<P> p = paramSpec<P>(
+        "cuda_likelihood_shape", GMM_MCL_PARAM_FIELD(P, cuda.likelihood_shape), "", g, {}, kStartup,
+        "The cuda backend's likelihood kernel shape, pixel groups x pixels per group; auto: by "
+        "the largest patch (8x2 up to 16 px, 32x2 up to 64 px, else 32x4)");
+    p.choices = {"auto", "32x4", "32x2", "32x1", "16x4", "16x2",
+                 "16x1", "8x4",  "8x2",  "8x1",  "4x4",  "4x2"};
+    add(t, p);
+  }
+  {
+    ParamSpec<P> p = paramSpec<P>(
+        "cuda_stage_members", GMM_MCL_PARAM_FIELD(P, cuda.stage_members), "", g, {}, kStartup,
+        "The cuda backend stages the members' records in shared memory once per patch (32x4 "
+        "only); auto: for patches of more than 128 px");
+    p.choices = {"auto", "on", "off"};
+    add(t, p);
+  }
+  add(t, paramSpec<P>("cuda_band_patches", GMM_MCL_PARAM_FIELD(P, cuda.band_patches), "", g,
+                      {0, 1e6}, kStartup,
+                      "Patches per work item of the cuda backend's likelihood kernel (0: 10)"));
+  add(t, paramSpec<P>("cuda_view_cull_min_pairs", GMM_MCL_PARAM_FIELD(P, cuda.view_cull_min_pairs),
+                      "", g, {0, 1e15}, kStartup,
+                      "The cuda backend culls the map to the particles' views from this many "
+                      "(particle, component) pairs per update on (0: always)"));
+  add(t, paramSpec<P>("cuda_membership_pass_words",
+                      GMM_MCL_PARAM_FIELD(P, cuda.membership_pass_words), "", g, {0, 1e6}, kStartup,
+                      "Bitmask words per pass of the cuda backend's membership kernel where the "
+                      "visible components need more (0: always one pass)"));
+  add(t, paramSpec<P>("cuda_place_groups", GMM_MCL_PARAM_FIELD(P, cuda.place_groups), "", g, {},
+                      kStartup,
+                      "The cuda backend evaluates a cloud spread over a large map (20,000 "
+                      "components or more) group by group of places, each over its own view "
+                      "(experimental: not yet measured on a GPU)"));
+}
+
 }  // namespace
 
 const ParamTable<LocalizerParams>& localizerParamTable() {
@@ -374,6 +412,7 @@ const ParamTable<LocalizerParams>& localizerParamTable() {
     addRefinementParams(&t);
     addInitParams(&t);
     addBackendParams(&t);
+    addCudaParams(&t);
     return t;
   }();
   return table;

@@ -1,16 +1,11 @@
 #include <stdexcept>
 
 #include "gmm_mcl/filter/particle_filter.h"
+#if defined(GMM_MCL_HAVE_CUDA)
+#include "cuda/cuda_factory.h"  // src/backend/cuda/
+#endif
 
 namespace gmm_mcl {
-
-#if defined(GMM_MCL_HAVE_CUDA)
-// Defined in src/filter/cuda/: the device filter on the CUDA backend's device and stream; nullptr
-// when the backend is not the CUDA backend. Throws BackendError when the device cannot hold the
-// set.
-std::unique_ptr<ParticleFilterBase> makeCudaParticleFilter(const ParticleFilterParams& params,
-                                                           LikelihoodBackend* backend);
-#endif
 
 std::unique_ptr<ParticleFilterBase> makeParticleFilter(const ParticleFilterParams& params,
                                                        LikelihoodBackend* backend, bool device,

@@ -290,8 +290,9 @@ bool LocalizationNodelet::onGlobalLocalization(std_srvs::Empty::Request&,
 
 bool LocalizationNodelet::onLoadMap(LoadMap::Request& req, LoadMap::Response& res) {
   const std::string path = req.path.empty() ? opts_.map_path : req.path;
+  std::string summary;
   try {
-    localizer_->setMap(loadMap(path));
+    localizer_->setMap(loadNodeMap(path, opts_, &summary));  // a cloud: fitted or its cache
   } catch (const std::exception& e) {
     res.message = "map not loaded, the previous one is kept: " + std::string(e.what());
     NODELET_ERROR("gmm_mcl: %s", res.message.c_str());
@@ -302,8 +303,7 @@ bool LocalizationNodelet::onLoadMap(LoadMap::Request& req, LoadMap::Response& re
   markers_.set(localizer_->map(), opts_.map_frame);
   res.success = true;
   res.components = static_cast<int32_t>(localizer_->map().size());
-  res.message =
-      "loaded " + std::to_string(res.components) + " components from " + path + "; particles kept";
+  res.message = "loaded: " + summary + "; particles kept";
   NODELET_INFO("gmm_mcl: %s", res.message.c_str());
   return true;
 }

@@ -22,8 +22,20 @@ void addNodeOptions(ParamTable<R>* t) {
   const char* g = "node";
   add(t, paramSpec<R>(
              "map", GMM_MCL_PARAM_FIELD(R, map_path), "", g, {}, kStartup,
-             "The GMM map file (gmm_mcl_fit's format); required. ~reload_map loads another one "
-             "while running"));
+             "The map: a GMM map file (gmm_mcl_fit's format), or a point cloud or mesh (.pcd, "
+             ".ply, .xyz, .txt) fitted on load with the map builder's defaults and cached beside "
+             "it as MAP.fit-KEY.gmm; required. ~reload_map loads another one while running"));
+  add(t, paramSpec<R>("map_fit_components", GMM_MCL_PARAM_FIELD(R, map_fit_components), "", g,
+                      {0, 1e7}, kStartup,
+                      "A cloud given as the map: its component count; 0: from its surface (10 per "
+                      "m^2, at least 10)"));
+  add(t, paramSpec<R>("map_fit_time_limit", GMM_MCL_PARAM_FIELD(R, map_fit_time_limit_s), "s", g,
+                      {1, 86400}, kStartup,
+                      "A cloud given as the map whose fit is estimated to take longer is refused "
+                      "(fit it offline with gmm_mcl_fit)"));
+  add(t, paramSpec<R>("map_fit_cache", GMM_MCL_PARAM_FIELD(R, map_fit_cache), "", g, {}, kStartup,
+                      "A cloud given as the map: read and write its fitted map beside it (keyed "
+                      "by the cloud's content and the fit parameters)"));
   add(t, paramSpec<R>("map_frame", GMM_MCL_PARAM_FIELD(R, map_frame), "", g, {}, kStartup,
                       "Frame of the map, the pose and the published transform"));
   add(t, paramSpec<R>("odom_frame", GMM_MCL_PARAM_FIELD(R, odom_frame), "", g, {}, kStartup,

@@ -2,12 +2,14 @@
 
 #include <XmlRpcValue.h>
 #include <dynamic_reconfigure/config_tools.h>
+#include <ros/console.h>
 #include <ros/param.h>
 
 #include <cmath>
 #include <set>
 #include <sstream>
 
+#include "gmm_mcl/fit/fit_on_load.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 
 namespace gmm_mcl {
@@ -205,10 +207,38 @@ std::string loadRosParams(const ros::NodeHandle& pnh, LocalizerParams* core, Ros
   return faults + ros->validate() + core->validate();
 }
 
+GmmMap loadNodeMap(const std::string& path, const RosOptions& ros, std::string* summary) {
+#ifdef GMM_MCL_HAVE_FIT_ON_LOAD
+  FitOnLoadLog log;
+  log.info = [](const std::string& s) { ROS_INFO("gmm_mcl: %s", s.c_str()); };
+  log.warn = [](const std::string& s) { ROS_WARN("gmm_mcl: %s", s.c_str()); };
+  FitOnLoadParams params;
+  params.components = ros.map_fit_components;
+  params.time_limit_s = ros.map_fit_time_limit_s;
+  params.cache = ros.map_fit_cache;
+  FitOnLoadResult r = loadOrFitMap(path, params, log);
+  if (r.from_cache) log.info(r.summary);  // a fit logs its own lines
+  *summary = r.summary;
+  return std::move(r.map);
+#else
+  if (isCloudMapPath(path)) {
+    throw MapError(path +
+                   ": a point cloud or mesh as the map needs the map builder, which this "
+                   "build leaves out (GMM_MCL_BUILD_FIT=OFF): fit it with gmm_mcl_fit and "
+                   "give the .gmm file");
+  }
+  (void)ros;
+  GmmMap map = loadMap(path);
+  *summary = std::to_string(map.size()) + " components from " + path;
+  return map;
+#endif
+}
+
 std::unique_ptr<Localizer> makeLocalizer(LocalizerParams* core, const RosOptions& ros,
                                          std::string* error) {
   try {
-    GmmMap map = loadMap(ros.map_path);
+    std::string summary;
+    GmmMap map = loadNodeMap(ros.map_path, ros, &summary);
     if (ros.init_from_map_bounds) core->init = mapBounds(map);
     return std::make_unique<Localizer>(*core, std::move(map));
   } catch (const std::exception& e) {

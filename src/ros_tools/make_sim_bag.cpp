@@ -35,7 +35,8 @@ const char* kUsage =
     "usage: gmm_mcl_make_sim_bag --bag FILE [--map FILE] [--params FILE] [--frames N]\n"
     "                            [--width PX] [--seed S] [--encoding 16UC1|32FC1]\n"
     "                            [--start-time S] [--init-half-extent M]\n"
-    "                            [--init-yaw-half-range RAD] [--compressed] [--cloud] [--quiet]\n"
+    "                            [--init-yaw-half-range RAD] [--compressed] [--cloud]\n"
+    "                            [--save-mesh FILE.ply] [--quiet]\n"
     "Topics: /camera/depth/image_raw, /camera/depth/camera_info, /imu/data, /odom, /tf,\n"
     "/tf_static, /ground_truth (base pose in map); --compressed adds\n"
     "/camera/depth/image_raw/compressedDepth, --cloud /camera/depth/points (organized).\n"
@@ -47,6 +48,7 @@ struct Options {
   uint64_t seed = 1;
   double start_s = 1000.0, init_half_extent_m = 0.5, init_yaw_half_range_rad = 0.3;
   std::string bag_path, map_path, params_path, encoding = "16UC1";
+  std::string mesh_path;  // the scene as a triangle mesh (a map given as a mesh: cloud_map.test)
   bool quiet = false, compressed = false, cloud = false;
 };
 
@@ -60,7 +62,7 @@ Options parseOptions(int argc, char** argv) {
             {"encoding", &o.encoding}, {"start-time", &o.start_s},
             {"init-half-extent", &o.init_half_extent_m},
             {"init-yaw-half-range", &o.init_yaw_half_range_rad}, {"quiet", &o.quiet},
-            {"compressed", &o.compressed}, {"cloud", &o.cloud}});
+            {"compressed", &o.compressed}, {"cloud", &o.cloud}, {"save-mesh", &o.mesh_path}});
   // clang-format on
   cl.parse(argc, argv);
   if (o.bag_path.empty()) cl.fail("--bag is needed");
@@ -158,6 +160,12 @@ int run(int argc, char** argv) {
   const sim::BoxScene scene = sim::makeDefaultScene();
   const GmmMap map = sim::tileScene(scene, 0.4, 0.015);
   saveMap(map, o.map_path);
+  if (!o.mesh_path.empty()) {
+    sim::PrimitiveScene boxes;
+    boxes.room = scene.room;
+    boxes.boxes = scene.blocks;
+    sim::savePlyMesh(sim::meshFromScene(boxes), o.mesh_path);
+  }
   const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(o.frames);
   const Eigen::Isometry3d T_base_cam = sim::defaultBaseToCamera();
   const Intrinsics K = sim::defaultCamera(o.width_px);

@@ -39,7 +39,7 @@ namespace {
 
 const char* kUsage =
     "usage: gmm_mcl_replay_bag BAG --map MAP.gmm [--out DIR] [--seed S] [--frames N]\n"
-    "  [--particles N] [--stride PX] [--max-range-m M (4)] [--weighting paper|tempered]\n"
+    "  [--num-particles N] [--pixel-stride PX] [--max-range-m M (4)] [--weighting paper|tempered]\n"
     "  [--init-half-extent M (2)] [--init-yaw-half-range RAD (pi/2)] (around the true start;\n"
     "   without ground truth the whole map)\n"
     "  [--depth-topic T (/camera/depth/image_raw)] [--info-topic T (.../camera_info)]\n"
@@ -62,7 +62,7 @@ struct Options {
   std::string depth_topic = "/camera/depth/image_raw", info_topic, cloud_topic;
   std::string imu_topic = "/imu/data", odom_topic = "/odom", truth_topic = "/ground_truth";
   std::string odom_frame = "odom", base_frame = "base_link", marker_to_camera;
-  int frames = -1, particles = kDefaultParticleCount, stride = 4;
+  int frames = -1;
   uint64_t seed = 1;
   double init_half_extent_m = 2.0, init_yaw_half_range_rad = 0.5 * M_PI;
   bool quiet = false;
@@ -77,7 +77,7 @@ Options parseOptions(int argc, char** argv) {
   cli::CommandLine cl("gmm_mcl_replay_bag", kUsage);
   // clang-format off
   cl.flags({{"bag", &o.bag_path}, {"map", &o.map_path}, {"out", &o.out_dir}, {"seed", &o.seed},
-            {"frames", &o.frames}, {"particles", &o.particles}, {"stride", &o.stride},
+            {"frames", &o.frames},
             {"init-half-extent", &o.init_half_extent_m},
             {"init-yaw-half-range", &o.init_yaw_half_range_rad}, {"depth-topic", &o.depth_topic},
             {"info-topic", &o.info_topic}, {"cloud-topic", &o.cloud_topic},
@@ -86,9 +86,11 @@ Options parseOptions(int argc, char** argv) {
             {"marker-to-camera", &o.marker_to_camera}, {"odom-frame", &o.odom_frame},
             {"base-frame", &o.base_frame}, {"quiet", &o.quiet}, {"cow-and-lady", &cow_and_lady}});
   // clang-format on
-  cl.addLocalizerParams(&o.lp, {"num_particles", "pixel_stride", "seed", "init_centre",
-                                "init_half_extent", "init_yaw_centre", "init_yaw_half_range"});
+  cl.addLocalizerParams(
+      &o.lp, {"seed", "init_centre", "init_half_extent", "init_yaw_centre", "init_yaw_half_range"});
   cl.alias("max-range", "max-range-m");
+  cl.alias("stride", "pixel-stride");
+  cl.alias("particles", "num-particles");
   cl.positional("bag");
   cl.parse(argc, argv);
   if (cow_and_lady) {
@@ -273,8 +275,6 @@ int run(const Options& o) {
 
   const GmmMap map = loadMap(o.map_path);
   LocalizerParams lp = o.lp;
-  lp.filter.num_particles = o.particles;
-  lp.frame.pixel_stride = o.stride;
   lp.filter.seed = o.seed;
   lp.T_base_cam = tracks.T_base_cam;
   std::unique_ptr<Localizer> loc;
@@ -293,7 +293,7 @@ int run(const Options& o) {
       synth_attitude ? "truth + noise" : o.imu_topic.c_str(), tracks.truth.size(),
       o.truth_topic.c_str(),
       tracks.have_extrinsics ? ("/tf_static " + tracks.camera_frame).c_str() : "camera = base",
-      o.map_path.c_str(), map.size(), o.particles, o.stride,
+      o.map_path.c_str(), map.size(), lp.filter.num_particles, lp.frame.pixel_stride,
       static_cast<unsigned long long>(o.seed));
   double last_t = -1.0;
   int skipped = 0;

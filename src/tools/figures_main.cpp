@@ -39,7 +39,8 @@ double secondsSince(Clock::time_point t0) {
 }
 
 const char* kUsage =
-    "usage: gmm_mcl_figures nll-sweep   [common] [--frame F] [--stride PX] [--range-m R]\n"
+    "usage: gmm_mcl_figures nll-sweep   [common] [--frame F] [--pixel-stride PX (8)]\n"
+    "                                   [--range-m R]\n"
     "                                   [--step-m S] [--range-rad R] [--step-rad S] [--no-exact]\n"
     "       gmm_mcl_figures sensitivity [common] [--sweep particles|components|both]\n"
     "                                   [--particles-list 50,100,...] [--reference-particles N]\n"
@@ -47,7 +48,8 @@ const char* kUsage =
     "                                   [--component-particles N] [--component-reference-particles "
     "N]\n"
     "                                   [--runs R] [--frames F] [--first-frame F] [--eval-from F]\n"
-    "                                   [--stride PX] [--init local|global] [--data-seed S]\n"
+    "                                   [--pixel-stride PX (16)] [--init local|global]\n"
+    "                                   [--data-seed S]\n"
     "                                   [--max-iter I (component sweep fits, 30)]\n"
     "common: [--scene auto|7scenes|synthetic] [--dataset DIR] [--map MAP.gmm] [--width PX]\n"
     "        [--out DIR] [--quiet]\n"
@@ -118,7 +120,7 @@ void parseArgs(int argc, char** argv, Options* o) {
   // clang-format off
   cl.flags({{"command", &o->command}, {"scene", &o->scene}, {"dataset", &o->dataset},
            {"map", &o->map_path}, {"out", &o->out_dir}, {"width", &o->width_px},
-           {"quiet", &o->quiet}, {"frame", &o->frame}, {"stride", &o->stride},
+           {"quiet", &o->quiet}, {"frame", &o->frame}, {"pixel-stride", &o->stride},
            {"range-m", &o->sweep.half_range_m}, {"step-m", &o->sweep.step_m},
            {"range-rad", &o->sweep.half_range_rad}, {"step-rad", &o->sweep.step_rad},
            {"no-exact", cli::Clear{&o->sweep.exact}}, {"sweep", &o->which},
@@ -130,10 +132,11 @@ void parseArgs(int argc, char** argv, Options* o) {
            {"init", &o->init}, {"data-seed", &o->data_seed}, {"max-iter", &o->max_iter}});
   // clang-format on
   cl.positional("command");
+  cl.alias("stride", "pixel-stride");
   cl.parse(argc, argv);
   if (o->command.empty()) cl.fail("a command is needed (nll-sweep or sensitivity)");
   o->frame_given = cl.given("frame");
-  o->stride_given = cl.given("stride");
+  o->stride_given = cl.given("pixel-stride");
   auto list = [&cl](const char* flag, const std::string& text, std::vector<int>* out) {
     if (text.empty()) return;
     try {

@@ -23,7 +23,8 @@ namespace {
 const char* kUsage =
     "usage: gmm_mcl_kidnap [--scene synthetic|box|7scenes|tum|stanford] [--map MAP.gmm]\n"
     "                      [--dataset DIR]\n"
-    "                      [--trials N] [--first-seed S] [--stride PX] [--particles MAX]\n"
+    "                      [--trials N] [--first-seed S] [--pixel-stride PX (8)]\n"
+    "                      [--num-particles MAX]\n"
     "                      [--width PX] [--track-frames N] [--after-frames N] [--start-frame F]\n"
     "                      [--backend cpu|cuda]\n"
     "                      [--weighting paper|tempered] [--temperature T]\n"
@@ -49,7 +50,7 @@ int run(int argc, char** argv) {
   const char* env = std::getenv("GMM_MCL_DATASETS");
   std::string dataset =
       std::string(env && *env ? env : "../shared/datasets") + "/7scenes_redkitchen/data";
-  int trials = 10, stride = -1, particles = -1, min_particles = -1, width = 640;
+  int trials = 10, width = 640;
   uint64_t first_seed = 1;
   KidnapParams kp;
   bool lost_detector = true;
@@ -58,17 +59,19 @@ int run(int argc, char** argv) {
   cli::CommandLine cl("gmm_mcl_kidnap", kUsage);
   // clang-format off
   cl.flags({{"scene", &scene}, {"map", &map_path}, {"dataset", &dataset}, {"trials", &trials},
-           {"first-seed", &first_seed}, {"stride", &stride}, {"width", &width},
-           {"particles", &particles}, {"min-particles", &min_particles},
-           {"track-frames", &kp.track_frames}, {"after-frames", &kp.after_frames},
+           {"first-seed", &first_seed}, {"width", &width}, {"track-frames", &kp.track_frames}, {"after-frames", &kp.after_frames},
            {"start-frame", &kp.start_frame}, {"backend", &backend},
            {"attitude-noise", &attitude_noise_deg},
            {"no-lost-detector", cli::Clear{&lost_detector}}, {"out", &out_dir}, {"init", &init}});
   // clang-format on
-  cl.addLocalizerParams(&kp.localizer, {"num_particles", "min_particles", "pixel_stride", "backend",
-                                        "device_filter", "seed", "init_centre", "init_half_extent",
-                                        "init_yaw_centre", "init_yaw_half_range"});
+  kp.localizer.frame.pixel_stride = 8;
+  cl.addLocalizerParams(&kp.localizer,
+                        {"backend", "device_filter", "seed", "init_centre", "init_half_extent",
+                         "init_yaw_centre", "init_yaw_half_range"});
+  cl.particleRangeByBackend(&backend);
   cl.addDepthNoise(&kp.localizer.measurement.depth_noise);
+  cl.alias("stride", "pixel-stride");
+  cl.alias("particles", "num-particles");
   cl.parse(argc, argv);
   if (cl.given("attitude-noise")) kp.attitude_sigma_rad = attitude_noise_deg * M_PI / 180.0;
   if (init != "region" && init != "map") cl.fail("--init: region or map (got '" + init + "')");
@@ -78,14 +81,12 @@ int run(int argc, char** argv) {
     if (scene == "synthetic" || scene == "box") {
       const Intrinsics K = sim::defaultCamera(width);  // f = 585 px at 640 px, scaled
       src = scene == "box" ? makeBoxSceneSource(K, 1500) : makeSyntheticSource(K, 1500);
-      kp.localizer.frame.pixel_stride = stride > 0 ? stride : 8;
       if (!cl.given("max-range-m")) kp.localizer.frame.max_range_m = 8.f;
     } else if (scene == "7scenes" || scene == "tum" || scene == "stanford") {
       if (map_path.empty() || (scene != "7scenes" && dataset.empty())) {
         cl.fail("--scene " + scene + " needs --map" + (scene == "7scenes" ? "" : " and --dataset"));
       }
       src = makeSequenceSource(scene, dataset, map_path);
-      kp.localizer.frame.pixel_stride = stride > 0 ? stride : 8;
     } else {
       cl.fail("--scene: unknown scene '" + scene + "'");
     }
@@ -93,22 +94,17 @@ int run(int argc, char** argv) {
       std::fprintf(stderr, "--init map is for global localisation trials (--track-frames 0)\n");
       return 2;
     }
-    int default_min, default_max;  // the tools' defaults by backend (KLD-sampling range)
-    defaultParticleRange(backend, &default_min, &default_max);
-    if (particles < 0) particles = default_max;
-    if (min_particles < 0) min_particles = std::min(default_min, particles);
-    kp.localizer.filter.num_particles = particles;
-    kp.localizer.filter.min_particles = min_particles;
     kp.localizer.backend = backend;
     if (!lost_detector) kp.localizer.lost.margin_nats = 0.0;
     std::printf(
         "gmm_mcl kidnap: %s, %d..%d particles, stride %d, %s weighting, lost detector %s, "
         "%d tracked + %d frames after the kidnap; %d candidates per redrawn particle, "
         "redraw fraction %.2f, margin %.1f nats/px\n\n",
-        src->name().c_str(), min_particles, particles, kp.localizer.frame.pixel_stride,
-        weightingModeName(kp.localizer.filter.weighting), lost_detector ? "on" : "off",
-        kp.track_frames, kp.after_frames, kp.localizer.lost.candidates_per_particle,
-        kp.localizer.lost.reinit_fraction, kp.localizer.lost.margin_nats);
+        src->name().c_str(), kp.localizer.filter.min_particles, kp.localizer.filter.num_particles,
+        kp.localizer.frame.pixel_stride, weightingModeName(kp.localizer.filter.weighting),
+        lost_detector ? "on" : "off", kp.track_frames, kp.after_frames,
+        kp.localizer.lost.candidates_per_particle, kp.localizer.lost.reinit_fraction,
+        kp.localizer.lost.margin_nats);
     std::printf(
         "| seed | frames | jump (m) | yaw jump (deg) | error before (cm) | recovered in (s) "
         "| final error (cm) | ATE after (cm) | lost events | final best / reference (nats/px) "

@@ -25,8 +25,9 @@ namespace {
 
 const char* kUsage =
     "usage: gmm_mcl_replay --map MAP.gmm [--format 7scenes|tum|stanford] [--dataset DIR]\n"
-    "                      [--trials N] [--first-seed S] [--frames N] [--stride PX]\n"
-    "                      [--particles MAX] [--min-particles MIN] [--weighting paper|tempered]\n"
+    "                      [--trials N] [--first-seed S] [--frames N] [--pixel-stride PX]\n"
+    "                      [--num-particles MAX] [--min-particles MIN]\n"
+    "                      [--weighting paper|tempered]\n"
     "                      [--temperature T]\n"
     "                      [--backend cpu|cuda] [--host-filter]\n"
     "                      [--neff-floor-fraction F] [--init-half-extent M]\n"
@@ -114,8 +115,7 @@ struct Options {
   std::string dataset, map_path, out_dir, format = "7scenes";
   std::string backend = "cpu";
   std::vector<std::string> fixture, convert;
-  int trials = 10, frames = -1, stride = 4, particles = -1, width = 160;
-  int min_particles = -1, convert_stride = 1;
+  int trials = 10, frames = -1, width = 160, convert_stride = 1;
   uint64_t first_seed = 1;
   double init_half_extent_m = 2.0, init_yaw_half_range_rad = 0.5 * M_PI;
   SequenceOptions so;
@@ -131,9 +131,7 @@ Options parseOptions(int argc, char** argv, cli::CommandLine* cl_out) {
   cli::CommandLine& cl = *cl_out;
   // clang-format off
   cl.flags({{"map", &o.map_path}, {"dataset", &o.dataset}, {"trials", &o.trials},
-            {"first-seed", &o.first_seed}, {"frames", &o.frames}, {"stride", &o.stride},
-            {"particles", &o.particles}, {"min-particles", &o.min_particles},
-            {"backend", &o.backend}, {"out", &o.out_dir}, {"format", &o.format},
+            {"first-seed", &o.first_seed}, {"frames", &o.frames}, {"backend", &o.backend}, {"out", &o.out_dir}, {"format", &o.format},
             {"init-half-extent", &o.init_half_extent_m},
             {"init-yaw-half-range", &o.init_yaw_half_range_rad}, {"init", &o.init},
             {"width", &o.width}, {"hold-frames", &o.hold_frames}, {"tail-frames", &o.tail_frames},
@@ -141,11 +139,13 @@ Options parseOptions(int argc, char** argv, cli::CommandLine* cl_out) {
             {"make-fixture", &o.fixture}, {"quiet", &o.quiet}, {"host-filter", &o.host_filter}});
   // clang-format on
   cli::addSequenceFlags(&cl, &o.so);
-  cl.addLocalizerParams(
-      &o.lp, {"num_particles", "min_particles", "pixel_stride", "backend", "device_filter", "seed",
-              "init_centre", "init_half_extent", "init_yaw_centre", "init_yaw_half_range"});
+  cl.addLocalizerParams(&o.lp, {"backend", "device_filter", "seed", "init_centre",
+                                "init_half_extent", "init_yaw_centre", "init_yaw_half_range"});
+  cl.particleRangeByBackend(&o.backend);
   cl.addDepthNoise(&o.lp.measurement.depth_noise);
   cl.alias("seed", "first-seed");
+  cl.alias("stride", "pixel-stride");
+  cl.alias("particles", "num-particles");
   cl.parse(argc, argv);
   if (o.fixture.size() == 1 || o.fixture.size() > 2) cl.fail("--make-fixture: expected FORMAT DIR");
   if (o.convert.size() == 1 || o.convert.size() > 2) cl.fail("--convert: expected FORMAT DIR");
@@ -174,26 +174,18 @@ int convertSequence(const Sequence& seq, const Options& o) {
   return 0;
 }
 
-// The replay's parameters from the options (*o's particle counts: the backend's defaults where
-// not given).
-ReplayParams replayParams(Options* o) {
+// The replay's parameters from the options.
+ReplayParams replayParams(const Options& o) {
   ReplayParams rp;
-  rp.max_frames = o->frames;
-  rp.init_half_extent_m = o->init_half_extent_m;
-  rp.init_yaw_half_range_rad = o->init_yaw_half_range_rad;
-  if (o->hold_frames > 0) rp.evaluation.hold_frames = o->hold_frames;
-  if (o->tail_frames > 0) rp.evaluation.tail_frames = o->tail_frames;
-  rp.whole_map_start = o->init == "map";
-  rp.localizer = o->lp;
-  int default_min, default_max;
-  defaultParticleRange(o->backend, &default_min, &default_max);
-  if (o->particles < 0) o->particles = default_max;
-  if (o->min_particles < 0) o->min_particles = std::min(default_min, o->particles);
-  rp.localizer.filter.num_particles = o->particles;
-  rp.localizer.filter.min_particles = o->min_particles;
-  rp.localizer.backend = o->backend;
-  rp.localizer.device_filter = !o->host_filter;
-  rp.localizer.frame.pixel_stride = o->stride;
+  rp.max_frames = o.frames;
+  rp.init_half_extent_m = o.init_half_extent_m;
+  rp.init_yaw_half_range_rad = o.init_yaw_half_range_rad;
+  if (o.hold_frames > 0) rp.evaluation.hold_frames = o.hold_frames;
+  if (o.tail_frames > 0) rp.evaluation.tail_frames = o.tail_frames;
+  rp.whole_map_start = o.init == "map";
+  rp.localizer = o.lp;
+  rp.localizer.backend = o.backend;
+  rp.localizer.device_filter = !o.host_filter;
   return rp;
 }
 
@@ -208,11 +200,14 @@ void printSettings(const Sequence& seq, const GmmMap& map, const ReplayParams& r
       "stride %d, %s weighting (T %.3g, Neff floor %.2f), %s backend with the particle "
       "set %s, %d trials from seed %llu\n",
       o.dataset.c_str(), seq.format(), seq.size(), K.width_px, K.height_px, K.fx_px, K.fy_px,
-      K.cx_px, K.cy_px, seq.gravitySource().c_str(), o.map_path.c_str(), map.size(), o.particles,
-      o.min_particles > 0 ? o.min_particles : o.particles, o.init == "map" ? "whole map" : "cube",
-      measurement.depth_noise.a_m, measurement.depth_noise.b_per_m, measurement.depth_noise.z0_m,
-      o.stride, weightingModeName(rp.localizer.filter.weighting), rp.localizer.filter.temperature,
-      rp.localizer.filter.neff_floor_fraction, o.backend.c_str(),
+      K.cx_px, K.cy_px, seq.gravitySource().c_str(), o.map_path.c_str(), map.size(),
+      rp.localizer.filter.num_particles,
+      rp.localizer.filter.min_particles > 0 ? rp.localizer.filter.min_particles
+                                            : rp.localizer.filter.num_particles,
+      o.init == "map" ? "whole map" : "cube", measurement.depth_noise.a_m,
+      measurement.depth_noise.b_per_m, measurement.depth_noise.z0_m,
+      rp.localizer.frame.pixel_stride, weightingModeName(rp.localizer.filter.weighting),
+      rp.localizer.filter.temperature, rp.localizer.filter.neff_floor_fraction, o.backend.c_str(),
       o.backend == "cuda" && !o.host_filter ? "on the GPU" : "on the host", o.trials,
       static_cast<unsigned long long>(o.first_seed));
   std::fflush(stdout);
@@ -348,7 +343,7 @@ int run(Options o, const cli::CommandLine& cl) {
     std::fprintf(stderr, "--init: cube or map (got '%s')\n", o.init.c_str());
     return 2;
   }
-  const ReplayParams rp = replayParams(&o);
+  const ReplayParams rp = replayParams(o);
   if (!o.out_dir.empty()) mkdir(o.out_dir.c_str(), 0755);
   printSettings(seq, map, rp, o);
   const std::vector<DepthImage> depth = decodeAll(seq, o.quiet);

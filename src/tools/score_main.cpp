@@ -29,7 +29,8 @@ namespace {
 
 const char* kUsage =
     "usage: gmm_mcl_score --map MAP.gmm [--format 7scenes|tum|stanford] [--dataset DIR]\n"
-    "                     [--frame I] [--pose X,Y,Z,YAW] [--stride PX] [--depth-noise A,B,Z0]\n"
+    "                     [--frame I] [--pose X,Y,Z,YAW] [--pixel-stride PX (8)]\n"
+    "                     [--depth-noise A,B,Z0]\n"
     "                     [--floor-log-density NATS] [--min-range-m M] [--max-range-m M]\n"
     "                     [--gravity G]\n"
     "                     [--per-pixel OUT.csv] [--refine] [--frames FIRST:LAST:STEP]\n"
@@ -149,9 +150,10 @@ Options parseOptions(int argc, char** argv) {
   cl.flags({{"map", &o.map_path}, {"format", &o.format}, {"dataset", &o.dataset},
             {"gravity", &o.so.gravity}, {"per-pixel", &o.per_pixel_path}, {"frame", &o.frame_index},
             {"attitude-noise", &attitude_noise_deg}, {"frames", &frames_text},
-            {"stride", &o.lp.frame.pixel_stride}, {"pose", &pose_text}, {"refine", &o.refine}});
+            {"pose", &pose_text}, {"refine", &o.refine}});
   // clang-format on
-  cl.addLocalizerParams(&o.lp, {"pixel_stride"}, {"frame", "measurement"});
+  cl.addLocalizerParams(&o.lp, {}, {"frame", "measurement"});
+  cl.alias("stride", "pixel-stride");
   cl.addDepthNoise(&o.lp.measurement.depth_noise);
   cl.parse(argc, argv);
   o.attitude_noise_rad = attitude_noise_deg * M_PI / 180.0;

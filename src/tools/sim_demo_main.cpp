@@ -25,7 +25,8 @@ namespace gmm_mcl {
 namespace {
 
 const char* kUsage =
-    "usage: gmm_mcl_sim_demo [--frames N] [--particles N] [--seed S] [--stride PX]\n"
+    "usage: gmm_mcl_sim_demo [--frames N] [--num-particles N (1068)] [--seed S]\n"
+    "                        [--pixel-stride PX (8)]\n"
     "                        [--weighting paper|tempered] [--temperature T] [--backend cpu|cuda]\n"
     "                        [--width PX] [--map-spacing M] [--map-normal-sigma M]\n"
     "                        [--scene mesh|box] [--no-sensor-noise] [--save-map FILE]\n"
@@ -35,7 +36,7 @@ const char* kUsage =
 }  // namespace
 
 int run(int argc, char** argv) {
-  int frames = 300, particles = kDefaultParticleCount, stride = 8;
+  int frames = 300;
   double spacing_m = 0.4, normal_sigma_m = 0.015;
   int width_px = 640;
   uint64_t seed = 1;
@@ -44,14 +45,16 @@ int run(int argc, char** argv) {
   LocalizerParams params;
   cli::CommandLine cl("gmm_mcl_sim_demo", kUsage);
   // clang-format off
-  cl.flags({{"frames", &frames}, {"particles", &particles}, {"seed", &seed}, {"stride", &stride},
+  cl.flags({{"frames", &frames}, {"seed", &seed},
            {"map-spacing", &spacing_m}, {"map-normal-sigma", &normal_sigma_m}, {"width", &width_px},
            {"backend", &backend}, {"save-map", &save_map}, {"scene", &scene_name},
            {"no-sensor-noise", cli::Clear{&sensor_noise}}, {"save-mesh", &save_mesh},
            {"quiet", &quiet}});
   // clang-format on
-  cl.addLocalizerParams(&params, {"num_particles", "seed", "pixel_stride", "backend", "init_centre",
-                                  "init_yaw_centre"});
+  params.frame.pixel_stride = 8;
+  cl.addLocalizerParams(&params, {"seed", "backend", "init_centre", "init_yaw_centre"});
+  cl.alias("stride", "pixel-stride");
+  cl.alias("particles", "num-particles");
   cl.parse(argc, argv);
 
   if (scene_name != "mesh" && scene_name != "box") {
@@ -75,9 +78,7 @@ int run(int argc, char** argv) {
   const Eigen::Isometry3d T_base_cam = sim::defaultBaseToCamera();
   const Intrinsics K = sim::defaultCamera(width_px);
 
-  params.filter.num_particles = particles;
   params.filter.seed = seed;
-  params.frame.pixel_stride = stride;
   if (!cl.given("max-range-m")) params.frame.max_range_m = 6.0f;
   params.T_base_cam = T_base_cam;
   params.backend = backend;
@@ -91,9 +92,10 @@ int run(int argc, char** argv) {
   std::printf(
       "gmm_mcl demo: synthetic %s scene, %zu components, %d particles, %dx%d depth, stride %d, "
       "%s weighting, %s backend, seed %llu\n",
-      mesh_scene ? "mesh (boxes and cylinders)" : "box", map.size(), particles, K.width_px,
-      K.height_px, stride, weightingModeName(params.filter.weighting),
-      localizer.backend().name().c_str(), static_cast<unsigned long long>(seed));
+      mesh_scene ? "mesh (boxes and cylinders)" : "box", map.size(), params.filter.num_particles,
+      K.width_px, K.height_px, params.frame.pixel_stride,
+      weightingModeName(params.filter.weighting), localizer.backend().name().c_str(),
+      static_cast<unsigned long long>(seed));
 
   // Odometry and attitude noise per the DESIGN.md protocol; depth noise seeded per frame.
   OdometrySynthesizer motion(ProtocolNoise(), seed + 1000);

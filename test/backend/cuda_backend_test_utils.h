@@ -8,7 +8,7 @@
 #include <random>
 #include <string>
 
-#include "gmm_mcl/backend/cuda_backend.h"
+#include "cuda/cuda_backend.h"
 #include "gmm_mcl/sim/box_scene.h"
 #include "test_utils/synthetic_fixtures.h"
 

@@ -12,11 +12,12 @@
 #include <string>
 
 #include "backend/cuda_backend_test_utils.h"
+#include "cuda/cuda_backend.h"
 #include "gmm_mcl/backend/cpu_backend.h"
-#include "gmm_mcl/backend/cuda_backend.h"
 #include "gmm_mcl/bench/frame_set.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/filter/pose_refinement.h"
+#include "gmm_mcl/map/gmm_map.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/measurement/likelihood.h"
 #include "gmm_mcl/measurement/normal_equations.h"
@@ -148,6 +149,45 @@ TEST_F(CudaBackendTest, SyntheticSceneMatchesCpu) {
       expectSameMembership(w.map, frame, some, &cpu, gpu.get(), label.c_str());
     }
   }
+}
+
+// A cloud spread over a building (a start from a uniform cloud): with cuda_place_groups the CUDA
+// backend evaluates it group by group of poses by place, each over the components its own views
+// can see, and gives the CPU backend's per-particle log-likelihoods (in particle order) and
+// visible count.
+TEST_F(CudaBackendTest, CloudSpreadOverABuildingMatchesCpu) {
+  const auto& w = test::world();
+  const GmmMap building = tiledMap(w.map, 5, 5, 14.0);  // M about 27,000: the grid's path
+  ASSERT_GE(building.size(), 20000u);
+  CudaTuningParams tuning;
+  tuning.place_groups = true;
+  gpu = std::make_unique<CudaBackend>(0, tuning);
+  CpuBackend cpu;
+  cpu.setMap(building);
+  gpu->setMap(building);
+  const Eigen::Isometry3d T_map_base = test::referenceBasePose();
+  const DepthFrame frame = test::renderFrame(T_map_base, test::smallCamera(), test::frameParams(8));
+  // 64 poses about the truth, then 448 anywhere in the building at the camera's height, in an
+  // order that mixes the places (the results must come back to each particle's index).
+  std::vector<RigidTransformF> poses = perturbedPoses(T_map_base * w.T_base_cam, 64, 3u);
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> xy(-3.0, 4 * 14.0 + 3.0), yaw(-M_PI, M_PI);
+  for (int i = 0; i < 448; ++i) {
+    Eigen::Isometry3d T = T_map_base;
+    T.translation().x() = xy(rng);
+    T.translation().y() = xy(rng);
+    T.linear() = Eigen::AngleAxisd(yaw(rng), Eigen::Vector3d::UnitZ()) * T_map_base.linear();
+    poses.insert(poses.begin() + (i * 7) % (poses.size() + 1), toRigidF(T * w.T_base_cam));
+  }
+  expectSameLikelihood(building, frame, poses, &cpu, gpu.get(), "building, spread cloud");
+  BackendOutput a, b;
+  const MeasurementParams mp;
+  cpu.evaluate(frame, poses, mp, &a);
+  gpu->evaluate(frame, poses, mp, &b);
+  std::printf("[ measured ] building, spread cloud: visible components cpu %d cuda %d of %zu\n",
+              a.visible_components, b.visible_components, building.size());
+  EXPECT_NEAR(b.visible_components, a.visible_components, 0.01 * a.visible_components + 2);
+  EXPECT_LT(b.visible_components, static_cast<int>(building.size()));
 }
 
 // The pose refinement's pixel sums on the GPU (float per pair, double per block) match the host's

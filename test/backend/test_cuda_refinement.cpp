@@ -11,8 +11,8 @@
 #include <string>
 
 #include "backend/cuda_backend_test_utils.h"
+#include "cuda/cuda_backend.h"
 #include "gmm_mcl/backend/cpu_backend.h"
-#include "gmm_mcl/backend/cuda_backend.h"
 #include "gmm_mcl/bench/frame_set.h"
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/filter/pose_refinement.h"

@@ -16,9 +16,9 @@
 #include <utility>
 #include <vector>
 
+#include "cuda/cuda_backend.h"
+#include "cuda/cuda_particle_filter.h"
 #include "gmm_mcl/backend/cpu_backend.h"
-#include "gmm_mcl/backend/cuda_backend.h"
-#include "gmm_mcl/filter/cuda_particle_filter.h"
 #include "gmm_mcl/filter/particle_filter.h"
 #include "gmm_mcl/internal/particle_math.h"
 #include "gmm_mcl/sim/box_scene.h"

@@ -16,7 +16,7 @@
 #include <thread>
 #include <vector>
 
-#include "gmm_mcl/backend/cuda_backend.h"
+#include "cuda/cuda_backend.h"
 #include "gmm_mcl/filter/localizer.h"
 #include "gmm_mcl/sim/box_scene.h"
 #include "test_utils/synthetic_fixtures.h"

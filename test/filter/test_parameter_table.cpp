@@ -130,10 +130,36 @@ TEST(ParameterTableTest, RuntimeParametersAreAcceptedBySetParams) {
     if (p.runtime) {
       EXPECT_NO_THROW(loc.setParams(q)) << p.name;
       EXPECT_EQ(p.get(loc.params()), p.get(q)) << p.name;
-    } else if (p.name == "backend" || p.name == "seed" || p.name == "device_filter") {
+    } else if (p.name == "backend" || p.name == "seed" || p.name == "device_filter" ||
+               p.group == "cuda") {
       EXPECT_THROW(loc.setParams(q), std::invalid_argument) << p.name;
     }
   }
+}
+
+// The CUDA backend's tuning is the table's "cuda" group, start-up only, its defaults those of
+// CudaTuningParams (the choices measured on an H100, docs/cuda_backend.md).
+TEST(ParameterTableTest, CudaTuningIsAStartupGroup) {
+  const CudaTuningParams defaults;
+  int count = 0;
+  for (const auto& p : localizerParamTable()) {
+    if (p.group != "cuda") continue;
+    ++count;
+    EXPECT_FALSE(p.runtime) << p.name;
+    EXPECT_EQ(p.name.compare(0, 5, "cuda_"), 0) << p.name;
+  }
+  EXPECT_EQ(count, 6);
+  const LocalizerParams lp;
+  EXPECT_EQ(findParam(localizerParamTable(), "cuda_likelihood_shape")->get(lp).s,
+            defaults.likelihood_shape);
+  EXPECT_EQ(findParam(localizerParamTable(), "cuda_view_cull_min_pairs")->get(lp).i,
+            defaults.view_cull_min_pairs);
+  EXPECT_EQ(defaults.likelihood_shape, "auto");
+  EXPECT_EQ(defaults.stage_members, "auto");
+  EXPECT_EQ(defaults.band_patches, 0);
+  EXPECT_EQ(defaults.view_cull_min_pairs, 2000000);
+  EXPECT_EQ(defaults.membership_pass_words, 32);
+  EXPECT_FALSE(defaults.place_groups);  // until measured on a GPU
 }
 
 }  // namespace

@@ -7,7 +7,7 @@ if(NOT rc EQUAL 0)
   message(FATAL_ERROR "--make-fixture failed (${rc})")
 endif()
 execute_process(COMMAND ${TOOL} --format tum --dataset ${WORK}/tum --map ${WORK}/tum/map.gmm
-                        --trials 1 --particles 300 --init-half-extent 0.5
+                        --trials 1 --num-particles 300 --init-half-extent 0.5
                         --init-yaw-half-range 0.3 --hold-frames 15 --tail-frames 30
                         --out ${WORK}/out --quiet
                 RESULT_VARIABLE rc OUTPUT_VARIABLE out)

@@ -4,6 +4,8 @@
 # source tree and the build folder are nowhere on the paths):
 #  - every tool and the core library resolve (each tool prints its usage; no missing shared
 #    library), and the nodes are installed;
+#  - a program on the umbrella header gmm_mcl/gmm_mcl.h compiles against the installed headers
+#    alone and runs against the installed core; internal/ and private headers are not installed;
 #  - localization.launch loads the nodelet from the install space into a manager, and its
 #    services and messages answer from Python (rosservice call, rostopic type, rosmsg);
 #  - replay.launch plays a bag written by the installed gmm_mcl_make_sim_bag, and removes
@@ -70,6 +72,40 @@ for node in gmm_mcl_node gmm_mcl_ground_truth_odometry gmm_mcl_soak_publisher; d
   [ -x "$PREFIX/lib/gmm_mcl/$node" ] || fail "$node is not in the install space"
 done
 echo "tools: ${TOOLS[*]} run"
+
+# The API (docs/architecture.md): the umbrella header compiles against the installed headers
+# alone and a program on it links and runs against the installed core; internal/, the CUDA parts'
+# headers and those of the static libraries are not installed.
+[ -f "$PREFIX/include/gmm_mcl/gmm_mcl.h" ] || fail "include/gmm_mcl/gmm_mcl.h is not installed"
+for private in internal backend/cuda_backend.h filter/cuda_particle_filter.h sim datasets cli; do
+  [ ! -e "$PREFIX/include/gmm_mcl/$private" ] || fail "include/gmm_mcl/$private is installed"
+done
+cat > "$TMP/api.cpp" << 'CPP'
+#include <gmm_mcl/gmm_mcl.h>
+
+#include <cstdio>
+
+int main() {
+  using namespace gmm_mcl;
+  std::vector<GaussianComponent> components(2);
+  components[0].weight = components[1].weight = 0.5;
+  components[1].mean_m = Eigen::Vector3d(1.0, 2.0, 0.5);
+  const GmmMap map(components);
+  const InitRegion bounds = mapBounds(map);
+  LocalizerParams params;
+  params.filter.num_particles = 100;
+  Localizer localizer(params, map);
+  std::printf("%s backend, %s filter, %zu parameters, map bounds centre %.2f %.2f %.2f\n",
+              localizer.backend().name().c_str(), localizer.filterName().c_str(),
+              localizerParamTable().size(), bounds.centre_m.x(), bounds.centre_m.y(),
+              bounds.centre_m.z());
+  return localizer.filter().size() == 100 ? 0 : 1;
+}
+CPP
+run 'g++ -std=c++14 -DEIGEN_MAX_STATIC_ALIGN_BYTES=0 -I"$PREFIX/include" -I/usr/include/eigen3 \
+     "$TMP/api.cpp" -o "$TMP/api" -L"$PREFIX/lib" -lgmm_mcl_core -Wl,-rpath,"$PREFIX/lib" && "$TMP/api"' \
+  > "$TMP/api.log" 2>&1 || fail "a program on gmm_mcl/gmm_mcl.h against the install space: $(tail -5 "$TMP/api.log")"
+echo "API: $(find "$PREFIX/include/gmm_mcl" -name '*.h' | wc -l) headers installed; gmm_mcl.h: $(cat "$TMP/api.log")"
 
 start "$TMP/roscore.log" 'roscore -p "${ROS_MASTER_URI##*:}"'
 for _ in $(seq 1 120); do run 'rosparam get /run_id' > /dev/null 2>&1 && break; sleep 0.5; done

@@ -21,7 +21,8 @@
 //                                image_transport, rendered for the frame that was used
 //   JumpBackBeforeTheClock       a frame stamped 10 s back before the clock went back: a jump
 //                                back (the filter re-initialises), not a late frame dropped
-//   MotionGating, TfBroadcastOff, SavePose, ReloadMap, SinglePoseStartAndCpuFallback
+//   MotionGating, TfBroadcastOff, SavePose, ReloadMap, ReloadMapFromACloud,
+//   SinglePoseStartAndCpuFallback
 #include <gtest/gtest.h>
 
 #include "nodelet_test_world.h"
@@ -422,6 +423,37 @@ TEST(NodeletTest, ReloadMap) {
   ASSERT_NE(s, nullptr);
   EXPECT_EQ(s->step_status, "ok");
   EXPECT_LT(errorOfFrame(t, w->k), kTrackedM) << "the particles were not kept across the reload";
+}
+
+// ~reload_map with a point cloud of the scene (sim_scene.pcd, written at test-data time): fitted
+// on load (or taken from its cache beside it), tracking goes on; then the map file again.
+TEST(NodeletTest, ReloadMapFromACloud) {
+  ASSERT_TRUE(ensureTracking());
+  std::string cloud, map;
+  ASSERT_TRUE(ros::param::get("~cloud_map", cloud) && ros::param::get("~map", map));
+  LoadMap srv;
+  srv.request.path = cloud;
+  ASSERT_TRUE(ros::service::call("/gmm_mcl/reload_map", srv));
+  EXPECT_TRUE(srv.response.success) << srv.response.message;
+  EXPECT_EQ(srv.response.components, 600) << "map_fit_components of nodelet.test";
+  EXPECT_TRUE(srv.response.message.find("fitted") != std::string::npos ||
+              srv.response.message.find("cached fit") != std::string::npos)
+      << srv.response.message;
+  std::printf("[ reload ] %s\n", srv.response.message.c_str());
+  ros::Time t;
+  for (int i = 0; i < 3; ++i) {
+    const FilterStatus* s = sendFrame(++w->k, SyntheticRobot::Frame(), &t);
+    ASSERT_NE(s, nullptr);
+    EXPECT_EQ(s->step_status, "ok");
+  }
+  EXPECT_LT(errorOfFrame(t, w->k), kTrackedM) << "not tracking on the fitted map";
+  // Again: the cache this time.
+  ASSERT_TRUE(ros::service::call("/gmm_mcl/reload_map", srv));
+  EXPECT_TRUE(srv.response.success) << srv.response.message;
+  EXPECT_NE(srv.response.message.find("cached fit"), std::string::npos) << srv.response.message;
+  srv.request.path = map;
+  ASSERT_TRUE(ros::service::call("/gmm_mcl/reload_map", srv));
+  EXPECT_TRUE(srv.response.success) << srv.response.message;
 }
 
 TEST(NodeletTest, RefinedPoseAndDebugImage) {

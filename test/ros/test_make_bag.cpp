@@ -283,7 +283,7 @@ TEST(ReplayBagTest, ImageAndCowAndLadyBagsWithoutAMaster) {
   ASSERT_TRUE(ros_bag::parseTransform("0.1,-0.05,0.12,0,0,0.0998334,0.9950042", &o.T_marker_cam));
   ros_bag::writeSequenceBag(s, nullptr, dir / "cow.bag", o);
   const std::string common = " --map " + (dir / "map.gmm") +
-                             " --particles 300 --init-half-extent 0.5 --init-yaw-half-range 0.3"
+                             " --num-particles 300 --init-half-extent 0.5 --init-yaw-half-range 0.3"
                              " --max-range 8 --quiet";
   run(std::string(GMM_MCL_REPLAY_BAG) + " " + (dir / "img.bag") + common + " --out " +
       (dir / "img"));

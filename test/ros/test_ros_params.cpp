@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "gmm_mcl/common/enum_names.h"
+#include "gmm_mcl/fit/fit_on_load.h"
 #include "gmm_mcl/ros/ros_params.h"
 
 namespace gmm_mcl {
@@ -155,6 +156,15 @@ TEST(RosParamsTest, ReconfigureAppliesOrRefusesWhole) {
                 [](const LocalizerParams&) { throw std::invalid_argument("no"); }, &changes),
             "no");
   EXPECT_EQ(core.filter.temperature, 1.0);
+}
+
+// The ~map_fit_* defaults are those of the map builder's FitOnLoadParams.
+TEST(RosParamsTest, MapFitDefaultsAreTheFittersOwn) {
+  const RosOptions ros;
+  const FitOnLoadParams fit;
+  EXPECT_EQ(ros.map_fit_components, fit.components);
+  EXPECT_EQ(ros.map_fit_time_limit_s, fit.time_limit_s);
+  EXPECT_EQ(ros.map_fit_cache, fit.cache);
 }
 
 TEST(RosParamsTest, InitialPoseNeedsAllFour) {

@@ -6,7 +6,7 @@
 #include <cstring>
 #include <string>
 
-#include "gmm_mcl/backend/cuda_backend.h"
+#include "cuda/cuda_backend.h"
 
 int main(int argc, char** argv) {
   ::testing::InitGoogleTest(&argc, argv);

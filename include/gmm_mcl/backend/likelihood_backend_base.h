@@ -8,7 +8,9 @@
 #include <string>
 #include <vector>
 
+#include "gmm_mcl/backend/backend_params.h"
 #include "gmm_mcl/camera/depth_frame.h"
+#include "gmm_mcl/camera/depth_image.h"
 #include "gmm_mcl/map/gmm_map.h"
 #include "gmm_mcl/measurement/measurement_params.h"
 #include "gmm_mcl/measurement/membership.h"
@@ -33,6 +35,44 @@ struct BackendOutput {
   int visible_components = -1;  // after the per-update view cull (-1: not culled)
 };
 
+// The device a backend runs on (the benchmark's columns).
+struct BackendDeviceInfo {
+  std::string name;
+  int device = 0;
+  int compute_capability = 0;  // major * 10 + minor
+  int multiprocessors = 0;
+  int fp32_lanes_per_sm = 0;      // FP32 cores per multiprocessor (by compute capability)
+  double clock_ghz = 0.0;         // peak SM clock
+  double fp32_peak_gflops = 0.0;  // 2 (FMA) x lanes x SMs x clock
+  size_t shared_per_block_bytes = 0;
+  size_t total_memory_bytes = 0;
+  // Floating-point operations the likelihood kernel executes per Gaussian evaluation, counted
+  // from its instructions (the CUDA backend's: 19, src/backend/cuda/cuda_backend.h): with
+  // fp32_peak_gflops, the kernel's fraction of the FP32 peak (a lower bound).
+  double flops_per_evaluation = 0.0;
+};
+
+// What a backend on a device offers beyond LikelihoodBackend (LikelihoodBackend::device()):
+// its device, the update from a raw image prepared on the device, and the last update's
+// transfer and preparation times.
+class DeviceBackend {
+ public:
+  virtual ~DeviceBackend() = default;
+  virtual const BackendDeviceInfo& deviceInfo() const = 0;
+  // evaluate() with the frame prepared on the device from the raw image (prepareFrame's points,
+  // in its order and with its arithmetic). Throws std::invalid_argument for what prepareFrame
+  // rejects.
+  virtual void evaluateImage(const DepthImage& image, const Intrinsics& K,
+                             const FrameParams& frame_params,
+                             const std::vector<RigidTransformF>& T_map_cam,
+                             const MeasurementParams& params, BackendOutput* out) = 0;
+  // Of the last evaluate()/evaluateImage(): upload + download time (ms), the frame's preparation
+  // on the device (ms, 0 for evaluate()), the pixels used.
+  virtual double lastTransferMs() const = 0;
+  virtual double lastFramePrepMs() const = 0;
+  virtual int lastFramePixels() const = 0;
+};
+
 class LikelihoodBackend {
  public:
   virtual ~LikelihoodBackend() = default;
@@ -48,11 +88,15 @@ class LikelihoodBackend {
   // Where the pose refinement's pixel sums run with this backend (owned by it); nullptr: on the
   // host (HostNormalEquations).
   virtual NormalEquationsEvaluator* normalEquations() { return nullptr; }
+  // The backend's device side (the CUDA backend); nullptr: a host backend.
+  virtual DeviceBackend* device() { return nullptr; }
 };
 
-// "cpu" or "cuda". When CUDA is asked for but not built or no device is usable, returns the CPU
-// backend and sets *warning to say why. Throws std::invalid_argument for an unknown name.
-std::unique_ptr<LikelihoodBackend> makeBackend(const std::string& name, std::string* warning);
+// "cpu" or "cuda", built with `options` (the CPU backend's threads, the CUDA backend's tuning).
+// When CUDA is asked for but not built or no device is usable, returns the CPU backend and sets
+// *warning to say why. Throws std::invalid_argument for an unknown name.
+std::unique_ptr<LikelihoodBackend> makeBackend(const std::string& name, std::string* warning,
+                                               const BackendOptions& options = BackendOptions());
 bool cudaBackendCompiled();
 
 }  // namespace gmm_mcl

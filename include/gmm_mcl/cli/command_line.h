@@ -65,12 +65,22 @@ class CommandLine {
   // One flag with a help text or a semantic of its own.
   po::options_description_easy_init add() { return options_.add_options(); }
 
-  // Every parameter of the localizer's table as --name-with-dashes (--lost-margin-nats), except
-  // those named in `skip` (which the tool sets itself); a given value is checked against the
-  // table's range and written into *values. Non-empty `groups`: only the parameters of these
-  // groups ("frame", "measurement", ...).
+  // Every parameter of the localizer's table as --name-with-dashes (--lost-margin-nats,
+  // --pixel-stride, --num-particles), except those named in `skip` (which the tool sets itself);
+  // a given value is checked against the table's range and written into *values. Non-empty
+  // `groups`: only the parameters of these groups ("frame", "measurement", ...). The tool's own
+  // defaults are what *values holds when parse() runs (set before it, e.g.
+  // lp.frame.pixel_stride = 8): --help shows them.
   void addLocalizerParams(LocalizerParams* values, const std::set<std::string>& skip = {},
                           const std::set<std::string>& groups = {});
+  // What --help shows as the default of table parameter `param` (snake_case) where the tool's
+  // default depends on other flags ("3000 on the CPU, 100000 with CUDA"); the tool sets the
+  // value after parse() where the flag is not given().
+  void describeDefault(const std::string& param, const std::string& text);
+  // num_particles and min_particles (with addLocalizerParams) default by backend where not given
+  // (defaultParticleRange: 1068..3000 on the CPU, 1068..100000 with CUDA; a --num-particles
+  // below 1068 alone is a fixed count): *backend is read when parse() has run.
+  void particleRangeByBackend(const std::string* backend);
 
   // --depth-noise A,B,Z0: the camera's depth noise sigma(z) = A + B (z - Z0)^2 in metres, the
   // three depth_noise_* parameters in one flag, written into *model when given.
@@ -103,8 +113,12 @@ class CommandLine {
   po::positional_options_description positional_;
   std::map<std::string, std::string> aliases_;
   po::variables_map vm_;
+  // The table's flags, described with the tool's defaults when parse() runs.
+  void addTableOptions();
   LocalizerParams* table_values_ = nullptr;
   std::set<std::string> table_flags_;
+  std::map<std::string, std::string> described_defaults_;
+  const std::string* range_backend_ = nullptr;
   struct NumberList {
     int n;
     std::vector<double>* out;

@@ -2,7 +2,7 @@
 // Only POD members, float32, fixed layouts: they are copied to the GPU as is.
 #pragma once
 
-#include "gmm_mcl/internal/host_device.h"
+#include "gmm_mcl/common/host_device.h"
 
 namespace gmm_mcl {
 

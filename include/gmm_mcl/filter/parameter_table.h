@@ -76,6 +76,7 @@ namespace param_detail {
 inline ParamType typeOf(bool*) { return ParamType::kBool; }
 inline ParamType typeOf(int*) { return ParamType::kInt; }
 inline ParamType typeOf(uint64_t*) { return ParamType::kInt; }
+inline ParamType typeOf(long long*) { return ParamType::kInt; }
 inline ParamType typeOf(double*) { return ParamType::kDouble; }
 inline ParamType typeOf(float*) { return ParamType::kDouble; }
 inline ParamType typeOf(std::string*) { return ParamType::kString; }
@@ -84,6 +85,7 @@ inline ParamType typeOf(Eigen::Vector3d*) { return ParamType::kVector3; }
 inline void toValue(bool x, ParamValue* v) { v->b = x; }
 inline void toValue(int x, ParamValue* v) { v->i = x; }
 inline void toValue(uint64_t x, ParamValue* v) { v->i = static_cast<long long>(x); }
+inline void toValue(long long x, ParamValue* v) { v->i = x; }
 inline void toValue(double x, ParamValue* v) { v->d = x; }
 inline void toValue(float x, ParamValue* v) { v->d = x; }
 inline void toValue(const std::string& x, ParamValue* v) { v->s = x; }
@@ -92,6 +94,7 @@ inline void toValue(const Eigen::Vector3d& x, ParamValue* v) { v->v = x; }
 inline void fromValue(const ParamValue& v, bool* x) { *x = v.b; }
 inline void fromValue(const ParamValue& v, int* x) { *x = static_cast<int>(v.i); }
 inline void fromValue(const ParamValue& v, uint64_t* x) { *x = static_cast<uint64_t>(v.i); }
+inline void fromValue(const ParamValue& v, long long* x) { *x = v.i; }
 inline void fromValue(const ParamValue& v, double* x) { *x = v.d; }
 inline void fromValue(const ParamValue& v, float* x) { *x = static_cast<float>(v.d); }
 inline void fromValue(const ParamValue& v, std::string* x) { *x = v.s; }

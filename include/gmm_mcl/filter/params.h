@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <string>
 
+#include "gmm_mcl/backend/backend_params.h"
 #include "gmm_mcl/camera/depth_frame.h"
 #include "gmm_mcl/filter/pose_refinement.h"
 #include "gmm_mcl/measurement/measurement_params.h"
@@ -140,6 +141,8 @@ struct LocalizerParams {
   // When the backend fails at run time (a CUDA error, the GPU out of memory), switch to the CPU
   // backend keeping the particles (copied down from the GPU) instead of failing every frame.
   bool cpu_fallback = true;
+  // The CUDA backend's kernel tuning (start-up; no effect with the CPU backend).
+  CudaTuningParams cuda;
 
   std::string validate() const;
 };

@@ -50,9 +50,7 @@ class ParticleFilter : public ParticleFilterBase {
   double effectiveSampleSize() const override { return gmm_mcl::effectiveSampleSize(weights_); }
   // Resamples when Neff < resample_neff_fraction * N; returns whether it did.
   bool resampleIfNeeded() override;
-  // Stratified low-variance resampling; with an adaptive count (params().adaptive()) the new
-  // count is the KLD bound of the bins that the resampled set occupies.
-  void resample();
+  void resample() override;
   // Source index of every particle in the last resample().
   const std::vector<int>& lastResampleIndices() const { return indices_; }
   // Augmented MCL: feeds the frame's average per-pixel likelihood and reinitialises that many

@@ -1,8 +1,9 @@
 // The particle set's data-parallel operations behind one interface, so that the localizer's
 // predict / update / resample / recover / reset policy is written once: ParticleFilter (host,
-// the reference) and CudaParticleFilter (the set lives on the GPU; cuda_particle_filter.h)
-// implement it. The filter holds the last frame's per-particle log-likelihoods (evaluateFrame)
-// and a pool of scored candidates (uniform or local draws whose best replace particles).
+// the reference) and CudaParticleFilter (the set lives on the GPU; private to the core,
+// src/filter/cuda/cuda_particle_filter.h; made by makeParticleFilter()) implement it. The filter
+// holds the last frame's per-particle log-likelihoods (evaluateFrame) and a pool of scored
+// candidates (uniform or local draws whose best replace particles).
 #pragma once
 
 #include <Eigen/Core>
@@ -102,6 +103,9 @@ class ParticleFilterBase {
   virtual double effectiveSampleSize() const = 0;
   // Resamples when Neff < resample_neff_fraction * N; returns whether it did.
   virtual bool resampleIfNeeded() = 0;
+  // Resamples now whatever Neff: stratified low-variance sampling; with an adaptive count
+  // (params().adaptive()) the new count is the KLD bound of the bins the resampled set occupies.
+  virtual void resample() = 0;
   // Augmented MCL on the kept log-likelihoods (as evaluated, before any resampling):
   // reinitialises that many randomly chosen particles from `region`; returns the count.
   virtual int recoverFrame(int pixels, const InitRegion& region) = 0;

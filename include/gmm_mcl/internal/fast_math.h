@@ -8,7 +8,7 @@
 #include <stdint.h>
 #include <string.h>
 
-#include "gmm_mcl/internal/host_device.h"
+#include "gmm_mcl/common/host_device.h"
 
 namespace gmm_mcl {
 

@@ -6,8 +6,8 @@
 #include <math.h>
 #include <stdint.h>
 
+#include "gmm_mcl/common/host_device.h"
 #include "gmm_mcl/common/types.h"
-#include "gmm_mcl/internal/host_device.h"
 
 namespace gmm_mcl {
 

@@ -6,8 +6,8 @@
 #include <vector>
 
 #include "gmm_mcl/camera/depth_frame.h"
-#include "gmm_mcl/internal/eval_component.h"
 #include "gmm_mcl/map/gmm_map.h"
+#include "gmm_mcl/measurement/eval_component.h"
 #include "gmm_mcl/measurement/membership.h"
 
 namespace gmm_mcl {

@@ -15,7 +15,7 @@
 #include <Eigen/Geometry>
 #include <vector>
 
-#include "gmm_mcl/internal/eval_component.h"
+#include "gmm_mcl/measurement/eval_component.h"
 #include "gmm_mcl/measurement/membership.h"
 
 namespace gmm_mcl {

@@ -4,8 +4,8 @@
 
 #include <math.h>
 
+#include "gmm_mcl/common/host_device.h"
 #include "gmm_mcl/common/types.h"
-#include "gmm_mcl/internal/host_device.h"
 #include "gmm_mcl/measurement/measurement_params.h"
 
 namespace gmm_mcl {

@@ -25,6 +25,12 @@ namespace gmm_mcl {
 
 struct RosOptions {
   std::string map_path;
+  // A point cloud or mesh given as map_path: fitted on load (fit/fit_on_load.h, whose
+  // FitOnLoadParams has these defaults; not included here: the map builder's headers are not
+  // installed).
+  int map_fit_components = 0;  // 0 = from the cloud's surface
+  double map_fit_time_limit_s = 30.0;
+  bool map_fit_cache = true;
   std::string map_frame = "map";
   std::string odom_frame = "odom";  // "" = no odometry frame: publish map -> base_frame
   std::string base_frame = "base_link";
@@ -85,8 +91,13 @@ const ParamTable<RosOptions>& rosOptionsTable();
 std::string loadRosParams(const ros::NodeHandle& pnh, LocalizerParams* core, RosOptions* ros,
                           std::vector<std::string>* unknown = nullptr);
 
-// The localizer of the parameters: loads the map (and, with init_from_map_bounds, makes its
-// bounds the initial region). nullptr with *error saying why.
+// The map at `path` as the nodelet loads it: a map file, or a point cloud or mesh fitted with
+// ros.map_fit (or taken from its cache), the progress logged (ROS_INFO, ROS_WARN). Throws with
+// a message naming the file and the fault; *summary: what was loaded, for the log.
+GmmMap loadNodeMap(const std::string& path, const RosOptions& ros, std::string* summary);
+
+// The localizer of the parameters: loads the map (loadNodeMap) (and, with init_from_map_bounds,
+// makes its bounds the initial region). nullptr with *error saying why.
 std::unique_ptr<Localizer> makeLocalizer(LocalizerParams* core, const RosOptions& ros,
                                          std::string* error);
 

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "cuda/cuda_backend_impl.h"
+#include "cuda/cuda_factory.h"
 
 namespace gmm_mcl {
 
@@ -46,7 +47,7 @@ int cudaDeviceCount(std::string* why) {
   return n;
 }
 
-CudaBackend::CudaBackend(int device) {
+CudaBackend::CudaBackend(int device, const CudaTuningParams& tuning) {
   std::string why;
   const int n = cudaDeviceCount(&why);
   if (n == 0) throw BackendError("cuda backend: " + why);
@@ -57,7 +58,8 @@ CudaBackend::CudaBackend(int device) {
   GMM_MCL_CUDA_CHECK(cudaSetDevice(device));
   impl_.reset(new Impl());
   impl_->device = device;
-  CudaDeviceInfo& info = impl_->info;
+  impl_->tuning = tuning;
+  BackendDeviceInfo& info = impl_->info;
   cudaDeviceProp prop;
   GMM_MCL_CUDA_CHECK(cudaGetDeviceProperties(&prop, device));
   int clock_khz = 0;
@@ -74,6 +76,7 @@ CudaBackend::CudaBackend(int device) {
   info.fp32_peak_gflops = 2.0 * info.fp32_lanes_per_sm * info.multiprocessors * info.clock_ghz;
   info.shared_per_block_bytes = std::max<size_t>(smem_optin, prop.sharedMemPerBlock);
   info.total_memory_bytes = prop.totalGlobalMem;
+  info.flops_per_evaluation = kCudaFlopsPerEvaluation;
   GMM_MCL_CUDA_CHECK(cuda::preferSharedMemoryForMembership());
 }
 
@@ -89,7 +92,8 @@ CudaBackend::~CudaBackend() {
 int CudaBackend::deviceOrdinal() const { return impl_->device; }
 void* CudaBackend::streamHandle() const { return impl_->stream.get(); }
 
-const CudaDeviceInfo& CudaBackend::deviceInfo() const { return impl_->info; }
+const BackendDeviceInfo& CudaBackend::deviceInfo() const { return impl_->info; }
+const CudaTuningParams& CudaBackend::tuning() const { return impl_->tuning; }
 double CudaBackend::lastTransferMs() const { return impl_->last_transfer_ms; }
 double CudaBackend::lastFramePrepMs() const { return impl_->last_frame_prep_ms; }
 int CudaBackend::lastFramePixels() const { return impl_->last_frame_pixels; }
@@ -407,9 +411,10 @@ void CudaBackend::deviceStageMs(double* projection_membership_ms, double* likeli
   }
 }
 
-std::unique_ptr<LikelihoodBackend> makeCudaBackend(std::string* why) {
+std::unique_ptr<LikelihoodBackend> makeCudaBackend(const CudaTuningParams& tuning,
+                                                   std::string* why) {
   try {
-    return std::unique_ptr<LikelihoodBackend>(new CudaBackend(0));
+    return std::unique_ptr<LikelihoodBackend>(new CudaBackend(0, tuning));
   } catch (const BackendError& e) {
     if (why) *why = e.what();
     return nullptr;

@@ -10,10 +10,10 @@
 #include <memory>
 #include <vector>
 
+#include "cuda/cuda_backend.h"
 #include "cuda/cuda_normal_equations.h"
 #include "cuda/device_buffer.cuh"
 #include "cuda/kernels.cuh"
-#include "gmm_mcl/backend/cuda_backend.h"
 #include "gmm_mcl/map/component_grid.h"
 
 namespace gmm_mcl {
@@ -58,7 +58,8 @@ MembershipConfig membershipConfig(const Intrinsics& K, const PatchGrid& grid,
 }  // namespace cuda
 
 struct CudaBackend::Impl {
-  CudaDeviceInfo info;
+  BackendDeviceInfo info;
+  CudaTuningParams tuning;  // the kernels' shapes and thresholds (the table's cuda_* parameters)
   int device = 0;
   cuda::Stream stream;
   int num_components = 0;
@@ -112,6 +113,14 @@ struct CudaBackend::Impl {
   std::vector<RigidTransformF> host_T_map_cam;
   std::vector<int> host_candidates;
   cuda::DeviceBuffer<int> cull_candidates;
+  // A cloud spread over several places (launchGroups): the poses' order by place and the group
+  // starts, the permuted poses (T_cam_map, then T_map_cam) and the order, staged and on the device.
+  std::vector<int> group_order, group_begin;
+  cuda::PinnedBuffer<unsigned char> group_staging;
+  cuda::DeviceBuffer<unsigned char> group_inputs;
+  std::vector<RigidTransformF> group_map_cam;
+  std::vector<char> group_visible;  // union of the groups' visible components
+  ComponentGrid::Scratch grid_scratch;
   float dframe_max_range_m = std::numeric_limits<float>::infinity();
 
   struct DeviceFrameView;
@@ -146,6 +155,24 @@ struct CudaBackend::Impl {
     const int* index;
   };
   ComponentSet cullView(const cuda::MembershipConfig& cfg, const RigidTransformF* T_cam_map, int n);
+  // The cull over the given candidates (host list; null: the whole map).
+  ComponentSet cullCandidates(const cuda::MembershipConfig& cfg, const RigidTransformF* T_cam_map,
+                              int n, const std::vector<int>* candidates);
+  // Where a large map's grid gives candidates: the poses read back to the host (their
+  // inverses in host_T_map_cam) and grouped by place; false below the sizes where it pays.
+  bool groupByPlace(const cuda::MembershipConfig& cfg, const RigidTransformF* T_cam_map, int n);
+  // launchBatches per group of groupByPlace (more than one): the poses gathered by group, per
+  // group its candidates, cull and batches, the results scattered back to particle order.
+  int launchGroups(const DeviceFrameView& f, int n, const MeasurementParams& params,
+                   const cuda::MembershipConfig& cfg, int max_patch_pixels, double* ll, int* hits,
+                   long long* evals, long long* pairs);
+  // Membership, likelihood and reduction of poses [0, n) of the given arrays over `set`, from
+  // event batch `first_batch` (its start already recorded); order (device, may be null): the
+  // output index of each pose. Returns the batches launched.
+  int launchSet(const DeviceFrameView& f, int n, const RigidTransformF* T_cam_map,
+                const RigidTransformF* T_map_cam, const int* order, const MeasurementParams& params,
+                const cuda::MembershipConfig& cfg, int max_patch_pixels, const ComponentSet& set,
+                int first_batch, double* ll, int* hits, long long* evals, long long* pairs);
 
   // Raises the membership kernel's shared-memory limit for this grid and bitmask; throws when
   // the device cannot hold it.

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <limits>
 #include <string>
 
@@ -22,17 +21,8 @@ namespace {
 // of 1.86-1.96); 4 GB gains nothing more.
 constexpr size_t kMaskBudgetBytes = size_t(1) << 30;
 
-// The view cull runs from this many (particle, component) pairs per update. Measured on an
-// H100: its kernels and the wait for the visible count cost ~0.04 ms per update, and with the
-// benchmark's particle spread (+-0.5 m, +-0.3 rad) 76-81% of the 7-Scenes map stays visible, so
-// it pays only for large products: `large` (1068 x 4000) and `scale` (100,000 x 1000) gain,
-// `paper` (1068 x 1000) would lose 8%.
-constexpr long long kViewCullMinPairs = 2000000;
 // From this many components on, the view cull tests only the map grid's candidates.
 constexpr int kGridCandidatesMinComponents = 20000;
-
-// Bitmask words per membership pass where the visible components need more (one pass below).
-constexpr int kMembershipPassWords = 32;
 
 }  // namespace
 
@@ -103,73 +93,70 @@ MembershipConfig membershipConfig(const Intrinsics& K, const PatchGrid& grid,
 
 namespace {
 
-// The likelihood kernel's shape for the largest patch, with the tuning overrides of the
-// environment (GMM_MCL_CUDA_SHAPE=GROUPSxPX, GMM_MCL_CUDA_STAGE=0/1, GMM_MCL_CUDA_BAND=patches).
-cuda::LikelihoodShape likelihoodShape(int max_patch_pixels) {
+// The likelihood kernel's shape for the largest patch, with the tuning's overrides
+// (cuda_likelihood_shape GROUPSxPX, cuda_stage_members, cuda_band_patches).
+cuda::LikelihoodShape likelihoodShape(int max_patch_pixels, const CudaTuningParams& tuning) {
   cuda::LikelihoodShape shape = cuda::chooseLikelihoodShape(max_patch_pixels);
-  if (const char* env = std::getenv("GMM_MCL_CUDA_SHAPE")) {
-    int lanes = 0, px = 0;
-    if (std::sscanf(env, "%dx%d", &lanes, &px) == 2) {
-      shape.lanes = lanes;
-      shape.pixels_per_lane = px;
-      shape.stage_members = lanes == 32 && px == 4 && max_patch_pixels > 128;
-    }
+  int lanes = 0, px = 0;
+  if (std::sscanf(tuning.likelihood_shape.c_str(), "%dx%d", &lanes, &px) == 2) {
+    shape.lanes = lanes;
+    shape.pixels_per_lane = px;
+    shape.stage_members = lanes == 32 && px == 4 && max_patch_pixels > 128;
   }
-  if (const char* env = std::getenv("GMM_MCL_CUDA_STAGE")) {  // 32x4 only
-    shape.stage_members = env[0] == '1' && shape.lanes == 32 && shape.pixels_per_lane == 4;
+  if (tuning.stage_members != "auto") {  // 32x4 only
+    shape.stage_members =
+        tuning.stage_members == "on" && shape.lanes == 32 && shape.pixels_per_lane == 4;
   }
-  if (const char* env = std::getenv("GMM_MCL_CUDA_BAND")) {
-    const int band = std::atoi(env);
-    if (band > 0) shape.band_patches = band;
-  }
+  if (tuning.band_patches > 0) shape.band_patches = tuning.band_patches;
   return shape;
-}
-
-// The (particle, component) pairs from which the view cull runs (GMM_MCL_CUDA_VIEW_CULL=pairs
-// overrides: 0 always, a large number never).
-long long viewCullMinPairs() {
-  static const long long value = [] {
-    const char* env = std::getenv("GMM_MCL_CUDA_VIEW_CULL");
-    return env ? std::atoll(env) : kViewCullMinPairs;
-  }();
-  return value;
-}
-
-// Words per membership pass (GMM_MCL_CUDA_PASS_WORDS overrides; 0: always one pass).
-int membershipPassWords() {
-  static const int value = [] {
-    const char* env = std::getenv("GMM_MCL_CUDA_PASS_WORDS");
-    return env ? std::atoi(env) : kMembershipPassWords;
-  }();
-  return value;
 }
 
 }  // namespace
 
+bool CudaBackend::Impl::groupByPlace(const cuda::MembershipConfig& cfg,
+                                     const RigidTransformF* T_cam_map, int n) {
+  if (static_cast<long long>(n) * num_components < tuning.view_cull_min_pairs ||
+      num_components < kGridCandidatesMinComponents || grid.size() == 0) {
+    return false;
+  }
+  cudaStream_t s = stream.get();
+  cull_poses.reserve(n);
+  GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(cull_poses.data(), T_cam_map, n * sizeof(RigidTransformF),
+                                     cudaMemcpyDeviceToHost, s));
+  GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(s));
+  host_T_map_cam.resize(n);
+  for (int i = 0; i < n; ++i) host_T_map_cam[i] = invertRigid(cull_poses.data()[i]);
+  groupPosesByPlace(host_T_map_cam, viewGroupCell(cfg.reach), &group_order, &group_begin);
+  return true;
+}
+
 CudaBackend::Impl::ComponentSet CudaBackend::Impl::cullView(const cuda::MembershipConfig& cfg,
                                                             const RigidTransformF* T_cam_map,
                                                             int n) {
-  if (static_cast<long long>(n) * num_components < viewCullMinPairs()) {
+  if (static_cast<long long>(n) * num_components < tuning.view_cull_min_pairs) {
     last_visible_components = -1;
     return {num_components, components.data(), eval_components.data(), nullptr};
   }
-  cudaStream_t s = stream.get();
   // In a large map, only the grid's components near the poses' views are tested: the poses come
   // back to the host (48 bytes each) and the map grid gives the candidates per group of poses.
+  if (groupByPlace(cfg, T_cam_map, n)) {
+    viewCandidates(grid, host_T_map_cam, cfg.K, cfg.reach, &host_candidates);
+    return cullCandidates(cfg, T_cam_map, n, &host_candidates);
+  }
+  return cullCandidates(cfg, T_cam_map, n, nullptr);
+}
+
+CudaBackend::Impl::ComponentSet CudaBackend::Impl::cullCandidates(
+    const cuda::MembershipConfig& cfg, const RigidTransformF* T_cam_map, int n,
+    const std::vector<int>* host_list) {
+  cudaStream_t s = stream.get();
   const int* candidates = nullptr;
   int num_candidates = 0;
-  if (num_components >= kGridCandidatesMinComponents && grid.size() > 0) {
-    cull_poses.reserve(n);
-    GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(cull_poses.data(), T_cam_map, n * sizeof(RigidTransformF),
-                                       cudaMemcpyDeviceToHost, s));
-    GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(s));
-    host_T_map_cam.resize(n);
-    for (int i = 0; i < n; ++i) host_T_map_cam[i] = invertRigid(cull_poses.data()[i]);
-    viewCandidates(grid, host_T_map_cam, cfg.K, cfg.reach, &host_candidates);
-    num_candidates = static_cast<int>(host_candidates.size());
+  if (host_list) {
+    num_candidates = static_cast<int>(host_list->size());
     cull_candidates.reserve(std::max(num_candidates, 1), s);
     if (num_candidates > 0) {
-      GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(cull_candidates.data(), host_candidates.data(),
+      GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(cull_candidates.data(), host_list->data(),
                                          num_candidates * sizeof(int), cudaMemcpyHostToDevice, s));
     }
     candidates = cull_candidates.data();
@@ -210,7 +197,6 @@ void CudaBackend::Impl::ensureMembershipShared(int patches, int words, int visib
 int CudaBackend::Impl::launchBatches(const DeviceFrameView& f, int n,
                                      const MeasurementParams& params, int max_patch_pixels,
                                      double* ll, int* hits, long long* evals, long long* pairs) {
-  const int patches = f.grid.count();
   cudaStream_t s = stream.get();
   cuda::MembershipConfig cfg = cuda::membershipConfig(f.K, f.grid, params);
   cfg.reach = viewReach(f.K, f.grid.patch_size_px, f.grid.cols, f.grid.rows, cfg.inflate_px,
@@ -218,10 +204,94 @@ int CudaBackend::Impl::launchBatches(const DeviceFrameView& f, int n,
   ensureEvents(3);
   events[0].record(s);
   // Membership and likelihood run on the components some pose can see (bitmasks sized by them).
-  const ComponentSet set = cullView(cfg, f.T_cam_map, n);
+  // A cloud spread over several places of a large map (a start from a uniform cloud, a lost
+  // detector's redraw) is evaluated group by group, each over what its own views can see.
+  ComponentSet set;
+  if (groupByPlace(cfg, f.T_cam_map, n)) {
+    if (tuning.place_groups && group_begin.size() > 2) {
+      return launchGroups(f, n, params, cfg, max_patch_pixels, ll, hits, evals, pairs);
+    }
+    viewCandidates(grid, host_T_map_cam, cfg.K, cfg.reach, &host_candidates);
+    set = cullCandidates(cfg, f.T_cam_map, n, &host_candidates);
+  } else {
+    set = cullView(cfg, f.T_cam_map, n);
+  }
+  return launchSet(f, n, f.T_cam_map, f.T_map_cam, nullptr, params, cfg, max_patch_pixels, set, 0,
+                   ll, hits, evals, pairs);
+}
+
+int CudaBackend::Impl::launchGroups(const DeviceFrameView& f, int n,
+                                    const MeasurementParams& params,
+                                    const cuda::MembershipConfig& cfg, int max_patch_pixels,
+                                    double* ll, int* hits, long long* evals, long long* pairs) {
+  cudaStream_t s = stream.get();
+  // The poses in group order, copied from the device arrays as they are (T_cam_map is in
+  // cull_poses already; the inverse is not recomputed: the same floats as one launch would use).
+  const size_t pose_bytes = size_t(n) * sizeof(RigidTransformF);
+  const size_t map_cam_at = cuda::alignUp(pose_bytes);
+  const size_t order_at = cuda::alignUp(map_cam_at + pose_bytes);
+  const size_t total = order_at + size_t(n) * sizeof(int);
+  group_staging.reserve(total);
+  group_inputs.reserve(total, s);
+  unsigned char* h = group_staging.data();
+  GMM_MCL_CUDA_CHECK(
+      cudaMemcpyAsync(h + map_cam_at, f.T_map_cam, pose_bytes, cudaMemcpyDeviceToHost, s));
+  GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(s));
+  group_map_cam.assign(reinterpret_cast<const RigidTransformF*>(h + map_cam_at),
+                       reinterpret_cast<const RigidTransformF*>(h + map_cam_at) + n);
+  RigidTransformF* cam_map = reinterpret_cast<RigidTransformF*>(h);
+  RigidTransformF* map_cam = reinterpret_cast<RigidTransformF*>(h + map_cam_at);
+  int* order = reinterpret_cast<int*>(h + order_at);
+  for (int k = 0; k < n; ++k) {
+    const int i = group_order[k];
+    cam_map[k] = cull_poses.data()[i];
+    map_cam[k] = group_map_cam[i];
+    order[k] = i;
+  }
+  GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(group_inputs.data(), h, total, cudaMemcpyHostToDevice, s));
+  const RigidTransformF* d_cam_map = reinterpret_cast<const RigidTransformF*>(group_inputs.data());
+  const RigidTransformF* d_map_cam =
+      reinterpret_cast<const RigidTransformF*>(group_inputs.data() + map_cam_at);
+  const int* d_order = reinterpret_cast<const int*>(group_inputs.data() + order_at);
+  // Per group: its candidates, cull (the stream waits for its count) and batches. The visible
+  // count reported is the union over the groups.
+  group_visible.assign(num_components, 0);
+  std::vector<int> index;
+  int batches = 0;
+  const int groups = static_cast<int>(group_begin.size()) - 1;
+  for (int g = 0; g < groups; ++g) {
+    const int first = group_begin[g], count = group_begin[g + 1] - first;
+    if (g > 0) {
+      ensureEvents(3 * size_t(batches + 1));
+      events[3 * batches].record(s);
+    }
+    grid.query(groupViewBox(host_T_map_cam, group_order.data() + first, count, cfg.K, cfg.reach),
+               &host_candidates, &grid_scratch);
+    const ComponentSet set = cullCandidates(cfg, d_cam_map + first, count, &host_candidates);
+    index.resize(set.count);
+    if (set.count > 0) {
+      GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(index.data(), set.index, set.count * sizeof(int),
+                                         cudaMemcpyDeviceToHost, s));
+    }
+    batches += launchSet(f, count, d_cam_map + first, d_map_cam + first, d_order + first, params,
+                         cfg, max_patch_pixels, set, batches, ll, hits, evals, pairs);
+    for (int c : index) group_visible[c] = 1;
+  }
+  last_visible_components = 0;
+  for (char v : group_visible) last_visible_components += v;
+  return batches;
+}
+
+int CudaBackend::Impl::launchSet(const DeviceFrameView& f, int n, const RigidTransformF* T_cam_map,
+                                 const RigidTransformF* T_map_cam, const int* order,
+                                 const MeasurementParams& params, const cuda::MembershipConfig& cfg,
+                                 int max_patch_pixels, const ComponentSet& set, int first_batch,
+                                 double* ll, int* hits, long long* evals, long long* pairs) {
+  const int patches = f.grid.count();
+  cudaStream_t s = stream.get();
   const int m = set.count;
   const int words = std::max((m + 31) / 32, 1);
-  const int pass_words = membershipPassWords();
+  const int pass_words = tuning.membership_pass_words;
   const int passes = cuda::membershipPasses(words, pass_words);
   ensureMembershipShared(patches, passes == 1 ? words : pass_words, m);
   // Particles in batches whose masks (and per-particle evaluation forms) fit the budget.
@@ -237,7 +307,7 @@ int CudaBackend::Impl::launchBatches(const DeviceFrameView& f, int n,
   mask.reserve(size_t(batch) * patches * words, s);
   shift.reserve(cuda::membershipShiftFloats(batch, patches, passes), s);
   if (noise) noisy_eval.reserve(size_t(batch) * std::max(m, 1), s);
-  const cuda::LikelihoodShape shape = likelihoodShape(max_patch_pixels);
+  const cuda::LikelihoodShape shape = likelihoodShape(max_patch_pixels, tuning);
   const int items = cuda::likelihoodItemsPerParticle(shape, patches);
   item_ll.reserve(size_t(batch) * items, s);
   item_hits.reserve(size_t(batch) * items, s);
@@ -246,15 +316,16 @@ int CudaBackend::Impl::launchBatches(const DeviceFrameView& f, int n,
   const cuda::ItemPartials partials{item_ll.data(), item_hits.data(), item_evals.data(),
                                     item_relevant.data()};
   const int batches = (n + batch - 1) / batch;
-  ensureEvents(3 * size_t(batches));
+  ensureEvents(3 * size_t(first_batch + batches));
   for (int bi = 0; bi < batches; ++bi) {
     const int first = bi * batch;
     const int count = std::min(batch, n - first);
-    if (bi > 0) events[3 * bi].record(s);  // batch 0's start is before the cull
+    const int e = 3 * (first_batch + bi);
+    if (bi > 0) events[e].record(s);  // the first batch's start is before the cull
     GMM_MCL_CUDA_CHECK(cuda::launchMembership(
-        count, m, words, pass_words, cfg, set.components, set.eval, f.T_cam_map + first,
-        mask.data(), shift.data(), noise ? noisy_eval.data() : nullptr, s));
-    events[3 * bi + 1].record(s);
+        count, m, words, pass_words, cfg, set.components, set.eval, T_cam_map + first, mask.data(),
+        shift.data(), noise ? noisy_eval.data() : nullptr, s));
+    events[e + 1].record(s);
     const cuda::LikelihoodInputs in{patches,
                                     words,
                                     f.x,
@@ -263,14 +334,16 @@ int CudaBackend::Impl::launchBatches(const DeviceFrameView& f, int n,
                                     f.patch_begin,
                                     noise ? noisy_eval.data() : set.eval,
                                     noise ? m : 0,
-                                    f.T_map_cam + first,
+                                    T_map_cam + first,
                                     mask.data(),
                                     shift.data()};
     GMM_MCL_CUDA_CHECK(
         cuda::launchLikelihood(count, in, shape, params.floor_log_density, partials, s));
-    GMM_MCL_CUDA_CHECK(cuda::launchReduce(count, items, partials, ll + first, hits + first,
-                                          evals + first, pairs + first, s));
-    events[3 * bi + 2].record(s);
+    // With an order, the outputs are indexed by it (the particle's own index).
+    const int out = order ? 0 : first;
+    GMM_MCL_CUDA_CHECK(cuda::launchReduce(count, items, partials, ll + out, hits + out, evals + out,
+                                          pairs + out, order ? order + first : nullptr, s));
+    events[e + 2].record(s);
   }
   return batches;
 }
@@ -294,7 +367,7 @@ void CudaBackend::membership(const DepthFrame& frame, const RigidTransformF& T_m
   cfg.reach = viewReach(frame, params);
   const Impl::ComponentSet set = d.cullView(cfg, pose.data(), 1);
   const int words = std::max((set.count + 31) / 32, 1);
-  const int pass_words = membershipPassWords();
+  const int pass_words = d.tuning.membership_pass_words;
   const int passes = cuda::membershipPasses(words, pass_words);
   d.ensureMembershipShared(patches, passes == 1 ? words : pass_words, set.count);
   cuda::DeviceBuffer<uint32_t> mask(size_t(patches) * words);

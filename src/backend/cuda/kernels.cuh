@@ -6,7 +6,7 @@
 #include <stdint.h>
 
 #include "gmm_mcl/common/types.h"
-#include "gmm_mcl/internal/eval_component.h"
+#include "gmm_mcl/measurement/eval_component.h"
 #include "gmm_mcl/measurement/measurement_params.h"
 #include "gmm_mcl/measurement/projection.h"
 
@@ -119,10 +119,11 @@ cudaError_t launchLikelihood(int num_particles, const LikelihoodInputs& in,
                              const ItemPartials& partials, cudaStream_t stream);
 
 // Per-particle sums of the item partials, in a fixed order (deterministic).
-// items_per_particle: likelihoodItemsPerParticle.
+// items_per_particle: likelihoodItemsPerParticle. order (device, may be null): particle i's sums
+// go to index order[i] of the outputs (a batch of poses permuted by place).
 cudaError_t launchReduce(int num_particles, int items_per_particle, const ItemPartials& partials,
                          double* log_likelihood, int* floor_hits, long long* evaluations,
-                         long long* relevant_pairs, cudaStream_t stream);
+                         long long* relevant_pairs, const int* order, cudaStream_t stream);
 
 // Frame preparation on the GPU (prepareFrame's pixels, order and arithmetic).
 struct FrameConfig {

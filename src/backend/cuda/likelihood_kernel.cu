@@ -9,7 +9,7 @@
 // the slices' partial sums are then added with shuffles. All lanes of a warp work on one patch:
 // no divergence between items inside a warp.
 //
-// One evaluation (gmm_mcl/internal/eval_component.h, log2 units):
+// One evaluation (gmm_mcl/measurement/eval_component.h, log2 units):
 //   t = (base - S2) - |U p + c|^2 = 9 FMA, then sum += exp2(t) (1 add, exp2 on the SFU).
 // The sum is shifted by the patch's largest member log-normaliser S (>= the floor): every
 // exponent is <= 0 and no second pass for the maximum is needed; per pixel
@@ -275,14 +275,15 @@ __global__ void __launch_bounds__(kThreads, LikelihoodMinBlocks<PX>::value)
 // One warp per particle sums its items' partials (fixed order).
 __global__ void __launch_bounds__(kThreads)
     reduceKernel(int num_particles, int num_items,
-                 const double* __restrict__ item_ll,        // [N * items]
-                 const int* __restrict__ item_hits,         // [N * items]
-                 const int* __restrict__ item_evals,        // [N * items]
-                 const int* __restrict__ item_relevant,     // [N * items]
-                 double* __restrict__ log_likelihood,       // [N] nats
-                 int* __restrict__ floor_hits,              // [N]
-                 long long* __restrict__ evaluations,       // [N]
-                 long long* __restrict__ relevant_pairs) {  // [N]
+                 const double* __restrict__ item_ll,      // [N * items]
+                 const int* __restrict__ item_hits,       // [N * items]
+                 const int* __restrict__ item_evals,      // [N * items]
+                 const int* __restrict__ item_relevant,   // [N * items]
+                 double* __restrict__ log_likelihood,     // [N] nats
+                 int* __restrict__ floor_hits,            // [N]
+                 long long* __restrict__ evaluations,     // [N]
+                 long long* __restrict__ relevant_pairs,  // [N]
+                 const int* __restrict__ order) {         // [N] output index of each; null: itself
   const int particle = (blockIdx.x * kThreads + threadIdx.x) / 32;
   const int lane = threadIdx.x & 31;
   if (particle >= num_particles) return;  // whole warps leave together
@@ -301,10 +302,11 @@ __global__ void __launch_bounds__(kThreads)
   evals = warpSumToLane0(evals);
   pairs = warpSumToLane0(pairs);
   if (lane == 0) {
-    log_likelihood[particle] = ll;
-    floor_hits[particle] = hits;
-    evaluations[particle] = evals;
-    relevant_pairs[particle] = pairs;
+    const int out = order ? order[particle] : particle;
+    log_likelihood[out] = ll;
+    floor_hits[out] = hits;
+    evaluations[out] = evals;
+    relevant_pairs[out] = pairs;
   }
 }
 
@@ -315,7 +317,8 @@ size_t likelihoodSharedBytes(const LikelihoodShape& shape, int words) {
          sizeof(uint16_t) * static_cast<size_t>(kWarps) * (words < 32 ? words : 32) * 32;
 }
 
-// Measured on an H100 (7-Scenes M=1000, bench workloads); GMM_MCL_CUDA_SHAPE overrides.
+// Measured on an H100 (7-Scenes M=1000, bench workloads); the parameter cuda_likelihood_shape
+// overrides.
 LikelihoodShape chooseLikelihoodShape(int max_patch_pixels) {
   LikelihoodShape s;
   if (max_patch_pixels <= 16) {
@@ -404,14 +407,14 @@ cudaError_t launchLikelihood(int num_particles, const LikelihoodInputs& in,
 
 cudaError_t launchReduce(int num_particles, int items_per_particle, const ItemPartials& partials,
                          double* log_likelihood, int* floor_hits, long long* evaluations,
-                         long long* relevant_pairs, cudaStream_t stream) {
+                         long long* relevant_pairs, const int* order, cudaStream_t stream) {
   if (num_particles <= 0 || items_per_particle <= 0) return cudaSuccess;
   const long long threads = static_cast<long long>(num_particles) * 32;
   const dim3 grid(static_cast<unsigned>((threads + kThreads - 1) / kThreads)), block(kThreads);
   reduceKernel<<<grid, block, 0, stream>>>(num_particles, items_per_particle,
                                            partials.log_likelihood, partials.floor_hits,
                                            partials.evaluations, partials.relevant, log_likelihood,
-                                           floor_hits, evaluations, relevant_pairs);
+                                           floor_hits, evaluations, relevant_pairs, order);
   return cudaGetLastError();
 }
 

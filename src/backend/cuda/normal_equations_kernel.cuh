@@ -4,7 +4,7 @@
 
 #include <cuda_runtime_api.h>
 
-#include "gmm_mcl/internal/eval_component.h"
+#include "gmm_mcl/measurement/eval_component.h"
 
 namespace gmm_mcl {
 namespace cuda {

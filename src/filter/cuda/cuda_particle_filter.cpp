@@ -8,6 +8,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "cuda/cuda_factory.h"
 #include "cuda/cuda_particle_filter_impl.h"
 #include "gmm_mcl/filter/resampling.h"
 
@@ -311,7 +312,7 @@ std::vector<double> CudaParticleFilter::frameLogLikelihoods() const {
   return impl_->download<double>(impl_->ll, impl_->ll_count);
 }
 
-// The factory's entry (particle_filter_factory.cpp): the device filter on the CUDA backend.
+// The factory's entry (cuda/cuda_factory.h): the device filter on the CUDA backend.
 std::unique_ptr<ParticleFilterBase> makeCudaParticleFilter(const ParticleFilterParams& params,
                                                            LikelihoodBackend* backend) {
   CudaBackend* cuda_backend = dynamic_cast<CudaBackend*>(backend);

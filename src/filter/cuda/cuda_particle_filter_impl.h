@@ -9,10 +9,10 @@
 #include <algorithm>
 #include <vector>
 
+#include "cuda/cuda_backend.h"
+#include "cuda/cuda_particle_filter.h"
 #include "cuda/device_buffer.cuh"
 #include "cuda/filter_kernels.cuh"
-#include "gmm_mcl/backend/cuda_backend.h"
-#include "gmm_mcl/filter/cuda_particle_filter.h"
 #include "gmm_mcl/filter/particle_filter.h"
 
 namespace gmm_mcl {

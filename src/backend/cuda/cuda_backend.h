@@ -1,4 +1,6 @@
 // CUDA likelihood backend: the CPU backend's computation on the GPU (DESIGN.md "Backends").
+// Private to the core (and its CUDA tests): a user makes it with makeBackend("cuda") and reaches
+// its device side through LikelihoodBackend::device().
 // Two kernels per batch of particles: projection + patch membership (one block per particle,
 // a bitmask per patch built in shared memory) and the per-pixel log-sum over the relevant
 // components with the per-particle reduction (one warp per patch). The depth frame is uploaded
@@ -14,32 +16,19 @@
 
 namespace gmm_mcl {
 
-// What the benchmark needs to know about the device.
-struct CudaDeviceInfo {
-  std::string name;
-  int device = 0;
-  int compute_capability = 0;  // major * 10 + minor
-  int multiprocessors = 0;
-  int fp32_lanes_per_sm = 0;      // FP32 cores per multiprocessor (by compute capability)
-  double clock_ghz = 0.0;         // peak SM clock
-  double fp32_peak_gflops = 0.0;  // 2 (FMA) x lanes x SMs x clock
-  size_t shared_per_block_bytes = 0;
-  size_t total_memory_bytes = 0;
-};
-
 // Floating-point operations the likelihood kernel executes per Gaussian evaluation, counted
 // from its instructions (an FMA counts 2): |U p + c|^2 subtracted from the base in the
-// Cholesky form of gmm_mcl/internal/eval_component.h is 9 FMA (U p + c: 6, the three
+// Cholesky form of gmm_mcl/measurement/eval_component.h is 9 FMA (U p + c: 6, the three
 // squares: 3) and the accumulation 1 addition: 19 FLOP in 10 FP32-pipe instructions. The exp2
 // runs on the special-function unit and counts 0; per-pixel and per-member work (pose
 // transform, log, loads, member lists) counts 0 too. So the "% of FP32 peak" is a lower bound
 // on the FP32 pipe's occupancy by the evaluations themselves, not a count of all issued work.
 constexpr double kCudaFlopsPerEvaluation = 19.0;
 
-class CudaBackend : public LikelihoodBackend {
+class CudaBackend : public LikelihoodBackend, public DeviceBackend {
  public:
   // Throws BackendError when the device cannot be used.
-  explicit CudaBackend(int device = 0);
+  explicit CudaBackend(int device = 0, const CudaTuningParams& tuning = CudaTuningParams());
   ~CudaBackend() override;
   CudaBackend(const CudaBackend&) = delete;
   CudaBackend& operator=(const CudaBackend&) = delete;
@@ -52,13 +41,14 @@ class CudaBackend : public LikelihoodBackend {
                   const MeasurementParams& params, PatchMembership* out) override;
   // The pose refinement's pixel sums on this backend's device and stream.
   NormalEquationsEvaluator* normalEquations() override;
+  DeviceBackend* device() override { return this; }
 
   // evaluate() with the frame prepared on the GPU from the raw image: uploads the image (not
   // the points) and builds prepareFrame's points, in its order and with its arithmetic.
   // Throws std::invalid_argument for what prepareFrame rejects.
   void evaluateImage(const DepthImage& image, const Intrinsics& K, const FrameParams& frame_params,
                      const std::vector<RigidTransformF>& T_map_cam, const MeasurementParams& params,
-                     BackendOutput* out);
+                     BackendOutput* out) override;
 
   // The frame kept on the device for evaluateDevicePoses() (the device particle filter): the
   // raw image uploaded (only the rows on the stride grid) and prepared on the GPU as
@@ -86,12 +76,13 @@ class CudaBackend : public LikelihoodBackend {
   int deviceOrdinal() const;
   void* streamHandle() const;
 
-  const CudaDeviceInfo& deviceInfo() const;
+  const BackendDeviceInfo& deviceInfo() const override;
   // Of the last evaluate()/evaluateImage(): upload + download time (ms, events), GPU frame
   // preparation time (ms, 0 for evaluate()), used pixels.
-  double lastTransferMs() const;
-  double lastFramePrepMs() const;
-  int lastFramePixels() const;
+  double lastTransferMs() const override;
+  double lastFramePrepMs() const override;
+  int lastFramePixels() const override;
+  const CudaTuningParams& tuning() const;
 
   struct Impl;
 

@@ -9,7 +9,8 @@
 // particles() is called. Results are reproducible run to run (same seed, same device), and
 // statistically, not bitwise, those of ParticleFilter (tested against it in
 // test_cuda_particle_filter).
-// No CUDA header is needed to include this file.
+// Private to the core (and its CUDA tests): a user makes it with makeParticleFilter(). No CUDA
+// header is needed to include this file.
 #pragma once
 
 #include <memory>
@@ -62,7 +63,7 @@ class CudaParticleFilter : public ParticleFilterBase {
   void synchronize() override;
 
   // Stratified low-variance resampling with the KLD-sampling count (ParticleFilter::resample).
-  void resample();
+  void resample() override;
   // The pieces, for tests against ParticleFilter: resampling with a given order and offsets
   // (stratifiedLowVarianceIndices's arguments; the set becomes n_out particles), returning the
   // source indices; the distinct KLD bins of the set; the kept log-likelihoods; the candidate

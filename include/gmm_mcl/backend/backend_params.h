@@ -1,0 +1,44 @@
+// What a likelihood backend is built with (makeBackend): the CPU backend's thread count and the
+// CUDA backend's kernel tuning. The tuning is a start-up group of the parameter table ("cuda",
+// the cuda_* parameters; docs/parameters.md); its defaults are the shapes and thresholds
+// measured on an H100 (docs/cuda_backend.md), for tuning runs such as scripts/gpu_sweep.sh.
+#pragma once
+
+#include <string>
+
+namespace gmm_mcl {
+
+struct CudaTuningParams {
+  // The likelihood kernel's shape GROUPSxPX (pixel groups per warp x pixels per group: 32x4,
+  // 32x2, 32x1, 16x4, 16x2, 16x1, 8x4, 8x2, 8x1, 4x4, 4x2); "auto": by the frame's largest patch
+  // (8x2 up to 16 px, 32x2 up to 64 px, else 32x4).
+  std::string likelihood_shape = "auto";
+  // The members' records staged in shared memory once per patch (32x4 only): "auto" (the
+  // shape's choice: on for 32x4 over patches of more than 128 px), "on", "off".
+  std::string stage_members = "auto";
+  // Patches per likelihood work item; 0: the shape's choice (10).
+  int band_patches = 0;
+  // The per-update view cull runs from this many (particle, component) pairs on (0: always; a
+  // number larger than any update's: never). Measured on an H100: its kernels and the wait for
+  // the visible count cost ~0.04 ms per update, and with the benchmark's particle spread
+  // (+-0.5 m, +-0.3 rad) 76-81% of the 7-Scenes map stays visible, so it pays only for large
+  // products: `large` (1068 x 4000) and `scale` (100,000 x 1000) gain, `paper` (1068 x 1000)
+  // would lose 8%.
+  long long view_cull_min_pairs = 2000000;
+  // Membership bitmask words per pass where the visible components need more (one pass below;
+  // 0: always one pass).
+  int membership_pass_words = 32;
+  // A cloud spread over several places of a map of 20,000 components or more (a start from a
+  // uniform cloud, a lost detector's redraw) evaluated group by group of poses by place, each
+  // over what its own views can see (as the CPU backend does), instead of all over the union of
+  // the views. Off until measured on a GPU: CudaBackendTest.CloudSpreadOverABuildingMatchesCpu.
+  bool place_groups = false;
+};
+
+// The options of makeBackend().
+struct BackendOptions {
+  int cpu_threads = 0;  // the CPU backend's OpenMP threads; <= 0: OpenMP's default
+  CudaTuningParams cuda;
+};
+
+}  // namespace gmm_mcl
