@@ -4,6 +4,7 @@
 # set in the folder that registers it).
 set(_gmm_mcl_long_tests
   test_kidnap 220 test_unseen_scene 150 test_seven_scenes_regression 130 test_localizer 60
+  test_localizer_no_odometry 50
   test_degenerate 15 test_sensitivity 12 test_replay_tool_tum 11 test_make_bag 11)
 list(LENGTH _gmm_mcl_long_tests _n)
 math(EXPR _last "${_n} - 1")

@@ -20,6 +20,7 @@
 #   backend)  EXTRA (more options for gmm_mcl_replay and gmm_mcl_kidnap)  JOBS (trials run as
 #   this many processes at once, each with OMP threads THREADS; default 1 and all cores)
 #   REPLAY_FRAMES (replay only the first N frames of each sequence: quick checks)
+#   DEPTH_SCALE_ERROR (the Replica camera reports 1 + this times the depth: 0.004, 0.4% long)
 #   GMM_MCL_DATASETS (../shared/datasets); SEVEN_TUM: the 7-Scenes sequence as a TUM folder
 #   (scripts/gpu_bundle.sh makes one), read instead of the data set (its maps must then be in
 #   OUT/maps already); GMM_FIT, GMM_MCL_RENDER, GMM_MCL_REPLAY, GMM_MCL_KIDNAP name the binaries
@@ -40,6 +41,14 @@ export OMP_NUM_THREADS="${THREADS:-$(( $(nproc) / JOBS > 0 ? $(nproc) / JOBS : 1
 read -r -a EXTRA_ARGS <<< "${EXTRA:-}"
 REPLAY_ARGS=()
 [[ -n "${REPLAY_FRAMES:-}" ]] && REPLAY_ARGS+=(--frames "$REPLAY_FRAMES")
+# DEPTH_SCALE_ERROR=E: the Replica segments rendered by a camera that reports (1 + E) times the
+# depth (a miscalibrated stereo camera), in their own folders.
+SEG_TAG=""
+RENDER_ARGS=()
+if [[ -n "${DEPTH_SCALE_ERROR:-}" ]]; then
+  SEG_TAG="_scale_error$DEPTH_SCALE_ERROR"
+  RENDER_ARGS+=(--depth-scale-error "$DEPTH_SCALE_ERROR")
+fi
 [[ -n "${PARTICLES:-}" ]] && EXTRA_ARGS+=(--num-particles "$PARTICLES")
 [[ -n "${MIN_PARTICLES:-}" ]] && EXTRA_ARGS+=(--min-particles "$MIN_PARTICLES")
 GMM_FIT="$(find_tool gmm_mcl_fit GMM_FIT)"
@@ -79,30 +88,30 @@ if (( needs_replica )); then
   [[ -f "$MAP" ]] || "$GMM_FIT" "$REPLICA/office0_mesh.ply" --mesh-samples 250000 -m 1000 --seed 1 \
     -o "$MAP" -q
   for first in $SEGMENTS; do
-    seg="$OUT/replica_seg$first"
+    seg="$OUT/replica_seg$first$SEG_TAG"
     [[ -f "$seg/depth.txt" ]] && [[ $(grep -vc '^#' "$seg/depth.txt") -ge $FRAMES ]] && continue
     rm -rf "$seg"
     OMP_NUM_THREADS="$(nproc)" "$RENDER" --mesh "$REPLICA/office0_mesh.ply" --trajectory "$REPLICA/traj.txt" \
       --camera 525,525,319.5,239.5,640,480 --first "$first" --frames "$FRAMES" --dropout 0.02 \
-      --seed 1 --out "$seg" --quiet
+      --seed 1 --out "$seg" --quiet "${RENDER_ARGS[@]}"
   done
 fi
 for p in $PROTOCOLS; do
   case "$p" in
     start)
       for first in $SEGMENTS; do
-        run_trials "$OUT/start_seg$first" "$REPLAY" --format tum --dataset "$OUT/replica_seg$first" \
+        run_trials "$OUT/start_seg$first" "$REPLAY" --format tum --dataset "$OUT/replica_seg$first$SEG_TAG" \
           --map "$MAP" --pixel-stride "$STRIDE" --backend "$BACKEND" --out "$OUT/start_seg$first" --quiet \
           "${REPLAY_ARGS[@]}" "${EXTRA_ARGS[@]}"
       done ;;
     map)
       first="${SEGMENTS%% *}"
-      run_trials "$OUT/map_seg$first" "$REPLAY" --format tum --dataset "$OUT/replica_seg$first" \
+      run_trials "$OUT/map_seg$first" "$REPLAY" --format tum --dataset "$OUT/replica_seg$first$SEG_TAG" \
         --map "$MAP" --init map --pixel-stride "$STRIDE" --backend "$BACKEND" --out "$OUT/map_seg$first" \
         --quiet "${REPLAY_ARGS[@]}" "${EXTRA_ARGS[@]}" ;;
     kidnap)
       for first in $SEGMENTS; do
-        run_trials "$OUT/kidnap_seg$first" "$KIDNAP" --scene tum --dataset "$OUT/replica_seg$first" \
+        run_trials "$OUT/kidnap_seg$first" "$KIDNAP" --scene tum --dataset "$OUT/replica_seg$first$SEG_TAG" \
           --map "$MAP" --pixel-stride "$STRIDE" --backend "$BACKEND" --out "$OUT/kidnap_seg$first" \
           "${EXTRA_ARGS[@]}"
       done ;;

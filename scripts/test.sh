@@ -86,7 +86,7 @@ echo "== TX2 aarch64 stage took $(( $(date +%s) - start )) s"
 SAN_BUILD="${GMM_MCL_SANITIZE_BUILD_DIR:-${BUILD}-asan}"
 SANITIZE_TESTS=(test_gmm_map test_depth_frame test_projection test_membership test_likelihood
   test_depth_noise test_params test_resampling test_particle_filter test_localizer test_pose_refinement test_lost_detector test_backend_threads
-  test_parameter_table test_stamped_buffer test_pose_reset test_building_scale
+  test_parameter_table test_stamped_buffer test_pose_reset test_building_scale test_motion_model
   test_camera_input_validation test_map_input_validation fuzz_replay_map_loader fuzz_replay_depth_frame fuzz_replay_compressed_depth)
 mkdir -p "$SAN_BUILD"
 # -O1 without NDEBUG: a third less compile time than -O3 (most of this stage), and assert()

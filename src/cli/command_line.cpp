@@ -190,14 +190,20 @@ void CommandLine::parse(int argc, char** argv) {
            list.text + "')");
     }
   }
-  if (depth_noise_ && !depth_noise_text_.empty()) {
+  const auto apply_depth_noise = [this] {
+    if (!depth_noise_ || depth_noise_text_.empty()) return;
     double abz[3];
     if (!parseNumberList(depth_noise_text_, 3, abz))
       fail("--depth-noise: expected A,B,Z0 (got '" + depth_noise_text_ + "')");
     depth_noise_->a_m = static_cast<float>(abz[0]);
     depth_noise_->b_per_m = static_cast<float>(abz[1]);
     depth_noise_->z0_m = static_cast<float>(abz[2]);
-  }
+  };
+  // --depth-noise A,B,Z0 overrides a --depth-noise-preset's numbers (applied right after it),
+  // and --depth-noise-a-m, -b-per-m, -z0-m (later in the table) override both.
+  const bool preset_given =
+      table_values_ && table_flags_.count("depth_noise_preset") && given("depth-noise-preset");
+  if (!preset_given) apply_depth_noise();
   if (!table_values_) return;
   for (const ParamSpec<LocalizerParams>& p : localizerParamTable()) {
     const std::string name = flagName(p.name);
@@ -207,6 +213,7 @@ void CommandLine::parse(int argc, char** argv) {
     if (why.empty()) why = p.check(v);
     if (!why.empty()) fail("--" + name + ": " + why);
     p.set(table_values_, v);
+    if (p.name == "depth_noise_preset") apply_depth_noise();
   }
   if (range_backend_) {
     int default_min, default_max;

@@ -41,7 +41,8 @@ Localizer::Localizer(const LocalizerParams& params, GmmMap map,
     : params_(validated(params)),
       map_(std::move(map)),
       backend_(std::move(backend)),
-      region_(params.init) {
+      region_(params.init),
+      motion_model_(params.constant_velocity) {
   if (map_.empty()) throw std::invalid_argument("localizer: the map is empty");
   if (!backend_) {
     BackendOptions options;
@@ -54,6 +55,7 @@ Localizer::Localizer(const LocalizerParams& params, GmmMap map,
   if (!why.empty()) backend_warning_ += (backend_warning_.empty() ? "" : "; ") + why;
   filter_->initialiseUniform(region_);
   lost_ = LostDetector(params_.lost, map_self_ll_);
+  depth_scale_ = params_.refinement.depth_scale_initial;
 }
 
 void Localizer::prepareMap() {
@@ -92,6 +94,7 @@ void Localizer::setParams(const LocalizerParams& params) {
       params.lost.redraw_blur_m != params_.lost.redraw_blur_m ||
       params.lost.local_candidate_fraction != params_.lost.local_candidate_fraction;
   filter_->setParams(params.filter);
+  motion_model_.setParams(params.constant_velocity);
   params_ = params;
   if (map_terms) prepareMap();
   lost_.setParams(params_.lost, map_self_ll_);
@@ -113,6 +116,7 @@ void Localizer::reset(const InitRegion& region) {
   lost_.restart();
   screen_pending_ = true;
   have_refined_ = false;
+  motion_model_.reset();
 }
 
 void Localizer::resetToPose(const Particle& pose, const Eigen::Vector4d& sigma) {
@@ -120,6 +124,7 @@ void Localizer::resetToPose(const Particle& pose, const Eigen::Vector4d& sigma) 
   lost_.restart();
   screen_pending_ = false;
   have_refined_ = false;
+  motion_model_.reset();
 }
 
 InitRegion Localizer::mapBounds() const { return gmm_mcl::mapBounds(map_); }

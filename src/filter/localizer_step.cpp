@@ -41,6 +41,7 @@ void Localizer::stepOnce(const StepInput& in, StepResult* res_out) {
 }
 
 void Localizer::takeStepInputs(const StepInput& in, StepResult* res) {
+  step_dt_s_ = have_stamp_ ? in.stamp_s - last_stamp_s_ : 0.0;
   // Time going backwards (a looped bag): start over from the initial region.
   if (have_stamp_ && in.stamp_s < last_stamp_s_) {
     std::ostringstream msg;
@@ -52,6 +53,8 @@ void Localizer::takeStepInputs(const StepInput& in, StepResult* res) {
     have_refined_ = false;
     have_odometry_ = false;
     have_stamp_ = false;
+    motion_model_.reset();
+    step_dt_s_ = 0.0;
     res->status = StepStatus::kTimeJumpBack;
     res->message = msg.str();
   }
@@ -90,6 +93,16 @@ void Localizer::predictStep(const StepInput& in, StepResult* res) {
       res->message += (res->message.empty() ? "" : "; ") + msg.str();
       delta = PlanarDelta();
     }
+  }
+  if (in.has_odometry && have_odometry_) {
+    res->motion = MotionSource::kOdometry;
+  } else if (params_.constant_velocity.enabled) {
+    // No odometry (or its first message: no delta yet): the filter's own recent motion.
+    delta = motion_model_.predict(step_dt_s_, params_.filter.sigma_translation_m,
+                                  params_.filter.sigma_yaw_rad);
+    res->motion = MotionSource::kConstantVelocity;
+  } else {
+    res->motion = MotionSource::kStatic;
   }
   if (in.has_odometry) {
     last_odom_ = in.T_odom_base;
@@ -208,6 +221,7 @@ void Localizer::estimateAndRefine(const StepInput& in, StepResult* res) {
   res->particles = filter_->size();
   res->timings.estimate_ms = msSince(t0);
   res->refinement.pose = res->estimate.mean;
+  res->depth_scale = params_.refinement.estimate_depth_scale ? depth_scale_ : 1.0;
   if (params_.refinement.enabled) {
     const Eigen::Matrix<double, 6, 6>& C = res->estimate.covariance;
     const double position_sigma = std::sqrt(std::max({C(0, 0), C(1, 1), C(2, 2)}));
@@ -221,6 +235,37 @@ void Localizer::estimateAndRefine(const StepInput& in, StepResult* res) {
   }
   have_refined_ = res->refinement.refined;
   if (have_refined_) last_refined_ = res->refinement.pose;
+  observeMotion(in, *res);
+}
+
+void Localizer::observeMotion(const StepInput& in, const StepResult& res) {
+  // The constant-velocity model learns from the refined pose, else from a particle mean up to
+  // twice as spread as refinement allows, trusted by (refinement's limit / spread)^2: the
+  // velocity builds up while the filter converges, which in turn narrows the prediction. A more
+  // spread belief restarts it from zero.
+  const Eigen::Matrix<double, 6, 6>& C = res.estimate.covariance;
+  const double position_sigma = std::sqrt(std::max({C(0, 0), C(1, 1), C(2, 2)}));
+  const double yaw_sigma = std::sqrt(C(5, 5));
+  const double limit_m = params_.refinement.max_position_sigma_m;
+  const double limit_rad = params_.refinement.max_yaw_sigma_rad;
+  if (res.refinement.refined) {
+    motion_model_.observe(in.stamp_s, res.refinement.pose);
+  } else if (position_sigma <= 2.0 * limit_m && yaw_sigma <= 2.0 * limit_rad) {
+    const double confidence = std::min({1.0, std::pow(limit_m / std::max(position_sigma, 1e-9), 2),
+                                        std::pow(limit_rad / std::max(yaw_sigma, 1e-9), 2)});
+    motion_model_.observe(in.stamp_s, res.estimate.mean, confidence);
+  } else {
+    motion_model_.reset();
+  }
+  // No attitude input at all (no IMU, no odometry orientation): roll and pitch held from the
+  // last refined estimate, which the refinement moves towards the frame's likelihood within its
+  // attitude prior (docs/no_odometry.md).
+  if (!in.has_attitude && !in.has_odometry && res.refinement.refined &&
+      params_.refinement.attitude_prior_sigma_rad > 0.0 && std::isfinite(res.refinement.roll_rad) &&
+      std::isfinite(res.refinement.pitch_rad)) {
+    roll_rad_ = res.refinement.roll_rad;
+    pitch_rad_ = res.refinement.pitch_rad;
+  }
 }
 
 void Localizer::refineEstimate(const StepInput& in, StepResult* res) {
@@ -238,7 +283,9 @@ void Localizer::refineEstimate(const StepInput& in, StepResult* res) {
   // prepared there), else on the host with the points prepared there now.
   NormalEquationsEvaluator* sums = backend_->normalEquations();
   RefinementFrame rf;
-  if (!host_frame_ready_ && sums != nullptr && sums->hasBackendFrame()) {
+  const bool with_scale = params_.refinement.estimate_depth_scale;
+  if (!host_frame_ready_ && sums != nullptr && sums->hasBackendFrame() &&
+      (!with_scale || sums->supportsDepthScale())) {
     rf.intrinsics = in.intrinsics;
     rf.grid =
         PatchGrid::forImage(in.depth->width_px, in.depth->height_px, params_.frame.patch_size_px);
@@ -269,6 +316,7 @@ void Localizer::refineEstimate(const StepInput& in, StepResult* res) {
   for (size_t k = 0; k < refine_index_.size(); ++k) {
     refine_components_[k] = map_.packed()[refine_index_[k]];
   }
+  rf.depth_scale = with_scale ? depth_scale_ : 1.0;
   res->refinement = refinePose(refine_components_, rf, start, roll_rad_, pitch_rad_,
                                params_.T_base_cam, params_.measurement, params_.refinement, sums);
   // Judged against the particle mean, whatever the start.
@@ -282,6 +330,14 @@ void Localizer::refineEstimate(const StepInput& in, StepResult* res) {
     res->refinement.why = "refined pose too far from the particle mean: rejected";
     res->refinement.pose = res->estimate.mean;
   }
+  // The depth scale follows the refined frames' slowly (one frame's is tied to its pose).
+  if (with_scale && res->refinement.refined) {
+    const RefinementParams& rp = params_.refinement;
+    depth_scale_ += rp.depth_scale_rate * (res->refinement.depth_scale - depth_scale_);
+    depth_scale_ = std::min(1.0 + rp.depth_scale_max_error,
+                            std::max(1.0 - rp.depth_scale_max_error, depth_scale_));
+  }
+  res->depth_scale = with_scale ? depth_scale_ : 1.0;
   res->timings.refine_ms = res->refinement.ms;
 }
 
@@ -295,6 +351,7 @@ StepStatus Localizer::resampleAndRecover(const MeasurementContext& ctx, StepResu
   if (lost_.update(res->best_loglik_per_pixel)) {
     res->lost = true;
     have_refined_ = false;
+    motion_model_.reset();
     // The worst fraction is redrawn; with an adaptive count the set grows back to its largest.
     const int n = filter_->size();
     const int keep = n - static_cast<int>(std::floor(params_.lost.reinit_fraction * n));

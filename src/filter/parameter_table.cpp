@@ -4,6 +4,7 @@
 #include <cstdlib>
 
 #include "gmm_mcl/common/enum_names.h"
+#include "gmm_mcl/measurement/depth_noise_preset.h"
 
 namespace gmm_mcl {
 
@@ -134,6 +135,33 @@ void addMotionParams(ParamTable<P>* t) {
              "attitude_sigma_rad", GMM_MCL_PARAM_FIELD(P, filter.attitude_sigma_rad), "rad", g,
              {0, 1}, kRuntime,
              "Roll and pitch standard deviation reported in the pose covariance (the IMU's)"));
+  add(t, paramSpec<P>("cv_model", GMM_MCL_PARAM_FIELD(P, constant_velocity.enabled), "", g, {},
+                      kRuntime,
+                      "Steps without odometry predict with a constant velocity estimated from the "
+                      "filter's own converged estimates (false: no motion, the per-update noise)"));
+  add(t, paramSpec<P>("cv_velocity_smoothing",
+                      GMM_MCL_PARAM_FIELD(P, constant_velocity.velocity_smoothing), "", g,
+                      {1e-3, 1}, kRuntime,
+                      "Constant-velocity model: weight of the newest velocity sample (exponential "
+                      "smoothing; 1 = the last sample alone)"));
+  add(t,
+      paramSpec<P>("cv_sigma_speed_m_s", GMM_MCL_PARAM_FIELD(P, constant_velocity.sigma_speed_m_s),
+                   "m/s", g, {0, 10}, kRuntime,
+                   "Constant-velocity model: translation noise sigma_translation_m + this x the "
+                   "time since the last step (twice while no velocity is known)"));
+  add(t, paramSpec<P>("cv_sigma_yaw_rate_rad_s",
+                      GMM_MCL_PARAM_FIELD(P, constant_velocity.sigma_yaw_rate_rad_s), "rad/s", g,
+                      {0, 10}, kRuntime,
+                      "Constant-velocity model: yaw noise sigma_yaw_rad + this x the time since "
+                      "the last step (twice while no velocity is known)"));
+  add(t, paramSpec<P>("cv_max_gap_s", GMM_MCL_PARAM_FIELD(P, constant_velocity.max_gap_s), "s", g,
+                      {1e-3, 100}, kRuntime,
+                      "Constant-velocity model: a longer gap between steps or estimates forgets "
+                      "the velocity"));
+  add(t, paramSpec<P>("cv_max_speed_m_s", GMM_MCL_PARAM_FIELD(P, constant_velocity.max_speed_m_s),
+                      "m/s", g, {1e-3, 100}, kRuntime,
+                      "Constant-velocity model: a faster velocity sample is a jump of the estimate "
+                      "and restarts the velocity from zero"));
 }
 
 // Weighting.
@@ -271,6 +299,22 @@ void addMeasurementParams(ParamTable<P>* t) {
              "floor_log_density", GMM_MCL_PARAM_FIELD(P, measurement.floor_log_density),
              "ln(1/m^3)", g, {-80, 20}, kRuntime,
              "Outlier floor: each pixel's log-likelihood is ln(exp(floor) + mixture density)"));
+  {
+    // Before depth_noise_a_m, _b_per_m and _z0_m: the loaders apply the table in order, so that
+    // those given beside a preset override its numbers.
+    ParamSpec<P> p =
+        paramSpec<P>("depth_noise_preset", GMM_MCL_PARAM_FIELD(P, measurement.depth_noise_preset),
+                     "", g, {}, kStartup,
+                     "Camera whose depth noise to use (docs/measurement_model.md, Sensor presets): "
+                     "fills depth_noise_a_m, _b_per_m and _z0_m, which override it where also "
+                     "given; custom = those three as given");
+    p.choices = depthNoisePresetChoices();
+    p.set = [](P* s, const ParamValue& v) {
+      s->measurement.depth_noise_preset = v.s;
+      applyDepthNoisePreset(v.s, &s->measurement.depth_noise);  // unknown: validate() says so
+    };
+    add(t, p);
+  }
   add(t, paramSpec<P>("depth_noise_a_m", GMM_MCL_PARAM_FIELD(P, measurement.depth_noise.a_m), "m",
                       g, {0, 1}, kRuntime,
                       "Camera depth noise sigma(z) = a + b (z - z0)^2: the constant a (a = b = 0: "
@@ -320,6 +364,26 @@ void addRefinementParams(ParamTable<P>* t) {
                       "rad", g, {1e-6, 1}, kRuntime,
                       "Refinement stops when a step turns less than this and moves less than "
                       "refine_tolerance_m"));
+  add(t, paramSpec<P>("refine_depth_scale", GMM_MCL_PARAM_FIELD(P, refinement.estimate_depth_scale),
+                      "", g, {}, kRuntime,
+                      "Refinement also estimates the camera's depth scale (a factor on its "
+                      "depths, filtered over frames, applied to the refined frames' points)"));
+  add(t, paramSpec<P>(
+             "refine_depth_scale_prior_sigma",
+             GMM_MCL_PARAM_FIELD(P, refinement.depth_scale_prior_sigma), "", g, {1e-5, 1}, kRuntime,
+             "Depth scale: prior standard deviation per frame around the current estimate"));
+  add(t, paramSpec<P>("refine_depth_scale_max_error",
+                      GMM_MCL_PARAM_FIELD(P, refinement.depth_scale_max_error), "", g, {1e-4, 0.49},
+                      kRuntime, "Depth scale: kept within 1 +- this"));
+  add(t,
+      paramSpec<P>("refine_depth_scale_rate", GMM_MCL_PARAM_FIELD(P, refinement.depth_scale_rate),
+                   "", g, {1e-4, 1}, kRuntime,
+                   "Depth scale: the estimate follows each refined frame's by this fraction"));
+  add(t, paramSpec<P>("refine_depth_scale_initial",
+                      GMM_MCL_PARAM_FIELD(P, refinement.depth_scale_initial), "", g, {0.5, 1.5},
+                      kStartup,
+                      "Depth scale: the estimate at start (saved here with the pose by "
+                      "save_pose_rate)"));
 }
 
 // Initial region.

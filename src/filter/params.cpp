@@ -126,7 +126,8 @@ std::string LostDetectionParams::validate() const {
 
 std::string LocalizerParams::validate() const {
   std::string err = filter.validate() + lost.validate() + frame.validate() +
-                    measurement.validate() + refinement.validate() + init.validate();
+                    measurement.validate() + refinement.validate() + init.validate() +
+                    constant_velocity.validate();
   if (!T_base_cam.matrix().allFinite()) err += "T_base_cam must be finite; ";
   if (!(max_odometry_step_m > 0.0)) err += "max_odometry_step_m must be positive; ";
   if (backend != "cpu" && backend != "cuda")

@@ -73,8 +73,9 @@ void ParticleFilter::initialiseGaussian(const Particle& mean, const Eigen::Vecto
 
 void ParticleFilter::predict(const PlanarDelta& delta) {
   std::normal_distribution<double> g(0.0, 1.0);
-  const double st = params_.sigma_translation_m;
-  const double sy = params_.sigma_yaw_rad;
+  const double st =
+      delta.sigma_translation_m >= 0.0 ? delta.sigma_translation_m : params_.sigma_translation_m;
+  const double sy = delta.sigma_yaw_rad >= 0.0 ? delta.sigma_yaw_rad : params_.sigma_yaw_rad;
   for (Particle& p : particles_) {
     const double c = std::cos(p.yaw_rad), s = std::sin(p.yaw_rad);
     p.x_m += c * delta.translation_m.x() - s * delta.translation_m.y() + st * g(rng_);

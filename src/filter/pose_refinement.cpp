@@ -16,20 +16,25 @@ namespace {
 // Steps after which the membership and the noise-convolved forms are recomputed.
 constexpr double kRelineariseM = 0.01;
 constexpr double kRelineariseRad = 0.01;
+// Iterations stop only when the depth scale also moves less than this (1 mm at 10 m).
+constexpr double kScaleTolerance = 1e-4;
 
 // A 6-DoF pose: the particle state plus the roll and pitch the refinement may adjust.
 struct Pose6 {
   Particle p;
   double roll = 0.0, pitch = 0.0;
+  double scale = 1.0;  // the depth scale (estimated with RefinementParams::estimate_depth_scale)
 };
 
 // The frame's log-likelihood at a pose and the Gauss-Newton normal equations of the EM objective
 // sum_ij gamma_ij |y_ij|^2 (y = U q + c: the component's whitened residual over sqrt(2)) in
 // (x, y, z, roll, pitch, yaw).
+// (x, y, z, roll, pitch, yaw, depth scale): the seventh row and column only when the depth
+// scale is estimated.
 struct Linearisation {
   double loglik = 0.0;
-  Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
-  Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();
+  Eigen::Matrix<double, 7, 7> H = Eigen::Matrix<double, 7, 7>::Zero();
+  Eigen::Matrix<double, 7, 1> g = Eigen::Matrix<double, 7, 1>::Zero();
 };
 
 // The objective: membership and evaluation forms on the host, the pixel sums in `sums` (the
@@ -38,12 +43,13 @@ class Objective {
  public:
   Objective(const std::vector<ComponentF>& components, const RefinementFrame& frame,
             const Eigen::Isometry3d& T_base_cam, const MeasurementParams& params,
-            NormalEquationsEvaluator* sums)
+            NormalEquationsEvaluator* sums, bool estimate_scale)
       : components_(components),
         frame_(frame),
         T_base_cam_(T_base_cam),
         params_(params),
-        sums_(sums) {
+        sums_(sums),
+        estimate_scale_(estimate_scale) {
     makeEvalComponents(components_, &base_eval_);
     if (frame.points == nullptr) {  // on the evaluator's device already
       sums_->setPointsFromBackendFrame(T_base_cam);
@@ -65,6 +71,7 @@ class Objective {
   // that follow, whose steps are small beside the membership's 3-sigma-plus-half-patch margin
   // (the objective stays one function while it is maximised).
   void linearisePatches(const Pose6& pose) {
+    // (The depth scale moves points, not the camera: membership is the camera's.)
     const Eigen::Isometry3d T_map_cam = particleToPose(pose.p, pose.roll, pose.pitch) * T_base_cam_;
     const RigidTransformF T_cam_map = toRigidF(T_map_cam.inverse());
     computeMembership(components_, T_cam_map, frame_.intrinsics, frame_.grid, params_, &projected_,
@@ -98,6 +105,9 @@ class Objective {
     d.t[0] = pose.p.x_m;
     d.t[1] = pose.p.y_m;
     d.t[2] = pose.p.z_m;
+    d.scale = pose.scale;
+    for (int a = 0; a < 3; ++a) d.scale_origin[a] = T_base_cam_.translation()[a];
+    d.estimate_scale = estimate_scale_;
     NormalEquationSums s;
     sums_->evaluate(d, params_.floor_log_density, linearise, &s);
     Linearisation out;
@@ -106,6 +116,8 @@ class Objective {
       for (int c = r; c < 6; ++c, ++idx) out.H(r, c) = out.H(c, r) = s.h[idx];
       out.g(r) = s.g[r];
     }
+    for (int r = 0; r < 7; ++r) out.H(r, 6) = out.H(6, r) = s.hs[r];
+    out.g(6) = s.gs;
     return out;
   }
 
@@ -115,6 +127,7 @@ class Objective {
   Eigen::Isometry3d T_base_cam_;
   MeasurementParams params_;
   NormalEquationsEvaluator* sums_;
+  bool estimate_scale_;
   std::vector<EvalComponentF> base_eval_, noisy_;
   std::vector<ProjectedComponent> projected_;
   std::vector<char> valid_;
@@ -134,6 +147,18 @@ std::string RefinementParams::validate() const {
   if (!(tolerance_rad > 0.0)) err << "refinement tolerance_rad must be positive; ";
   if (!(attitude_prior_sigma_rad >= 0.0)) {
     err << "refinement attitude_prior_sigma_rad must be >= 0; ";
+  }
+  if (!(depth_scale_prior_sigma > 0.0)) {
+    err << "refinement depth_scale_prior_sigma must be positive; ";
+  }
+  if (!(depth_scale_max_error > 0.0 && depth_scale_max_error < 0.5)) {
+    err << "refinement depth_scale_max_error must be in (0, 0.5); ";
+  }
+  if (!(depth_scale_rate > 0.0 && depth_scale_rate <= 1.0)) {
+    err << "refinement depth_scale_rate must be in (0, 1]; ";
+  }
+  if (!(std::abs(depth_scale_initial - 1.0) <= depth_scale_max_error)) {
+    err << "refinement depth_scale_initial must be within depth_scale_max_error of 1; ";
   }
   return err.str();
 }
@@ -156,17 +181,36 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
         "refinePose: the frame's points are neither on the host nor on "
         "the backend's device");
   }
+  // The depth scale needs an evaluator that applies it: the host's, with the host's points.
+  const bool with_scale = refinement.estimate_depth_scale;
+  if (with_scale && sums != nullptr && !sums->supportsDepthScale()) {
+    if (frame.points == nullptr) {
+      throw std::invalid_argument(
+          "refinePose: the depth scale is estimated on the host, and the frame's points are not "
+          "there");
+    }
+    sums = nullptr;
+  }
   HostNormalEquations host_sums;
-  Objective objective(components, frame, T_base_cam, params, sums ? sums : &host_sums);
+  Objective objective(components, frame, T_base_cam, params, sums ? sums : &host_sums, with_scale);
   const double px = static_cast<double>(frame.pixels);
   // Roll and pitch: free with a Gaussian prior at the attitude input (sigma > 0), else fixed.
   const double sigma_att = refinement.attitude_prior_sigma_rad;
   const bool six_dof = sigma_att > 0.0;
   const double prior = six_dof ? 0.5 / (sigma_att * sigma_att) : 0.0;
+  // The depth scale: a Gaussian prior at the frame's current estimate, within its bounds.
+  const double scale0 = frame.depth_scale;
+  const double prior_s =
+      with_scale ? 0.5 / (refinement.depth_scale_prior_sigma * refinement.depth_scale_prior_sigma)
+                 : 0.0;
+  const double scale_lo = 1.0 - refinement.depth_scale_max_error;
+  const double scale_hi = 1.0 + refinement.depth_scale_max_error;
   auto logPosterior = [&](const Pose6& p, double loglik) {
-    return loglik - prior * (std::pow(p.roll - roll_rad, 2) + std::pow(p.pitch - pitch_rad, 2));
+    return loglik - prior * (std::pow(p.roll - roll_rad, 2) + std::pow(p.pitch - pitch_rad, 2)) -
+           prior_s * std::pow(p.scale - scale0, 2);
   };
-  Pose6 pose{start, roll_rad, pitch_rad};
+  Pose6 pose{start, roll_rad, pitch_rad, scale0};
+  r.depth_scale = scale0;
   objective.linearisePatches(pose);
   Linearisation cur = objective.evaluate(pose, true);
   double cur_post = logPosterior(pose, cur.loglik);
@@ -174,25 +218,33 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
   double lambda = 1e-3;  // Levenberg-Marquardt damping, relative to the diagonal
   for (int it = 0; it < refinement.max_iterations; ++it) {
     ++r.iterations;
-    Eigen::Matrix<double, 6, 6> A = cur.H;
-    Eigen::Matrix<double, 6, 1> g = cur.g;
+    Eigen::Matrix<double, 7, 7> A = cur.H;
+    Eigen::Matrix<double, 7, 1> g = cur.g;
+    auto fix = [&](int d) {
+      A.row(d).setZero();
+      A.col(d).setZero();
+      A(d, d) = 1.0;
+      g(d) = 0.0;
+    };
     if (six_dof) {
       A(3, 3) += prior;
       A(4, 4) += prior;
       g(3) += prior * (pose.roll - roll_rad);
       g(4) += prior * (pose.pitch - pitch_rad);
     } else {
-      for (int d = 3; d < 5; ++d) {
-        A.row(d).setZero();
-        A.col(d).setZero();
-        A(d, d) = 1.0;
-        g(d) = 0.0;
-      }
+      fix(3);
+      fix(4);
     }
-    for (int d = 0; d < 6; ++d) A(d, d) += lambda * std::max(A(d, d), 1e-9);
-    const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(A);
+    if (with_scale) {
+      A(6, 6) += prior_s;
+      g(6) += prior_s * (pose.scale - scale0);
+    } else {
+      fix(6);
+    }
+    for (int d = 0; d < 7; ++d) A(d, d) += lambda * std::max(A(d, d), 1e-9);
+    const Eigen::LDLT<Eigen::Matrix<double, 7, 7>> ldlt(A);
     if (ldlt.info() != Eigen::Success) break;
-    const Eigen::Matrix<double, 6, 1> delta = -ldlt.solve(g);
+    Eigen::Matrix<double, 7, 1> delta = -ldlt.solve(g);
     if (!delta.allFinite()) break;
     Pose6 next = pose;
     next.p.x_m += delta[0];
@@ -201,12 +253,14 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
     next.roll += delta[3];
     next.pitch += delta[4];
     next.p.yaw_rad = wrapAngle(next.p.yaw_rad + delta[5]);
+    next.scale = std::min(scale_hi, std::max(scale_lo, next.scale + delta[6]));
+    delta[6] = next.scale - pose.scale;
     Linearisation cand = objective.evaluate(next, true);
     double cand_post = logPosterior(next, cand.loglik);
     if (cand_post > cur_post) {
       // A step of more than a centimetre or degree: membership and noise at the new pose.
       if (delta.head<3>().norm() > kRelineariseM ||
-          delta.tail<3>().cwiseAbs().maxCoeff() > kRelineariseRad) {
+          delta.segment<3>(3).cwiseAbs().maxCoeff() > kRelineariseRad) {
         objective.linearisePatches(next);
         cand = objective.evaluate(next, true);
         cand_post = logPosterior(next, cand.loglik);
@@ -217,7 +271,8 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
       r.refined = true;
       lambda = std::max(1e-6, 0.3 * lambda);
       if (delta.head<3>().norm() < refinement.tolerance_m &&
-          delta.tail<3>().cwiseAbs().maxCoeff() < refinement.tolerance_rad) {
+          delta.segment<3>(3).cwiseAbs().maxCoeff() < refinement.tolerance_rad &&
+          std::abs(delta[6]) < kScaleTolerance) {
         break;
       }
     } else {
@@ -241,6 +296,7 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
     r.pose = pose.p;
     r.roll_rad = pose.roll;
     r.pitch_rad = pose.pitch;
+    r.depth_scale = pose.scale;
     r.loglik_refined = cur.loglik / px;
   } else {
     r.loglik_refined = r.loglik_start;

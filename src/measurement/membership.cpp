@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "gmm_mcl/internal/fast_math.h"
+#include "gmm_mcl/measurement/depth_noise_preset.h"
 
 #if defined(__AVX2__) && defined(__FMA__)
 #include <immintrin.h>
@@ -339,6 +340,9 @@ std::string MeasurementParams::validate() const {
     err << "depth_noise needs finite a >= 0, b >= 0 and z0 >= 0 (got a " << n.a_m << " m, b "
         << n.b_per_m << " 1/m, z0 " << n.z0_m << " m); ";
   }
+  DepthNoiseModel preset;
+  const std::string preset_error = applyDepthNoisePreset(depth_noise_preset, &preset);
+  if (!preset_error.empty()) err << preset_error << "; ";
   return err.str();
 }
 

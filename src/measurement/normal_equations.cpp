@@ -10,9 +10,9 @@ namespace gmm_mcl {
 namespace {
 
 // Work split of the pixel loop: patches in this many chunks; per chunk the log-likelihood, the
-// 21 entries of the upper triangle of H and the 6 of g.
+// 21 entries of the upper triangle of H, the 6 of g, and the depth scale's 7 of H and 1 of g.
 constexpr int kChunks = 64;
-constexpr int kPartial = 28;
+constexpr int kPartial = 36;
 
 std::vector<double>& scratchT() {
   static thread_local std::vector<double> v;
@@ -55,6 +55,9 @@ void HostNormalEquations::evaluate(const PoseDerivatives& pose, float floor_log_
   const Eigen::Matrix3d R = rowMajor(pose.R);
   const Eigen::Vector3d t(pose.t[0], pose.t[1], pose.t[2]);
   const Eigen::Matrix3d D[3] = {rowMajor(pose.dR[0]), rowMajor(pose.dR[1]), rowMajor(pose.dR[2])};
+  const Eigen::Vector3d o(pose.scale_origin[0], pose.scale_origin[1], pose.scale_origin[2]);
+  const double f = pose.scale;
+  const bool with_scale = pose.estimate_scale;
   const double floor = floor_log_density;
   const EvalComponentF* eval = eval_.data();
   *out = NormalEquationSums();
@@ -66,7 +69,8 @@ void HostNormalEquations::evaluate(const PoseDerivatives& pose, float floor_log_
   partial_.assign(static_cast<size_t>(chunks) * kPartial, 0.0);
 #pragma omp parallel for schedule(dynamic, 1)
   for (int ch = 0; ch < chunks; ++ch) {
-    double* acc = partial_.data() + static_cast<size_t>(ch) * kPartial;  // loglik, h[21], g[6]
+    // loglik, h[21], g[6], hs[7], gs
+    double* acc = partial_.data() + static_cast<size_t>(ch) * kPartial;
     std::vector<double>& t_ = scratchT();
     std::vector<double>& y_ = scratchY();
     for (int p = ch * patches / chunks; p < (ch + 1) * patches / chunks; ++p) {
@@ -81,7 +85,8 @@ void HostNormalEquations::evaluate(const PoseDerivatives& pose, float floor_log_
       t_.resize(k);
       y_.resize(3 * k);
       for (int i = b; i < e; ++i) {
-        const Eigen::Vector3d p_base(px_[i], py_[i], pz_[i]);
+        const Eigen::Vector3d ray = Eigen::Vector3d(px_[i], py_[i], pz_[i]) - o;
+        const Eigen::Vector3d p_base = o + f * ray;
         const Eigen::Vector3d q = R * p_base + t;
         double mx = floor;
         for (int j = 0; j < k; ++j) {
@@ -104,6 +109,7 @@ void HostNormalEquations::evaluate(const PoseDerivatives& pose, float floor_log_
         if (!linearise) continue;
         // dq / d(roll, pitch, yaw).
         const Eigen::Vector3d m[3] = {D[0] * p_base, D[1] * p_base, D[2] * p_base};
+        const Eigen::Vector3d ms = R * ray;  // dq / df
         const double inv_sum = 1.0 / sum;
         for (int j = 0; j < k; ++j) {
           const double gamma = t_[j] * inv_sum;
@@ -126,6 +132,16 @@ void HostNormalEquations::evaluate(const PoseDerivatives& pose, float floor_log_
             }
             g[r] += gamma * (col[r][0] * y[0] + col[r][1] * y[1] + col[r][2] * y[2]);
           }
+          if (with_scale) {
+            const double cs[3] = {ev.u00 * ms.x() + ev.u01 * ms.y() + ev.u02 * ms.z(),
+                                  ev.u11 * ms.y() + ev.u12 * ms.z(), ev.u22 * ms.z()};
+            double* hs = acc + 28;
+            for (int r = 0; r < 6; ++r) {
+              hs[r] += gamma * (col[r][0] * cs[0] + col[r][1] * cs[1] + col[r][2] * cs[2]);
+            }
+            hs[6] += gamma * (cs[0] * cs[0] + cs[1] * cs[1] + cs[2] * cs[2]);
+            acc[35] += gamma * (cs[0] * y[0] + cs[1] * y[1] + cs[2] * y[2]);
+          }
         }
       }
     }
@@ -135,6 +151,8 @@ void HostNormalEquations::evaluate(const PoseDerivatives& pose, float floor_log_
     out->loglik += acc[0];
     for (int idx = 0; idx < 21; ++idx) out->h[idx] += acc[1 + idx];
     for (int r = 0; r < 6; ++r) out->g[r] += acc[22 + r];
+    for (int r = 0; r < 7; ++r) out->hs[r] += acc[28 + r];
+    out->gs += acc[35];
   }
 }
 

@@ -83,6 +83,9 @@ TrialResult runTrial(const Sequence& seq, const DepthProvider& depth, const GmmM
                      const ReplayParams& params, uint64_t seed, const ProgressCallback& progress) {
   const int n = params.max_frames > 0 ? std::min(params.max_frames, seq.size()) : seq.size();
   const std::vector<Eigen::Isometry3d> truth = alignedBaseTrajectory(seq, n);
+  if (params.frame_step < 1) throw std::invalid_argument("replay: frame_step must be >= 1");
+  const int step = params.frame_step;
+  const int steps = (n + step - 1) / step;
 
   LocalizerParams lp = params.localizer;
   lp.T_base_cam = opticalToBase();
@@ -98,19 +101,24 @@ TrialResult runTrial(const Sequence& seq, const DepthProvider& depth, const GmmM
   OdometrySynthesizer odometry(params.noise, seed);  // apart from the filter's generator
   TrialResult out;
   out.seed = seed;
-  out.frames.reserve(n);
-  for (int f = 0; f < n; ++f) {
+  out.frames.reserve(steps);
+  for (int k = 0; k < steps; ++k) {
+    const int f = k * step;
     StepInput in;
     in.stamp_s = seq.stampS(f);
-    in.has_odometry = true;
-    in.T_odom_base = odometry.next(truth[f]);
-    in.has_attitude = true;
-    odometry.attitude(truth[f], &in.roll_rad, &in.pitch_rad);
+    // Drawn even when withheld: the same seed gives the same attitude noise either way.
+    const Eigen::Isometry3d T_odom_base = odometry.next(truth[f], k > 0 ? step : 1.0);
+    in.has_odometry = params.odometry;
+    if (params.odometry) in.T_odom_base = T_odom_base;
+    double roll = 0.0, pitch = 0.0;
+    odometry.attitude(truth[f], &roll, &pitch);
+    in.has_attitude = params.attitude;
+    if (params.attitude) in.roll_rad = roll, in.pitch_rad = pitch;
     in.depth = &depth(f);
     in.intrinsics = seq.intrinsics();
     const Particle true_pose = poseToParticle(truth[f]);
     out.frames.push_back(makeReplayFrame(in.stamp_s, loc.step(in), &true_pose));
-    if (progress) progress(f, n, out.frames.back());
+    if (progress) progress(k, steps, out.frames.back());
   }
   finishTrial(params.evaluation, &out);
   return out;
@@ -137,7 +145,7 @@ void writeFrameCsv(const TrialResult& r, const std::string& path) {
          "neff,loglik_best_per_px,loglik_mean_per_px,floor_hit_fraction,relevant_per_patch,"
          "beta_fraction,reinitialised,lost_redrawn,status,pixels,frame_prep_ms,membership_ms,"
          "likelihood_ms,resample_ms,refined,refined_error_m,refined_error_yaw_deg,refine_ms,"
-         "particles,total_ms\n";
+         "particles,total_ms,depth_scale\n";
   out.precision(7);
   for (const ReplayFrame& f : r.frames) {
     const StepResult& s = f.step;
@@ -164,7 +172,8 @@ void writeFrameCsv(const TrialResult& r, const std::string& path) {
     } else {
       out << ',';
     }
-    out << ',' << s.timings.refine_ms << ',' << s.particles << ',' << s.timings.total_ms << '\n';
+    out << ',' << s.timings.refine_ms << ',' << s.particles << ',' << s.timings.total_ms << ','
+        << s.depth_scale << '\n';
   }
 }
 

@@ -173,6 +173,7 @@ void LocalizationNodelet::onFrame(const std_msgs::Header& header, const DepthIma
     } else if (last_result_.odometry_jump) {
       problem(last_result_.message);
     }
+    logMotionSource(in.has_odometry);
   }
   if (opts_.mapToBase() || in.has_odometry) {
     T_map_odom_ = opts_.mapToBase() ? T_map_base : T_map_base * in.T_odom_base.inverse();
@@ -191,8 +192,26 @@ void LocalizationNodelet::onFrame(const std_msgs::Header& header, const DepthIma
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
     // amcl's pose persistence, written by the poll timer
     pose_saver_.offer(opts_.save_pose_rate_hz, stamp, last_result_.estimate.mean,
-                      last_result_.estimate.covariance);
+                      last_result_.estimate.covariance, last_result_.depth_scale);
   }
+}
+
+void LocalizationNodelet::logMotionSource(bool has_odometry) {
+  // Odometry that appears after the filter ran without it is used from its second message on
+  // (the first has no delta); both changes are logged once (docs/no_odometry.md).
+  if (has_odometry && frames_without_odometry_ > 0) {
+    NODELET_INFO(
+        "gmm_mcl: odometry arrived after %d updates without it: the filter predicts with "
+        "it from the next update on",
+        frames_without_odometry_);
+  } else if (!has_odometry && frames_without_odometry_ == 0) {
+    NODELET_INFO("gmm_mcl: %s: predicting with %s",
+                 opts_.odometry_source == "none" ? "odometry_source none" : "no odometry",
+                 localizer_->params().constant_velocity.enabled
+                     ? "the constant-velocity model of the filter's own estimates"
+                     : "no motion (cv_model false)");
+  }
+  frames_without_odometry_ = has_odometry ? 0 : frames_without_odometry_ + 1;
 }
 
 void LocalizationNodelet::publish(const std_msgs::Header& header, const StepResult& r,

@@ -63,6 +63,7 @@ void fillStatus(const StepResult& r, const FrameCounters& c, const std::string& 
   s->refined = r.refinement.refined;
   s->refine_why = r.refinement.why;
   s->refined_loglik_per_pixel = r.refinement.refined ? r.refinement.loglik_refined : 0.0;
+  s->depth_scale = r.depth_scale;
   s->predict_ms = r.timings.predict_ms;
   s->frame_prep_ms = r.timings.frame_prep_ms;
   s->projection_membership_ms = r.timings.projection_membership_ms;
@@ -111,6 +112,7 @@ void recordFrame(const StepResult& r, bool gated, bool sent_tf, double now_s,
   h->last_step = r.status;
   h->last_step_message = r.message;
   h->sigma_xy_m = std::sqrt(std::max(r.estimate.covariance(0, 0), r.estimate.covariance(1, 1)));
+  h->depth_scale = r.depth_scale;
   h->sigma_yaw_rad = std::sqrt(r.estimate.covariance(5, 5));
   h->below_lost_reference =
       lost.margin_nats > 0 && r.status == StepStatus::kOk &&
@@ -217,6 +219,7 @@ Diagnosis diagnose(const NodeHealth& h) {
   add("sigma x/y (m)", num(h.sigma_xy_m));
   add("sigma yaw (rad)", num(h.sigma_yaw_rad));
   add("Neff", num(h.neff));
+  add("depth scale", num(h.depth_scale));
   add("update ms", num(h.update_ms));
   add("budget", !h.budget.enabled          ? "off"
                 : h.budget.budget_ms > 0.0 ? num(h.budget.budget_ms) + " ms"

@@ -45,7 +45,8 @@ void addNodeOptions(ParamTable<R>* t) {
   add(t,
       paramSpec<R>("odometry_source", GMM_MCL_PARAM_FIELD(R, odometry_source), "", g, {}, kStartup,
                    "tf: odom_frame -> base_frame at each frame's stamp (frames wait for it); "
-                   "topic: nav_msgs/Odometry on odom; none"),
+                   "topic: nav_msgs/Odometry on odom; none: no odometry, the core's "
+                   "constant-velocity model predicts (cv_model, docs/no_odometry.md)"),
       {"tf", "topic", "none"});
   add(t,
       paramSpec<R>("depth_input", GMM_MCL_PARAM_FIELD(R, depth_input), "", g, {}, kStartup,
@@ -65,7 +66,7 @@ void addNodeOptions(ParamTable<R>* t) {
   add(t, paramSpec<R>("odom_timeout", GMM_MCL_PARAM_FIELD(R, odom_timeout_s), "s", g, {1e-3, 10},
                       kRuntime,
                       "odometry_source topic: odometry farther than this from a frame's stamp is a "
-                      "gap (the frame predicts without motion)"));
+                      "gap (the frame predicts with the constant-velocity model, cv_model)"));
   add(t, paramSpec<R>("imu_timeout", GMM_MCL_PARAM_FIELD(R, imu_timeout_s), "s", g, {1e-3, 10},
                       kRuntime,
                       "IMU attitude farther than this from a frame's stamp is missing (roll and "

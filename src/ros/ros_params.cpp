@@ -311,7 +311,8 @@ std::string reconfigure(LocalizerConfig* config, LocalizerParams* core, RosOptio
 }
 
 void savePoseParams(const ros::NodeHandle& pnh, const Particle& m,
-                    const Eigen::Matrix<double, 6, 6>& c) {
+                    const Eigen::Matrix<double, 6, 6>& c, double depth_scale) {
+  if (depth_scale != 1.0) pnh.setParam("refine_depth_scale_initial", depth_scale);
   pnh.setParam("initial_pose_x", m.x_m);
   pnh.setParam("initial_pose_y", m.y_m);
   pnh.setParam("initial_pose_z", m.z_m);
@@ -323,13 +324,14 @@ void savePoseParams(const ros::NodeHandle& pnh, const Particle& m,
 }
 
 void PoseSaver::offer(double rate_hz, const ros::Time& stamp, const Particle& mean,
-                      const Eigen::Matrix<double, 6, 6>& covariance) {
+                      const Eigen::Matrix<double, 6, 6>& covariance, double depth_scale) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (rate_hz <= 0 || (!last_.isZero() && (stamp - last_).toSec() < 1.0 / rate_hz)) return;
   last_ = stamp;
   pending_ = true;
   mean_ = mean;
   covariance_ = covariance;
+  depth_scale_ = depth_scale;
 }
 
 void PoseSaver::restart() {
@@ -340,14 +342,16 @@ void PoseSaver::restart() {
 void PoseSaver::flush(const ros::NodeHandle& pnh) {
   Particle mean;
   Eigen::Matrix<double, 6, 6> covariance;
+  double depth_scale = 1.0;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!pending_) return;
     pending_ = false;
     mean = mean_;
     covariance = covariance_;
+    depth_scale = depth_scale_;
   }
-  savePoseParams(pnh, mean, covariance);
+  savePoseParams(pnh, mean, covariance, depth_scale);
 }
 
 void initialPose(const RosOptions& o, Eigen::Isometry3d* T, Eigen::Matrix<double, 6, 6>* cov) {

@@ -54,7 +54,7 @@ bool StepInputs::gather(const std_msgs::Header& header, StepInput* in, Gaps* gap
   if (clear_tf_) tf_->clear();
   clear_tf_ = false;
   gaps->odometry = !in->has_odometry && opts_.odometry_source != "none";
-  if (gaps->odometry) gaps->warnings += gap + " (predicting without motion); ";
+  if (gaps->odometry) gaps->warnings += gap + " (predicting with the constant-velocity model); ";
   if (opts_.use_imu) {
     in->has_attitude =
         imu_.attitudeAt(in->stamp_s, opts_.imu_timeout_s, &in->roll_rad, &in->pitch_rad, &gap);

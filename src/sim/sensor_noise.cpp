@@ -41,6 +41,7 @@ std::string SensorNoiseParams::validate() const {
       !std::isfinite(axial_z0_m)) {
     e << "axial noise coefficients must be finite and non-negative; ";
   }
+  if (!(std::abs(depth_scale_error) < 0.5)) e << "depth scale error must be in (-0.5, 0.5); ";
   if (!(grazing_start_rad > 0.0) || !(grazing_end_rad >= grazing_start_rad) ||
       !(grazing_end_rad <= kHalfPi)) {
     e << "grazing angles must satisfy 0 < start <= end <= pi/2; ";
@@ -130,7 +131,7 @@ std::vector<float> applySensorNoise(const IdealDepth& ideal, const SensorNoisePa
       }
       if (edge) continue;
       double z = z0 + axialSigma(p, z0, theta) * gaussian(seed, i);
-      z = quantiseDepth(p, z);
+      z = (1.0 + p.depth_scale_error) * quantiseDepth(p, z);
       if (!(z >= p.min_range_m && z <= p.max_range_m)) continue;
       out[i] = static_cast<float>(z);
     }

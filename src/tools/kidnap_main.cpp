@@ -34,6 +34,7 @@ const char* kUsage =
     "                      [--lost-margin-nats NATS] [--lost-grace-frames FRAMES]\n"
     "                      [--lost-frames FRAMES] [--min-particles MIN]\n"
     "                      [--depth-noise A,B,Z0] [--out DIR] [--init region|map]\n"
+    "                      [--odometry truth|none]\n"
     "Particles: MIN..MAX by KLD-sampling (default 1068..3000 on the CPU, 1068..100000 with\n"
     "CUDA; MIN = MAX: fixed).\n"
     "--track-frames 0: global localisation trials (uniform start, no kidnap): over the recovery\n"
@@ -54,7 +55,7 @@ int run(int argc, char** argv) {
   uint64_t first_seed = 1;
   KidnapParams kp;
   bool lost_detector = true;
-  std::string out_dir, init = "region";
+  std::string out_dir, init = "region", odometry = "truth";
   double attitude_noise_deg = kp.attitude_sigma_rad * 180.0 / M_PI;
   cli::CommandLine cl("gmm_mcl_kidnap", kUsage);
   // clang-format off
@@ -62,7 +63,8 @@ int run(int argc, char** argv) {
            {"first-seed", &first_seed}, {"width", &width}, {"track-frames", &kp.track_frames}, {"after-frames", &kp.after_frames},
            {"start-frame", &kp.start_frame}, {"backend", &backend},
            {"attitude-noise", &attitude_noise_deg},
-           {"no-lost-detector", cli::Clear{&lost_detector}}, {"out", &out_dir}, {"init", &init}});
+           {"no-lost-detector", cli::Clear{&lost_detector}}, {"out", &out_dir}, {"init", &init},
+           {"odometry", &odometry}});
   // clang-format on
   kp.localizer.frame.pixel_stride = 8;
   cl.addLocalizerParams(&kp.localizer,
@@ -76,6 +78,8 @@ int run(int argc, char** argv) {
   if (cl.given("attitude-noise")) kp.attitude_sigma_rad = attitude_noise_deg * M_PI / 180.0;
   if (init != "region" && init != "map") cl.fail("--init: region or map (got '" + init + "')");
   kp.whole_map_start = init == "map";
+  if (odometry != "truth" && odometry != "none") cl.fail("--odometry: truth or none");
+  kp.odometry = odometry == "truth";
   return cli::reportErrors("gmm_mcl_kidnap", [&] {
     std::unique_ptr<FrameSource> src;
     if (scene == "synthetic" || scene == "box") {

@@ -36,7 +36,8 @@ const char* kUsage =
     "usage: gmm_mcl_render --out DIR [--mesh FILE.ply | --building SEED [--walk W]]\n"
     "                      [--trajectory FILE] [--camera SPEC]\n"
     "                      [--first I] [--frames N] [--stride K] [--rate HZ] [--start-time S]\n"
-    "                      [--seed S] [--no-noise] [--dropout P] [--max-range M]\n"
+    "                      [--seed S] [--no-noise] [--dropout P] [--depth-scale-error E]\n"
+    "                      [--max-range M]\n"
     "                      [--down GX,GY,GZ] [--width PX] [--save-map FILE.gmm]\n"
     "                      [--map-spacing M] [--save-mesh FILE.ply]\n"
     "                      [--save-trajectory FILE.txt] [--quiet]\n"
@@ -55,6 +56,7 @@ const char* kUsage =
     "  --rate HZ     frame rate for trajectories without stamps (default 30)\n"
     "  --no-noise    ideal depth (only the range window of --max-range)\n"
     "  --dropout P   probability that a pixel is missing at random (default 0.005)\n"
+    "  --depth-scale-error E  the camera reports (1 + E) times the depth (0.004: 0.4% long)\n"
     "  --down        gravity direction in world coordinates (default 0,0,-1: z up)\n"
     "  --save-map    the built-in scene's or the building's tiled GMM (1.5 cm normal sigma)\n"
     "  --map-spacing its tile size (default 0.4 m for the built-in scene, 0.375 m for the\n"
@@ -159,7 +161,8 @@ int run(int argc, char** argv) {
   cl.flags({{"out", &out}, {"mesh", &mesh_path}, {"trajectory", &traj_path}, {"camera", &camera},
            {"first", &first}, {"frames", &frames}, {"stride", &stride}, {"rate", &rate_hz},
            {"start-time", &start_s}, {"seed", &seed}, {"no-noise", cli::Clear{&noise}},
-           {"dropout", &sensor.random_dropout}, {"max-range", &max_range_m}, {"down", &down},
+           {"dropout", &sensor.random_dropout}, {"depth-scale-error", &sensor.depth_scale_error},
+           {"max-range", &max_range_m}, {"down", &down},
            {"width", &width_px}, {"save-map", &save_map}, {"save-mesh", &save_mesh},
            {"building", &building_seed}, {"walk", &walk_seed}, {"map-spacing", &map_spacing_m},
            {"save-trajectory", &save_traj}, {"quiet", &quiet}});

@@ -36,6 +36,7 @@ const char* kUsage =
     "                      [--lost-margin-nats NATS] [--lost-grace-frames FRAMES]\n"
     "                      [--lost-candidates-per-particle K]\n"
     "                      [--hold-frames N (30)] [--tail-frames N (100)]\n"
+    "                      [--odometry truth|none] [--imu truth|none] [--frame-step K]\n"
     "                      [--out DIR] [--quiet]\n"
     "       folder options: [--intrinsics fr1|fr2|fr3|icl|kinect|fx,fy,cx,cy|FILE]\n"
     "                      [--depth-scale UNITS_PER_M] [--tolerance S] [--gravity z-up|\n"
@@ -57,6 +58,10 @@ const char* kUsage =
     "--convert writes the data set in another folder format (with intrinsics.txt and\n"
     "gravity-direction.txt); --convert-stride keeps only the pixels on that stride's grid (the\n"
     "same input for a filter of that stride, a fraction of the bytes; TUM only).\n"
+    "--odometry none withholds the odometry (the filter's constant-velocity model predicts),\n"
+    "--imu none the attitude (roll and pitch held from the refined estimates); --frame-step K\n"
+    "replays every K-th frame (2: 15 Hz, 3: 10 Hz from 30 Hz; --frames counts the sequence's\n"
+    "frames; the hold and tail windows shrink by K unless given): docs/no_odometry.md.\n"
     "Filter parameters: every one as --name-with-dashes (the list under --help).\n";
 
 int makeFixture(const std::string& format, const std::string& dir, int frames, int width,
@@ -119,7 +124,8 @@ struct Options {
   uint64_t first_seed = 1;
   double init_half_extent_m = 2.0, init_yaw_half_range_rad = 0.5 * M_PI;
   SequenceOptions so;
-  int hold_frames = -1, tail_frames = -1;
+  int hold_frames = -1, tail_frames = -1, frame_step = 1;
+  std::string odometry = "truth", imu = "truth";
   bool quiet = false;
   bool host_filter = false;
   std::string init = "cube";
@@ -136,7 +142,8 @@ Options parseOptions(int argc, char** argv, cli::CommandLine* cl_out) {
             {"init-yaw-half-range", &o.init_yaw_half_range_rad}, {"init", &o.init},
             {"width", &o.width}, {"hold-frames", &o.hold_frames}, {"tail-frames", &o.tail_frames},
             {"convert-stride", &o.convert_stride}, {"convert", &o.convert},
-            {"make-fixture", &o.fixture}, {"quiet", &o.quiet}, {"host-filter", &o.host_filter}});
+            {"make-fixture", &o.fixture}, {"quiet", &o.quiet}, {"host-filter", &o.host_filter},
+            {"odometry", &o.odometry}, {"imu", &o.imu}, {"frame-step", &o.frame_step}});
   // clang-format on
   cli::addSequenceFlags(&cl, &o.so);
   cl.addLocalizerParams(&o.lp, {"backend", "device_filter", "seed", "init_centre",
@@ -149,6 +156,9 @@ Options parseOptions(int argc, char** argv, cli::CommandLine* cl_out) {
   cl.parse(argc, argv);
   if (o.fixture.size() == 1 || o.fixture.size() > 2) cl.fail("--make-fixture: expected FORMAT DIR");
   if (o.convert.size() == 1 || o.convert.size() > 2) cl.fail("--convert: expected FORMAT DIR");
+  if (o.odometry != "truth" && o.odometry != "none") cl.fail("--odometry: truth or none");
+  if (o.imu != "truth" && o.imu != "none") cl.fail("--imu: truth or none");
+  if (o.frame_step < 1) cl.fail("--frame-step: an integer >= 1");
   return o;
 }
 
@@ -180,8 +190,15 @@ ReplayParams replayParams(const Options& o) {
   rp.max_frames = o.frames;
   rp.init_half_extent_m = o.init_half_extent_m;
   rp.init_yaw_half_range_rad = o.init_yaw_half_range_rad;
+  // The windows keep their duration at a lower frame rate (30 and 100 frames at 30 Hz).
+  const int k = o.frame_step;
+  rp.evaluation.hold_frames = (rp.evaluation.hold_frames + k - 1) / k;
+  rp.evaluation.tail_frames = (rp.evaluation.tail_frames + k - 1) / k;
   if (o.hold_frames > 0) rp.evaluation.hold_frames = o.hold_frames;
   if (o.tail_frames > 0) rp.evaluation.tail_frames = o.tail_frames;
+  rp.frame_step = k;
+  rp.odometry = o.odometry != "none";
+  rp.attitude = o.imu != "none";
   rp.whole_map_start = o.init == "map";
   rp.localizer = o.lp;
   rp.localizer.backend = o.backend;
@@ -346,6 +363,12 @@ int run(Options o, const cli::CommandLine& cl) {
   const ReplayParams rp = replayParams(o);
   if (!o.out_dir.empty()) mkdir(o.out_dir.c_str(), 0755);
   printSettings(seq, map, rp, o);
+  if (!rp.odometry || !rp.attitude || rp.frame_step > 1) {
+    std::printf("inputs: odometry %s, attitude %s, every %d. frame (hold %d, tail %d frames)\n",
+                rp.odometry ? "from the truth" : "withheld",
+                rp.attitude ? "from the truth" : "withheld", rp.frame_step,
+                rp.evaluation.hold_frames, rp.evaluation.tail_frames);
+  }
   const std::vector<DepthImage> depth = decodeAll(seq, o.quiet);
   const DepthProvider provider = [&depth](int f) -> const DepthImage& { return depth[f]; };
   std::vector<TrialResult> results;

@@ -91,6 +91,9 @@ TEST(LocalizerTest, BadFramesKeepTheStateAndSayWhy) {
   params.filter.num_particles = 200;
   params.filter.sigma_translation_m = 0.0;
   params.filter.sigma_yaw_rad = 0.0;
+  // No odometry here: no motion between the frames either (the constant-velocity model's noise
+  // grows with the time between them).
+  params.constant_velocity.enabled = false;
   Localizer loc(params, w.map);
   StepInput in;
   in.intrinsics = K;

@@ -83,7 +83,8 @@ class CommandLine {
   void particleRangeByBackend(const std::string* backend);
 
   // --depth-noise A,B,Z0: the camera's depth noise sigma(z) = A + B (z - Z0)^2 in metres, the
-  // three depth_noise_* parameters in one flag, written into *model when given.
+  // three depth_noise_* parameters in one flag, written into *model when given (over the
+  // numbers of a --depth-noise-preset; --depth-noise-a-m, -b-per-m and -z0-m override it).
   void addDepthNoise(DepthNoiseModel* model);
 
   // A flag followed by n numbers (--crop-box X0 Y0 Z0 X1 Y1 Z1; negative ones too), written

@@ -9,6 +9,7 @@
 #include "gmm_mcl/backend/likelihood_backend_base.h"
 #include "gmm_mcl/camera/depth_image.h"
 #include "gmm_mcl/filter/lost_detector.h"
+#include "gmm_mcl/filter/motion_model.h"
 #include "gmm_mcl/filter/particle_filter.h"
 #include "gmm_mcl/filter/particle_filter_base.h"
 
@@ -30,7 +31,9 @@ struct StepInput {
   double stamp_s = 0.0;
   bool has_odometry = false;
   Eigen::Isometry3d T_odom_base = Eigen::Isometry3d::Identity();
-  bool has_attitude = false;  // roll/pitch from the IMU; else from odometry orientation
+  // Roll/pitch from the IMU; else from odometry orientation; with neither, held from the last
+  // refined estimate (the refinement estimates them, refine_attitude_prior_sigma_rad > 0).
+  bool has_attitude = false;
   double roll_rad = 0.0;
   double pitch_rad = 0.0;
   const DepthImage* depth = nullptr;  // nullptr: predict only
@@ -50,6 +53,9 @@ struct StepResult {
   StepStatus status = StepStatus::kOk;
   std::string message;         // why, for any status but kOk
   bool odometry_jump = false;  // an odometry step over max_odometry_step_m was ignored
+  // How this step predicted: odometry, the constant-velocity model (no odometry, or the first
+  // step of an odometry that appeared) or no motion (motion_model.h).
+  MotionSource motion = MotionSource::kOdometry;
   // The backend failed on this frame and the localizer switched to the CPU backend (the
   // particles kept); Localizer::backendWarning() says why from now on.
   bool backend_fallback = false;
@@ -63,6 +69,8 @@ struct StepResult {
   // The estimate refined by local maximisation of the likelihood (pose_refinement.h), when the
   // filter has converged and refinement is on; refinement.refined says whether it is usable.
   RefinementResult refinement;
+  // The camera's depth-scale estimate after this step (refine_depth_scale; 1 when off).
+  double depth_scale = 1.0;
   double neff = 0.0;  // effective sample size after the update (before resampling)
   int particles = 0;  // particle count of this step
   int pixels = 0;     // used pixels
@@ -119,6 +127,8 @@ class Localizer {
   // The map's own expected per-point log-density (the LostDetector's starting reference).
   double mapSelfLogDensity() const { return map_self_ll_; }
   double pitchRad() const { return pitch_rad_; }
+  // The constant-velocity model of steps without odometry (its velocity: velocity()).
+  const ConstantVelocityModel& motionModel() const { return motion_model_; }
 
  private:
   // Fills the filter's candidate pool with count * lost.candidates_per_particle draws scored on
@@ -137,6 +147,8 @@ class Localizer {
   StepStatus weighStep(StepResult* res, std::string* why);
   void estimateAndRefine(const StepInput& input, StepResult* res);
   void refineEstimate(const StepInput& input, StepResult* res);  // the converged estimate
+  // The motion model's velocity sample and the held attitude (no attitude input) of a step.
+  void observeMotion(const StepInput& input, const StepResult& res);
   StepStatus resampleAndRecover(const MeasurementContext& context, StepResult* res,
                                 std::string* why);
   // An early end: the status (unless one is set), the message, the estimate and the timings.
@@ -169,10 +181,13 @@ class Localizer {
   Eigen::Isometry3d last_odom_ = Eigen::Isometry3d::Identity();
   bool have_stamp_ = false;
   double last_stamp_s_ = 0.0;
+  double step_dt_s_ = 0.0;  // time since the previous step (0 at the first, after a jump back)
+  ConstantVelocityModel motion_model_;
   double roll_rad_ = 0.0;
   double pitch_rad_ = 0.0;
   bool have_refined_ = false;  // last_refined_: the last frame's refined pose, moved by odometry
   Particle last_refined_;
+  double depth_scale_ = 1.0;  // the camera's depth-scale estimate (refine_depth_scale)
   // The components the refinement can meet this frame (map indices, packed copies).
   std::vector<int> refine_index_;
   std::vector<ComponentF> refine_components_;

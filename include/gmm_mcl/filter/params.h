@@ -8,6 +8,7 @@
 
 #include "gmm_mcl/backend/backend_params.h"
 #include "gmm_mcl/camera/depth_frame.h"
+#include "gmm_mcl/filter/motion_model.h"
 #include "gmm_mcl/filter/pose_refinement.h"
 #include "gmm_mcl/measurement/measurement_params.h"
 
@@ -133,6 +134,8 @@ struct LocalizerParams {
   Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();  // camera optical frame in base
   // An odometry step longer than this (per update) is treated as a jump: not applied, reported.
   double max_odometry_step_m = 1.0;
+  // Steps without odometry: the constant-velocity model (docs/no_odometry.md).
+  ConstantVelocityParams constant_velocity;
   std::string backend = "cpu";
   // With the CUDA backend the particle set lives on the GPU and the whole filter step runs
   // there (CudaParticleFilter); false keeps it on the host (ParticleFilter, the reference), the

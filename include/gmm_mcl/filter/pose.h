@@ -41,6 +41,9 @@ RigidTransformF toRigidF(const Eigen::Isometry3d& T);
 struct PlanarDelta {
   Eigen::Vector3d translation_m = Eigen::Vector3d::Zero();
   double yaw_rad = 0.0;
+  // The process noise of this step; negative: the filter's sigma_translation_m / sigma_yaw_rad.
+  double sigma_translation_m = -1.0;
+  double sigma_yaw_rad = -1.0;
 };
 PlanarDelta odometryDelta(const Eigen::Isometry3d& T_odom_prev,
                           const Eigen::Isometry3d& T_odom_cur);

@@ -37,6 +37,18 @@ struct RefinementParams {
   // Iterations stop when a step moves less than both of these.
   double tolerance_m = 5e-4;
   double tolerance_rad = 5e-4;
+  // Depth-scale self-calibration (docs/measurement_model.md, "Depth scale"): the refinement also
+  // estimates the factor f by which the camera's depths (and so its points, along their rays)
+  // are to be multiplied, with a Gaussian prior of this standard deviation at the frame's current
+  // estimate (RefinementFrame::depth_scale), f kept within 1 +- depth_scale_max_error. Pixel
+  // sums on the host (a device evaluator without supportsDepthScale() is not used then).
+  bool estimate_depth_scale = false;
+  double depth_scale_prior_sigma = 0.005;
+  double depth_scale_max_error = 0.05;
+  // The localizer's estimate follows each refined frame's by this fraction of the difference.
+  double depth_scale_rate = 0.05;
+  // Its value at start (the nodelet saves the estimate here with the pose, ~save_pose_rate).
+  double depth_scale_initial = 1.0;
 
   std::string validate() const;
 };
@@ -47,6 +59,7 @@ struct RefinementResult {
   Particle pose;          // the refined pose (the start when not refined)
   double roll_rad = 0.0;  // and its roll and pitch (the attitude input when not refined)
   double pitch_rad = 0.0;
+  double depth_scale = 1.0;  // the depth scale of the refined pose (the frame's when not estimated)
   int iterations = 0;
   double loglik_start = 0.0;  // nats per pixel at the start and the refined pose
   double loglik_refined = 0.0;
@@ -61,6 +74,9 @@ struct RefinementFrame {
   PatchGrid grid;
   int pixels = 0;
   const DepthFrame* points = nullptr;
+  // The factor applied to the points' depths along their rays (the current depth-scale estimate;
+  // 1: the camera's depths as they are).
+  double depth_scale = 1.0;
 
   static RefinementFrame of(const DepthFrame& frame) {
     RefinementFrame f;

@@ -28,6 +28,10 @@ struct MeasurementParams {
   // as a floor hit.
   float floor_log_density = kDefaultFloorLogDensity;
   DepthNoiseModel depth_noise;
+  // The camera whose noise depth_noise holds, by name (depth_noise_preset.h): "custom" = the
+  // numbers as given. The parameter tables write a preset's numbers into depth_noise when it is
+  // set; numbers given after it (depth_noise_a_m, ...) override them.
+  std::string depth_noise_preset = "custom";
 
   std::string validate() const;
 };

@@ -24,19 +24,27 @@ namespace gmm_mcl {
 constexpr double kMinResponsibility = 1e-6;
 
 // The sums at one pose: the log-likelihood (nats), the upper triangle of H row by row
-// (H00, H01, ..., H05, H11, ..., H55) and g.
+// (H00, H01, ..., H05, H11, ..., H55) and g; with a depth scale estimated (PoseDerivatives::
+// estimate_scale), H's seventh column (H0s, ..., H5s, Hss) in hs and g's seventh entry in gs.
 struct NormalEquationSums {
   double loglik = 0.0;
   double h[21] = {0};
   double g[6] = {0};
+  double hs[7] = {0};
+  double gs = 0.0;
 };
 
 // A pose as the evaluators take it: R row-major, t, and dR/droll, dR/dpitch, dR/dyaw row-major
-// (R = Rz(yaw) Ry(pitch) Rx(roll)).
+// (R = Rz(yaw) Ry(pitch) Rx(roll)). A depth scale f moves each base-frame point p along its ray
+// from the camera centre o to o + f (p - o) before the pose applies (q = R (o + f (p - o)) + t);
+// evaluators whose supportsDepthScale() is false take f = 1.
 struct PoseDerivatives {
   double R[9];
   double t[3];
   double dR[3][9];
+  double scale = 1.0;
+  double scale_origin[3] = {0.0, 0.0, 0.0};
+  bool estimate_scale = false;  // fill hs and gs (dq/df = R (p - o))
 };
 
 class NormalEquationsEvaluator {
@@ -49,6 +57,8 @@ class NormalEquationsEvaluator {
   // Whether the backend holds the current frame on its device (the frame its last likelihood
   // evaluation used), so that setPointsFromBackendFrame() can replace setPoints().
   virtual bool hasBackendFrame() const { return false; }
+  // Whether evaluate() applies PoseDerivatives::scale and fills hs and gs.
+  virtual bool supportsDepthScale() const { return false; }
   // That frame's camera points, moved into the base frame by T_base_cam, without a host copy.
   // Returns its pixel count; throws std::logic_error when hasBackendFrame() is false.
   virtual int setPointsFromBackendFrame(const Eigen::Isometry3d& T_base_cam);
@@ -69,6 +79,7 @@ class HostNormalEquations : public NormalEquationsEvaluator {
                  const std::vector<double>& z_m, const std::vector<int>& patch_begin) override;
   void setLinearisation(const std::vector<EvalComponentF>& eval_nats,
                         const PatchMembership& membership) override;
+  bool supportsDepthScale() const override { return true; }
   void evaluate(const PoseDerivatives& pose, float floor_log_density, bool linearise,
                 NormalEquationSums* out) override;
 

@@ -23,6 +23,13 @@ struct ReplayParams {
   // Global localisation: start uniform over the whole map's bounds (Localizer::mapBounds(), the
   // full yaw circle) instead of the cube around the true start.
   bool whole_map_start = false;
+  // Inputs withheld (docs/no_odometry.md): no odometry (the localizer's constant-velocity model
+  // predicts), no attitude (roll and pitch held from the refined estimates).
+  bool odometry = true;
+  bool attitude = true;
+  // Every frame_step-th frame of the sequence (2: 15 Hz from 30 Hz); the synthesised odometry's
+  // noise grows with the interval (variance x frame_step).
+  int frame_step = 1;
   EvaluationParams evaluation;
 };
 

@@ -67,6 +67,8 @@ class LocalizationNodelet : public nodelet::Nodelet {
   void jumpedBack(const ros::Time& stamp);
   bool applyPose(const geometry_msgs::PoseWithCovarianceStamped& msg, std::string* message);
   bool resetTo(const PoseResetRequest& request, const std::string& note, std::string* message);
+  // Logs the changes between predicting with odometry and without it.
+  void logMotionSource(bool has_odometry);
   void publish(const std_msgs::Header& header, const StepResult& r,
                const Eigen::Isometry3d& T_map_base, const DepthImage& depth, const Intrinsics& K,
                double callback_ms, const std::string& warnings, bool gated);
@@ -101,6 +103,7 @@ class LocalizationNodelet : public nodelet::Nodelet {
 
   // The last update (single-threaded queue only).
   bool have_step_ = false;
+  int frames_without_odometry_ = 0;  // consecutive updates without odometry (logged on change)
   ros::Time last_stamp_;
   StepResult last_result_;
   bool have_map_odom_ = false;

@@ -122,15 +122,16 @@ std::string reconfigure(LocalizerConfig* config, LocalizerParams* core, RosOptio
 
 // amcl's pose persistence: the estimate written to ~initial_pose_* and ~initial_cov_*, which a
 // restart reads back (RosOptions::hasInitialPose).
+// (and the depth-scale estimate as ~refine_depth_scale_initial when it is not 1)
 void savePoseParams(const ros::NodeHandle& pnh, const Particle& mean,
-                    const Eigen::Matrix<double, 6, 6>& covariance);
+                    const Eigen::Matrix<double, 6, 6>& covariance, double depth_scale = 1.0);
 // The same at save_pose_rate, off the update thread: offer() keeps a frame's estimate when a
 // save is due by the frame stamps (cheap, the update thread); flush() writes the kept one (eight
 // blocking calls to the master, another thread), so an update never waits for the master.
 class PoseSaver {
  public:
   void offer(double rate_hz, const ros::Time& stamp, const Particle& mean,
-             const Eigen::Matrix<double, 6, 6>& covariance);
+             const Eigen::Matrix<double, 6, 6>& covariance, double depth_scale = 1.0);
   void restart();  // the stamps jumped back: the next offer is due
   void flush(const ros::NodeHandle& pnh);
 
@@ -140,6 +141,7 @@ class PoseSaver {
   bool pending_ = false;
   Particle mean_;
   Eigen::Matrix<double, 6, 6> covariance_;
+  double depth_scale_ = 1.0;
 };
 // The single-pose start of the options as a pose in the map frame with its covariance.
 void initialPose(const RosOptions& ros, Eigen::Isometry3d* T_map_base,

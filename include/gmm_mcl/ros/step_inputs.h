@@ -29,7 +29,7 @@ class StepInputs {
   long long odometryReceived() const { return odom_.added(); }
 
   struct Gaps {
-    bool odometry = false;  // no odometry at the stamp: predicting without motion
+    bool odometry = false;  // no odometry at the stamp: the constant-velocity model predicts
     bool imu = false;       // no IMU attitude at the stamp: roll and pitch from odometry
     std::string warnings;   // why, for ~status
   };

@@ -228,7 +228,7 @@ KidnapResult runKidnapTrial(const FrameSource& src, const KidnapParams& params, 
     rpyFromRotation(src.truthBase(i).linear(), &roll, &pitch, &yaw);
     StepInput in;
     in.stamp_s = k / src.frameRateHz();
-    in.has_odometry = true;
+    in.has_odometry = params.odometry;
     in.T_odom_base = odom;
     in.has_attitude = true;
     in.roll_rad = roll + params.attitude_sigma_rad * g(rng);

@@ -128,8 +128,9 @@ void CudaParticleFilter::predict(const PlanarDelta& delta) {
   cfg.delta[1] = delta.translation_m.y();
   cfg.delta[2] = delta.translation_m.z();
   cfg.delta[3] = delta.yaw_rad;
-  cfg.sigma_m = d.params.sigma_translation_m;
-  cfg.sigma_rad = d.params.sigma_yaw_rad;
+  cfg.sigma_m =
+      delta.sigma_translation_m >= 0.0 ? delta.sigma_translation_m : d.params.sigma_translation_m;
+  cfg.sigma_rad = delta.sigma_yaw_rad >= 0.0 ? delta.sigma_yaw_rad : d.params.sigma_yaw_rad;
   GMM_MCL_CUDA_CHECK(cuda::launchPredict(d.n, d.nextCall(), cfg, d.particles.data(), d.stream));
   d.particles_cached = d.estimate_cached = false;
 }

@@ -53,6 +53,9 @@ struct KidnapParams {
   // With track_frames 0: start uniform over the whole map's bounds and the full yaw circle
   // (Localizer::mapBounds()) instead of the recovery region around the start.
   bool whole_map_start = false;
+  // false: the odometry is withheld (the localizer's constant-velocity model predicts; the
+  // kidnap is then a jump of the frames alone): docs/no_odometry.md.
+  bool odometry = true;
   int after_frames = 180;                         // frames after it
   int start_frame = -1;                           // -1: drawn per seed
   double region_half_extent_m = 2.0;              // recovery region: the protocol's 4 m cube ...

@@ -1,0 +1,129 @@
+// The constant-velocity motion model of steps without odometry (motion_model.h).
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "gmm_mcl/filter/motion_model.h"
+
+namespace gmm_mcl {
+namespace {
+
+constexpr double kDt = 1.0 / 30.0;
+
+// A base moving forward at speed_m_s and turning at yaw_rate_rad_s (in its own frame), sampled
+// every kDt from (1, 2, 0.5), heading 0.3 rad.
+Particle turningPose(int k, double speed_m_s, double yaw_rate_rad_s, double climb_m_s) {
+  Particle p{1.0, 2.0, 0.5, 0.3};
+  for (int i = 0; i < k; ++i) {
+    p.x_m += speed_m_s * kDt * std::cos(p.yaw_rad);
+    p.y_m += speed_m_s * kDt * std::sin(p.yaw_rad);
+    p.z_m += climb_m_s * kDt;
+    p.yaw_rad = wrapAngle(p.yaw_rad + yaw_rate_rad_s * kDt);
+  }
+  return p;
+}
+
+TEST(MotionModelTest, ExtrapolatesTheSmoothedBodyVelocity) {
+  ConstantVelocityModel model;
+  EXPECT_FALSE(model.hasVelocity());
+  for (int k = 0; k < 30; ++k) model.observe(10.0 + k * kDt, turningPose(k, 0.6, 0.4, 0.1));
+  ASSERT_TRUE(model.hasVelocity());
+  // Body frame: forward, no sideways motion (to first order in the turn), the climb, the turn.
+  const Eigen::Vector4d& v = model.velocity();
+  EXPECT_NEAR(v[0], 0.6, 1e-3);
+  EXPECT_NEAR(v[1], 0.0, 0.01);
+  EXPECT_NEAR(v[2], 0.1, 1e-6);
+  EXPECT_NEAR(v[3], 0.4, 1e-6);
+  const PlanarDelta d = model.predict(0.1, 0.02, 0.01);
+  EXPECT_NEAR(d.translation_m.x(), 0.06, 1e-4);
+  EXPECT_NEAR(d.translation_m.z(), 0.01, 1e-6);
+  EXPECT_NEAR(d.yaw_rad, 0.04, 1e-6);
+}
+
+TEST(MotionModelTest, SmoothsFromZeroAtTheFirstSample) {
+  ConstantVelocityParams p;
+  p.velocity_smoothing = 0.5;
+  ConstantVelocityModel model(p);
+  model.observe(0.0, Particle{0, 0, 0, 0});
+  EXPECT_FALSE(model.hasVelocity());  // one estimate: no velocity yet
+  model.observe(0.1, Particle{0.1, 0, 0, 0});
+  ASSERT_TRUE(model.hasVelocity());
+  EXPECT_NEAR(model.velocity()[0], 0.5, 1e-9);  // half of the 1 m/s sample
+  model.observe(0.2, Particle{0.2, 0, 0, 0});
+  EXPECT_NEAR(model.velocity()[0], 0.75, 1e-9);
+}
+
+TEST(MotionModelTest, NoiseGrowsWithTheTimeSinceTheLastStep) {
+  ConstantVelocityParams p;
+  p.sigma_speed_m_s = 0.3;
+  p.sigma_yaw_rate_rad_s = 0.5;
+  ConstantVelocityModel model(p);
+  // No velocity yet: zero motion, twice the growth.
+  PlanarDelta d = model.predict(0.1, 0.02, 0.01);
+  EXPECT_EQ(d.translation_m.norm(), 0.0);
+  EXPECT_NEAR(d.sigma_translation_m, 0.02 + 2 * 0.3 * 0.1, 1e-12);
+  EXPECT_NEAR(d.sigma_yaw_rad, 0.01 + 2 * 0.5 * 0.1, 1e-12);
+  for (int k = 0; k < 5; ++k) model.observe(k * kDt, turningPose(k, 0.3, 0.0, 0.0));
+  ASSERT_TRUE(model.hasVelocity());
+  const PlanarDelta d30 = model.predict(1.0 / 30, 0.02, 0.01);
+  const PlanarDelta d10 = model.predict(1.0 / 10, 0.02, 0.01);
+  EXPECT_NEAR(d30.sigma_translation_m, 0.02 + 0.3 / 30, 1e-12);
+  EXPECT_NEAR(d10.sigma_translation_m, 0.02 + 0.3 / 10, 1e-12);
+  EXPECT_NEAR(d10.sigma_yaw_rad, 0.01 + 0.5 / 10, 1e-12);
+  EXPECT_NEAR(d10.translation_m.x(), 3.0 * d30.translation_m.x(), 1e-12);
+  // dt 0 (the first step) or negative: the base noise only.
+  const PlanarDelta d0 = model.predict(-1.0, 0.02, 0.01);
+  EXPECT_EQ(d0.sigma_translation_m, 0.02);
+  EXPECT_EQ(d0.translation_m.norm(), 0.0);
+}
+
+TEST(MotionModelTest, ForgetsTheVelocityOnTimeJumpsGapsAndJumps) {
+  ConstantVelocityParams p;
+  p.max_gap_s = 0.5;
+  p.max_speed_m_s = 3.0;
+  const auto moving = [&] {
+    auto model = ConstantVelocityModel(p);
+    for (int k = 0; k < 5; ++k) model.observe(5.0 + k * kDt, turningPose(k, 0.5, 0.0, 0.0));
+    EXPECT_TRUE(model.hasVelocity());
+    return model;
+  };
+  // Time going back between two estimates.
+  ConstantVelocityModel back = moving();
+  back.observe(1.0, turningPose(6, 0.5, 0.0, 0.0));
+  EXPECT_FALSE(back.hasVelocity());
+  EXPECT_EQ(back.velocity().norm(), 0.0);
+  // A gap between two estimates longer than max_gap_s.
+  ConstantVelocityModel gap = moving();
+  gap.observe(6.0, turningPose(6, 0.5, 0.0, 0.0));
+  EXPECT_FALSE(gap.hasVelocity());
+  // A prediction over a gap longer than max_gap_s: no motion, the unknown-velocity noise.
+  ConstantVelocityModel long_step = moving();
+  const PlanarDelta d = long_step.predict(0.8, 0.02, 0.01);
+  EXPECT_EQ(d.translation_m.norm(), 0.0);
+  EXPECT_NEAR(d.sigma_translation_m, 0.02 + 2 * p.sigma_speed_m_s * 0.8, 1e-12);
+  EXPECT_FALSE(long_step.hasVelocity());
+  // The estimate jumping (a recovery): faster than max_speed_m_s.
+  ConstantVelocityModel jump = moving();
+  jump.observe(5.0 + 5 * kDt, Particle{4.0, 2.0, 0.5, 0.3});
+  EXPECT_FALSE(jump.hasVelocity());
+  // reset(): the next estimate gives no sample.
+  ConstantVelocityModel reset = moving();
+  reset.reset();
+  reset.observe(5.0 + 5 * kDt, turningPose(5, 0.5, 0.0, 0.0));
+  EXPECT_FALSE(reset.hasVelocity());
+}
+
+TEST(MotionModelTest, ParametersAreValidated) {
+  EXPECT_EQ(ConstantVelocityParams().validate(), "");
+  ConstantVelocityParams p;
+  p.velocity_smoothing = 0.0;
+  p.sigma_speed_m_s = -1.0;
+  p.max_gap_s = 0.0;
+  const std::string err = p.validate();
+  EXPECT_NE(err.find("cv_velocity_smoothing"), std::string::npos) << err;
+  EXPECT_NE(err.find("cv_sigma_speed_m_s"), std::string::npos) << err;
+  EXPECT_NE(err.find("cv_max_gap_s"), std::string::npos) << err;
+}
+
+}  // namespace
+}  // namespace gmm_mcl
