@@ -11,6 +11,15 @@
 #include "gmm_mcl/measurement/projection.h"
 
 namespace gmm_mcl {
+namespace {
+
+// The belief's spread: the largest position standard deviation and the yaw's.
+void beliefSpread(const Eigen::Matrix<double, 6, 6>& C, double* position_sigma, double* yaw_sigma) {
+  *position_sigma = std::sqrt(std::max({C(0, 0), C(1, 1), C(2, 2)}));
+  *yaw_sigma = std::sqrt(C(5, 5));
+}
+
+}  // namespace
 
 void Localizer::stepOnce(const StepInput& in, StepResult* res_out) {
   StepResult& res = *res_out;
@@ -221,11 +230,9 @@ void Localizer::estimateAndRefine(const StepInput& in, StepResult* res) {
   res->particles = filter_->size();
   res->timings.estimate_ms = msSince(t0);
   res->refinement.pose = res->estimate.mean;
-  res->depth_scale = params_.refinement.estimate_depth_scale ? depth_scale_ : 1.0;
   if (params_.refinement.enabled) {
-    const Eigen::Matrix<double, 6, 6>& C = res->estimate.covariance;
-    const double position_sigma = std::sqrt(std::max({C(0, 0), C(1, 1), C(2, 2)}));
-    const double yaw_sigma = std::sqrt(C(5, 5));
+    double position_sigma, yaw_sigma;
+    beliefSpread(res->estimate.covariance, &position_sigma, &yaw_sigma);
     if (position_sigma <= params_.refinement.max_position_sigma_m &&
         yaw_sigma <= params_.refinement.max_yaw_sigma_rad) {
       refineEstimate(in, res);
@@ -235,6 +242,7 @@ void Localizer::estimateAndRefine(const StepInput& in, StepResult* res) {
   }
   have_refined_ = res->refinement.refined;
   if (have_refined_) last_refined_ = res->refinement.pose;
+  res->depth_scale = params_.refinement.estimate_depth_scale ? depth_scale_ : 1.0;
   observeMotion(in, *res);
 }
 
@@ -243,9 +251,8 @@ void Localizer::observeMotion(const StepInput& in, const StepResult& res) {
   // twice as spread as refinement allows, trusted by (refinement's limit / spread)^2: the
   // velocity builds up while the filter converges, which in turn narrows the prediction. A more
   // spread belief restarts it from zero.
-  const Eigen::Matrix<double, 6, 6>& C = res.estimate.covariance;
-  const double position_sigma = std::sqrt(std::max({C(0, 0), C(1, 1), C(2, 2)}));
-  const double yaw_sigma = std::sqrt(C(5, 5));
+  double position_sigma, yaw_sigma;
+  beliefSpread(res.estimate.covariance, &position_sigma, &yaw_sigma);
   const double limit_m = params_.refinement.max_position_sigma_m;
   const double limit_rad = params_.refinement.max_yaw_sigma_rad;
   if (res.refinement.refined) {
@@ -337,7 +344,6 @@ void Localizer::refineEstimate(const StepInput& in, StepResult* res) {
     depth_scale_ = std::min(1.0 + rp.depth_scale_max_error,
                             std::max(1.0 - rp.depth_scale_max_error, depth_scale_));
   }
-  res->depth_scale = with_scale ? depth_scale_ : 1.0;
   res->timings.refine_ms = res->refinement.ms;
 }
 
