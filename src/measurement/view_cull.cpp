@@ -136,9 +136,9 @@ Box3 groupViewBox(const std::vector<RigidTransformF>& T_map_cam, const int* memb
 }
 
 void viewCandidates(const ComponentGrid& grid, const std::vector<RigidTransformF>& T_map_cam,
+                    const std::vector<int>& order, const std::vector<int>& begin,
                     const Intrinsics& K, const ViewReach& reach, std::vector<int>* candidates) {
-  std::vector<int> order, begin, found;
-  groupPosesByPlace(T_map_cam, viewGroupCell(reach), &order, &begin);
+  std::vector<int> found;
   candidates->clear();
   static thread_local ComponentGrid::Scratch scratch;
   for (size_t g = 0; g + 1 < begin.size(); ++g) {

@@ -64,8 +64,10 @@ double viewGroupCell(const ViewReach& reach);
 Box3 groupViewBox(const std::vector<RigidTransformF>& T_map_cam, const int* members, int count,
                   const Intrinsics& K, const ViewReach& reach);
 // The components (ascending map indices) that `grid` places near the views of the poses: the
-// union over groupPosesByPlace's groups of the grid's query of each group's view box.
+// union over their groups (groupPosesByPlace's order and begin) of the grid's query of each
+// group's view box.
 void viewCandidates(const ComponentGrid& grid, const std::vector<RigidTransformF>& T_map_cam,
+                    const std::vector<int>& order, const std::vector<int>& begin,
                     const Intrinsics& K, const ViewReach& reach, std::vector<int>* candidates);
 
 // Brute-force reference: tests every (patch, component) pair with ellipseContains.

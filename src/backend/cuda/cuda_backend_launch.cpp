@@ -140,7 +140,8 @@ CudaBackend::Impl::ComponentSet CudaBackend::Impl::cullView(const cuda::Membersh
   // In a large map, only the grid's components near the poses' views are tested: the poses come
   // back to the host (48 bytes each) and the map grid gives the candidates per group of poses.
   if (groupByPlace(cfg, T_cam_map, n)) {
-    viewCandidates(grid, host_T_map_cam, cfg.K, cfg.reach, &host_candidates);
+    viewCandidates(grid, host_T_map_cam, group_order, group_begin, cfg.K, cfg.reach,
+                   &host_candidates);
     return cullCandidates(cfg, T_cam_map, n, &host_candidates);
   }
   return cullCandidates(cfg, T_cam_map, n, nullptr);
@@ -211,7 +212,8 @@ int CudaBackend::Impl::launchBatches(const DeviceFrameView& f, int n,
     if (tuning.place_groups && group_begin.size() > 2) {
       return launchGroups(f, n, params, cfg, max_patch_pixels, ll, hits, evals, pairs);
     }
-    viewCandidates(grid, host_T_map_cam, cfg.K, cfg.reach, &host_candidates);
+    viewCandidates(grid, host_T_map_cam, group_order, group_begin, cfg.K, cfg.reach,
+                   &host_candidates);
     set = cullCandidates(cfg, f.T_cam_map, n, &host_candidates);
   } else {
     set = cullView(cfg, f.T_cam_map, n);
