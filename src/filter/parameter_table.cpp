@@ -81,7 +81,11 @@ using P = LocalizerParams;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr bool kRuntime = true, kStartup = false;
 
-void add(ParamTable<P>* t, ParamSpec<P> p) { t->push_back(std::move(p)); }
+// choices: the accepted values of a string parameter (none: any, or those p already has).
+void add(ParamTable<P>* t, ParamSpec<P> p, std::vector<std::string> choices = {}) {
+  if (!choices.empty()) p.choices = std::move(choices);
+  t->push_back(std::move(p));
+}
 
 // Particles.
 void addParticlesParams(ParamTable<P>* t) {
@@ -405,14 +409,11 @@ void addInitParams(ParamTable<P>* t) {
 // Backend.
 void addBackendParams(ParamTable<P>* t) {
   const char* g = "backend";
-  {
-    ParamSpec<P> p =
-        paramSpec<P>("backend", GMM_MCL_PARAM_FIELD(P, backend), "", g, {}, kStartup,
-                     "Likelihood backend: cpu (OpenMP) or cuda (falls back to the CPU with a "
-                     "warning where CUDA is not built or no device is usable)");
-    p.choices = {"cpu", "cuda"};
-    add(t, p);
-  }
+  add(t,
+      paramSpec<P>("backend", GMM_MCL_PARAM_FIELD(P, backend), "", g, {}, kStartup,
+                   "Likelihood backend: cpu (OpenMP) or cuda (falls back to the CPU with a "
+                   "warning where CUDA is not built or no device is usable)"),
+      {"cpu", "cuda"});
   add(t, paramSpec<P>("device_filter", GMM_MCL_PARAM_FIELD(P, device_filter), "", g, {}, kStartup,
                       "With the cuda backend the whole filter step runs on the GPU (the particle "
                       "set lives there); false: the set stays on the host and only the likelihood "
@@ -426,23 +427,19 @@ void addBackendParams(ParamTable<P>* t) {
 // The CUDA backend's kernel tuning (docs/cuda_backend.md): the measured choices unless set.
 void addCudaParams(ParamTable<P>* t) {
   const char* g = "cuda";
-  {
-    ParamSpec<P> p = paramSpec<P>(
-        "cuda_likelihood_shape", GMM_MCL_PARAM_FIELD(P, cuda.likelihood_shape), "", g, {}, kStartup,
-        "The cuda backend's likelihood kernel shape, pixel groups x pixels per group; auto: by "
-        "the largest patch (8x2 up to 16 px, 32x2 up to 64 px, else 32x4)");
-    p.choices = {"auto", "32x4", "32x2", "32x1", "16x4", "16x2",
-                 "16x1", "8x4",  "8x2",  "8x1",  "4x4",  "4x2"};
-    add(t, p);
-  }
-  {
-    ParamSpec<P> p = paramSpec<P>(
-        "cuda_stage_members", GMM_MCL_PARAM_FIELD(P, cuda.stage_members), "", g, {}, kStartup,
-        "The cuda backend stages the members' records in shared memory once per patch (32x4 "
-        "only); auto: for patches of more than 128 px");
-    p.choices = {"auto", "on", "off"};
-    add(t, p);
-  }
+  add(t,
+      paramSpec<P>(
+          "cuda_likelihood_shape", GMM_MCL_PARAM_FIELD(P, cuda.likelihood_shape), "", g, {},
+          kStartup,
+          "The cuda backend's likelihood kernel shape, pixel groups x pixels per group; auto: by "
+          "the largest patch (8x2 up to 16 px, 32x2 up to 64 px, else 32x4)"),
+      {"auto", "32x4", "32x2", "32x1", "16x4", "16x2", "16x1", "8x4", "8x2", "8x1", "4x4", "4x2"});
+  add(t,
+      paramSpec<P>("cuda_stage_members", GMM_MCL_PARAM_FIELD(P, cuda.stage_members), "", g, {},
+                   kStartup,
+                   "The cuda backend stages the members' records in shared memory once per patch "
+                   "(32x4 only); auto: for patches of more than 128 px"),
+      {"auto", "on", "off"});
   add(t, paramSpec<P>("cuda_band_patches", GMM_MCL_PARAM_FIELD(P, cuda.band_patches), "", g,
                       {0, 1e6}, kStartup,
                       "Patches per work item of the cuda backend's likelihood kernel (0: 10)"));
@@ -464,21 +461,10 @@ void addCudaParams(ParamTable<P>* t) {
 }  // namespace
 
 const ParamTable<LocalizerParams>& localizerParamTable() {
-  static const ParamTable<P> table = [] {
-    ParamTable<P> t;
-    addParticlesParams(&t);
-    addMotionParams(&t);
-    addWeightingParams(&t);
-    addRecoveryParams(&t);
-    addLostParams(&t);
-    addFrameParams(&t);
-    addMeasurementParams(&t);
-    addRefinementParams(&t);
-    addInitParams(&t);
-    addBackendParams(&t);
-    addCudaParams(&t);
-    return t;
-  }();
+  static const ParamTable<P> table =
+      makeParamTable<P>({addParticlesParams, addMotionParams, addWeightingParams, addRecoveryParams,
+                         addLostParams, addFrameParams, addMeasurementParams, addRefinementParams,
+                         addInitParams, addBackendParams, addCudaParams});
   return table;
 }
 

@@ -217,14 +217,8 @@ std::string RosOptions::validate() const {
 }
 
 const ParamTable<RosOptions>& rosOptionsTable() {
-  static const ParamTable<R> table = [] {
-    ParamTable<R> t;
-    addNodeOptions(&t);
-    addOutputOptions(&t);
-    addStartOptions(&t);
-    addBudgetOptions(&t);
-    return t;
-  }();
+  static const ParamTable<R> table =
+      makeParamTable<R>({addNodeOptions, addOutputOptions, addStartOptions, addBudgetOptions});
   return table;
 }
 

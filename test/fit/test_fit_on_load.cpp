@@ -17,6 +17,7 @@
 #include "gmm_mcl/fit/random.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/sim/mesh.h"
+#include "test_utils/assertions.h"
 #include "test_utils/temp_dir.h"
 
 namespace gmm_mcl {
@@ -85,7 +86,11 @@ std::vector<std::string> cachesOf(const test::TempDir& dir, const std::string& n
 
 class FitOnLoadTest : public ::testing::Test {
  protected:
-  FitOnLoadTest() { params_.components = 0; }
+  FitOnLoadTest() {
+    params_.components = 0;
+    log_.info = [this](const std::string& s) { info_.push_back(s); };
+    log_.warn = [this](const std::string& s) { warnings_.push_back(s); };
+  }
   std::string writeCloud(const std::string& name, const PointCloud& points) {
     const std::string path = dir_ / name;
     writePcd(points, path);
@@ -93,14 +98,13 @@ class FitOnLoadTest : public ::testing::Test {
   }
   test::TempDir dir_{"fit_on_load"};
   FitOnLoadParams params_;
+  FitOnLoadLog log_;  // keeps its lines in info_ and warnings_
+  std::vector<std::string> info_, warnings_;
 };
 
 TEST_F(FitOnLoadTest, FirstLoadFitsAndCachesSecondReadsTheCache) {
   const std::string path = writeCloud("room.pcd", boxSurface(20000, 2.0, 1.5, 1.0, 1));
-  std::vector<std::string> lines;
-  FitOnLoadLog log;
-  log.info = [&](const std::string& s) { lines.push_back(s); };
-  const FitOnLoadResult first = loadOrFitMap(path, params_, log);
+  const FitOnLoadResult first = loadOrFitMap(path, params_, log_);
   EXPECT_TRUE(first.fitted);
   EXPECT_FALSE(first.from_cache);
   EXPECT_TRUE(first.cache_written);
@@ -111,11 +115,11 @@ TEST_F(FitOnLoadTest, FirstLoadFitsAndCachesSecondReadsTheCache) {
   EXPECT_EQ(first.components, static_cast<int>(first.map.size()));
   EXPECT_EQ(first.cache_path.substr(0, path.size() + 5), path + ".fit-");
   EXPECT_TRUE(exists(first.cache_path));
-  ASSERT_GE(lines.size(), 2u) << "no progress in the log";
-  EXPECT_NE(lines.front().find("20000 points"), std::string::npos) << lines.front();
-  EXPECT_NE(lines.back().find("cached as"), std::string::npos) << lines.back();
+  ASSERT_GE(info_.size(), 2u) << "no progress in the log";
+  EXPECT_NE(info_.front().find("20000 points"), std::string::npos) << info_.front();
+  EXPECT_NE(info_.back().find("cached as"), std::string::npos) << info_.back();
 
-  const FitOnLoadResult second = loadOrFitMap(path, params_, log);
+  const FitOnLoadResult second = loadOrFitMap(path, params_, log_);
   EXPECT_FALSE(second.fitted);
   EXPECT_TRUE(second.from_cache);
   EXPECT_EQ(second.cache_path, first.cache_path);
@@ -180,13 +184,8 @@ TEST_F(FitOnLoadTest, MapFileLoadedAsItIs) {
   EXPECT_TRUE(r.cache_path.empty());
   EXPECT_EQ(r.map.size(), 20u);
   EXPECT_THROW(loadOrFitMap(dir_ / "missing.gmm", p), MapError);
-  try {
-    loadOrFitMap(dir_ / "missing.pcd", p);
-    ADD_FAILURE() << "a missing cloud loaded";
-  } catch (const FitError& e) {
-    EXPECT_NE(std::string(e.what()).find("missing.pcd: cannot open"), std::string::npos)
-        << e.what();
-  }
+  EXPECT_TRUE(test::throwsWith<FitError>([&] { loadOrFitMap(dir_ / "missing.pcd", p); },
+                                         {"missing.pcd: cannot open"}));
 }
 
 TEST_F(FitOnLoadTest, MeshSampledOnItsSurface) {
@@ -211,15 +210,12 @@ TEST_F(FitOnLoadTest, NanPointsDroppedAndCounted) {
   PointCloud points = boxSurface(8000, 2.0, 1.5, 1.0, 5);
   for (size_t i = 0; i < points.size(); i += 16) points[i].y() = std::nanf("");
   const std::string path = writeCloud("nan.pcd", points);
-  std::vector<std::string> lines;
-  FitOnLoadLog log;
-  log.info = [&](const std::string& s) { lines.push_back(s); };
-  const FitOnLoadResult r = loadOrFitMap(path, params_, log);
+  const FitOnLoadResult r = loadOrFitMap(path, params_, log_);
   EXPECT_TRUE(r.fitted);
   EXPECT_EQ(r.non_finite, 500u);
   EXPECT_EQ(r.points_fitted, 7500u);
-  ASSERT_FALSE(lines.empty());
-  EXPECT_NE(lines.front().find("500 NaN/Inf dropped"), std::string::npos) << lines.front();
+  ASSERT_FALSE(info_.empty());
+  EXPECT_NE(info_.front().find("500 NaN/Inf dropped"), std::string::npos) << info_.front();
 }
 
 TEST_F(FitOnLoadTest, DuplicatedPointsKept) {
@@ -232,13 +228,9 @@ TEST_F(FitOnLoadTest, DuplicatedPointsKept) {
   EXPECT_NE(r.summary.find("fitted"), std::string::npos);
   // One position repeated: too few distinct points, named as such.
   const PointCloud same(1000, Eigen::Vector3f(1.f, 2.f, 3.f));
-  try {
-    loadOrFitMap(writeCloud("same.pcd", same), params_);
-    ADD_FAILURE() << "1000 copies of one point fitted";
-  } catch (const FitError& e) {
-    EXPECT_NE(std::string(e.what()).find("1 distinct valid points"), std::string::npos) << e.what();
-    EXPECT_NE(std::string(e.what()).find("999 duplicates"), std::string::npos) << e.what();
-  }
+  EXPECT_TRUE(
+      test::throwsWith<FitError>([&] { loadOrFitMap(writeCloud("same.pcd", same), params_); },
+                                 {"1 distinct valid points", "999 duplicates"}));
 }
 
 TEST_F(FitOnLoadTest, SinglePlaneFitsAndSaysSo) {
@@ -258,39 +250,25 @@ TEST_F(FitOnLoadTest, SinglePlaneFitsAndSaysSo) {
 
 TEST_F(FitOnLoadTest, TenPointsIsAClearError) {
   const std::string path = writeCloud("ten.pcd", boxSurface(10, 2.0, 1.5, 1.0, 8));
-  try {
-    loadOrFitMap(path, params_);
-    ADD_FAILURE() << "10 points fitted";
-  } catch (const FitError& e) {
-    const std::string what = e.what();
-    EXPECT_NE(what.find(path + ": 10 distinct valid points"), std::string::npos) << what;
-    EXPECT_NE(what.find("too few to fit a map, at least 100"), std::string::npos) << what;
-  }
+  EXPECT_TRUE(test::throwsWith<FitError>(
+      [&] { loadOrFitMap(path, params_); },
+      {path + ": 10 distinct valid points", "too few to fit a map, at least 100"}));
   EXPECT_TRUE(cachesOf(dir_, "ten.pcd").empty());
   // A given component count needs 10 points each.
   FitOnLoadParams p = params_;
   p.components = 50;
-  try {
-    loadOrFitMap(writeCloud("few.pcd", boxSurface(300, 2.0, 1.5, 1.0, 9)), p);
-    ADD_FAILURE() << "300 points fitted with 50 components";
-  } catch (const FitError& e) {
-    EXPECT_NE(std::string(e.what()).find("too few for 50 components"), std::string::npos)
-        << e.what();
-  }
+  EXPECT_TRUE(test::throwsWith<FitError>(
+      [&] { loadOrFitMap(writeCloud("few.pcd", boxSurface(300, 2.0, 1.5, 1.0, 9)), p); },
+      {"too few for 50 components"}));
 }
 
 TEST_F(FitOnLoadTest, TooLargeForTheTimeLimitNamesGmmMclFit) {
   const std::string path = writeCloud("big.pcd", boxSurface(5000, 2.0, 1.5, 1.0, 10));
   FitOnLoadParams p = params_;
   p.time_limit_s = 1e-4;
-  try {
-    loadOrFitMap(path, p);
-    ADD_FAILURE() << "fitted beyond the time limit";
-  } catch (const FitError& e) {
-    const std::string what = e.what();
-    EXPECT_NE(what.find("more than map_fit_time_limit"), std::string::npos) << what;
-    EXPECT_NE(what.find("`gmm_mcl_fit " + path + " -o MAP.gmm -m "), std::string::npos) << what;
-  }
+  EXPECT_TRUE(test::throwsWith<FitError>(
+      [&] { loadOrFitMap(path, p); },
+      {"more than map_fit_time_limit", "`gmm_mcl_fit " + path + " -o MAP.gmm -m "}));
   // The estimate grows with the points and the components; 300,000 points of a room-sized
   // cloud (M about 1000) are estimated within the 10 s of docs/map_builder.md.
   EXPECT_LT(estimateFitSeconds(100000, 1000, 2), estimateFitSeconds(300000, 1000, 2));
@@ -306,16 +284,13 @@ TEST_F(FitOnLoadTest, UnusableCacheWarnsAndGoesOn) {
   // The cache's name taken by a folder: it can neither be read nor replaced.
   ASSERT_EQ(std::remove(first.cache_path.c_str()), 0);
   ASSERT_EQ(mkdir(first.cache_path.c_str(), 0755), 0);
-  std::vector<std::string> warnings;
-  FitOnLoadLog log;
-  log.warn = [&](const std::string& s) { warnings.push_back(s); };
-  const FitOnLoadResult r = loadOrFitMap(path, params_, log);
+  const FitOnLoadResult r = loadOrFitMap(path, params_, log_);
   EXPECT_TRUE(r.fitted);
   EXPECT_FALSE(r.cache_written);
   EXPECT_EQ(encodeMap(r.map), encodeMap(first.map)) << "the same input and seed, another map";
-  ASSERT_EQ(warnings.size(), 2u);
-  EXPECT_NE(warnings[0].find("cache not used"), std::string::npos) << warnings[0];
-  EXPECT_NE(warnings[1].find("not cached"), std::string::npos) << warnings[1];
+  ASSERT_EQ(warnings_.size(), 2u);
+  EXPECT_NE(warnings_[0].find("cache not used"), std::string::npos) << warnings_[0];
+  EXPECT_NE(warnings_[1].find("not cached"), std::string::npos) << warnings_[1];
 }
 
 TEST(FitOnLoad, CloudPathsByExtension) {

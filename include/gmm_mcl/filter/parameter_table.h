@@ -11,6 +11,7 @@
 #include <Eigen/Core>
 #include <cmath>
 #include <functional>
+#include <initializer_list>
 #include <limits>
 #include <sstream>
 #include <string>
@@ -135,6 +136,14 @@ ParamSpec<S> paramSpec(const char* name, const char* field, Ref ref, const char*
 
 // "member.path", [](S& s) -> T& { return s.member.path; }
 #define GMM_MCL_PARAM_FIELD(S, path) #path, [](S & s) -> decltype((s.path)) { return s.path; }
+
+// The table that functions appending one group of parameters each make, in their order.
+template <typename S>
+ParamTable<S> makeParamTable(std::initializer_list<void (*)(ParamTable<S>*)> add_groups) {
+  ParamTable<S> t;
+  for (const auto add_group : add_groups) add_group(&t);
+  return t;
+}
 
 // ---- using tables ----------------------------------------------------------------------------
 

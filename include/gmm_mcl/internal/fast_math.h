@@ -12,41 +12,30 @@
 
 namespace gmm_mcl {
 
-GMM_MCL_HD float bitsToFloat(int32_t bits) {
+// The bits of a float as an int32_t and back: the intrinsics on the device; on the host
+// __builtin_bit_cast where the compiler has it (it vectorises where memcpy into a local does not).
 #if defined(__CUDA_ARCH__)
-  return __int_as_float(bits);
-#elif defined(__has_builtin)
+GMM_MCL_HD float bitsToFloat(int32_t bits) { return __int_as_float(bits); }
+GMM_MCL_HD int32_t floatToBits(float f) { return __float_as_int(f); }
+#else
+#if defined(__has_builtin)
 #if __has_builtin(__builtin_bit_cast)
-  return __builtin_bit_cast(float, bits);  // vectorises where memcpy into a local does not
-#else
-  float f;
-  memcpy(&f, &bits, sizeof(f));
-  return f;
+#define GMM_MCL_BUILTIN_BIT_CAST 1
 #endif
+#endif
+template <typename To, typename From>
+inline To hostBitCast(From from) {
+#if defined(GMM_MCL_BUILTIN_BIT_CAST)
+  return __builtin_bit_cast(To, from);
 #else
-  float f;
-  memcpy(&f, &bits, sizeof(f));
-  return f;
+  To to;
+  memcpy(&to, &from, sizeof(to));
+  return to;
 #endif
 }
-
-GMM_MCL_HD int32_t floatToBits(float f) {
-#if defined(__CUDA_ARCH__)
-  return __float_as_int(f);
-#elif defined(__has_builtin)
-#if __has_builtin(__builtin_bit_cast)
-  return __builtin_bit_cast(int32_t, f);
-#else
-  int32_t b;
-  memcpy(&b, &f, sizeof(b));
-  return b;
+GMM_MCL_HD float bitsToFloat(int32_t bits) { return hostBitCast<float>(bits); }
+GMM_MCL_HD int32_t floatToBits(float f) { return hostBitCast<int32_t>(f); }
 #endif
-#else
-  int32_t b;
-  memcpy(&b, &f, sizeof(b));
-  return b;
-#endif
-}
 
 // max without fmaxf's NaN rules, which keep GCC from vectorising (maps to vmaxps).
 GMM_MCL_HD float maxf(float a, float b) { return a < b ? b : a; }

@@ -80,10 +80,7 @@ TEST(GaussianKlTest, SingularCovarianceIsInfiniteUnlessRegularised) {
 
 TEST(GaussianKlTest, StateGaussianTakesTheXyzYawBlock) {
   PoseEstimate e;
-  e.mean.x_m = 1.0;
-  e.mean.y_m = 2.0;
-  e.mean.z_m = 3.0;
-  e.mean.yaw_rad = 0.4;
+  e.mean = Particle{1.0, 2.0, 3.0, 0.4};
   for (int r = 0; r < 6; ++r) {
     for (int c = 0; c < 6; ++c) e.covariance(r, c) = 10 * r + c;
   }
