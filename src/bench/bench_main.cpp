@@ -1,5 +1,5 @@
-// gmm_mcl_bench: the DESIGN.md benchmark workloads (paper, cpu, full, scale, large) on both
-// backends. Per (backend, workload): warm-up frames, then timed updates (frame preparation +
+// gmm_mcl_bench: the DESIGN.md benchmark workloads (paper, cpu, full, scale, large, building) on
+// both backends. Per (backend, workload): warm-up frames, then timed updates (frame preparation +
 // backend), median updates per second, per-stage milliseconds, Gaussian evaluations per update
 // and per second, for CUDA the likelihood kernel's fraction of the GPU's FP32 peak, and the
 // relative error of the backend's log-likelihood against the exact sum (every component, double
@@ -36,11 +36,20 @@ bool exists(const std::string& p) {
 const char* kUsage =
     "gmm_mcl_bench [options]\n"
     "  --backend cpu|cuda|all      (all: cpu, and cuda when built and a device is present)\n"
-    "  --workload paper|cpu|full|scale|large|all   (comma-separated list accepted)\n"
+    "  --workload paper|cpu|full|scale|large|building|all   (comma-separated list accepted)\n"
     "  --map FILE                  GMM map (default $GMM_MCL_MAP, "
     "build/maps/7scenes_redkitchen_m1000.gmm)\n"
     "  --large-map FILE            the `large` workload's M=4000 map of the same scene (default\n"
     "                              $GMM_MCL_LARGE_MAP, build/maps/7scenes_redkitchen_m4000.gmm)\n"
+    "  --building-map FILE         the `building` workload's map of the building world (M about\n"
+    "                              100,000; default $GMM_MCL_BUILDING_DIR/building_s1.gmm,\n"
+    "                              GMM_MCL_BUILDING_DIR defaulting to build/building, where\n"
+    "                              scripts/make_building.sh writes it)\n"
+    "  --building-dataset DIR      its frames: a TUM RGB-D folder of that building (needs libpng;\n"
+    "                              default $GMM_MCL_BUILDING_DIR/building_s1_walk1)\n"
+    "  --building-frames-raw FILE  its frames as a raw file (--export-building-frames writes one)\n"
+    "                              `building` named in --workload: missing inputs are an error;\n"
+    "                              listed by `all`, the workload is skipped with the reason\n"
     "  --patch PX                  membership patch size (default 32)\n"
     "  --exact N --exact-frames F  relative error against the exact sum at N particles (the\n"
     "                              true pose first) of the first F timed frames (2, 2; 0: off)\n"
@@ -53,11 +62,13 @@ const char* kUsage =
     "  --cuda-host-prep            CUDA: prepare frames on the host and upload the points\n"
     "                              (default: the raw image is uploaded and prepared on the GPU)\n"
     "  --export-frames FILE        write the loaded frames as a raw file and exit\n"
+    "  --export-building-frames FILE  write the building's frames as a raw file and exit\n"
     "  --no-depth-noise            the paper's model: no depth-noise convolution (one evaluation\n"
     "                              form for all particles)\n"
     "  --step                      the whole filter step per stage at each workload's N (scale:\n"
-    "                              100,000; cpu: 1068): the particle set on the host and, with\n"
-    "                              CUDA, on the GPU; then Localizer::step with either filter\n"
+    "                              100,000; cpu: 1068; not `large`): the particle set on the\n"
+    "                              host and, with CUDA, on the GPU; then Localizer::step with\n"
+    "                              either filter\n"
     "  --cuda-likelihood-shape GxP, --cuda-band-patches N, ...: the CUDA backend's tuning (the\n"
     "                              parameter table's cuda_* parameters, listed under --help)\n";
 
@@ -66,7 +77,10 @@ Options parseOptions(int argc, char** argv) {
   cli::CommandLine cl("gmm_mcl_bench", kUsage);
   // clang-format off
   cl.flags({{"backend", &opt.backends}, {"workload", &opt.workloads}, {"map", &opt.map_path},
-            {"large-map", &opt.large_map_path}, {"patch", &opt.patch_px},
+            {"large-map", &opt.large_map_path}, {"building-map", &opt.building_map_path},
+            {"building-dataset", &opt.building_dataset},
+            {"building-frames-raw", &opt.building_frames_raw},
+            {"export-building-frames", &opt.export_building_frames}, {"patch", &opt.patch_px},
             {"exact", &opt.exact_particles}, {"exact-frames", &opt.exact_frames},
             {"frames-dir", &opt.frames_dir}, {"frames-raw", &opt.frames_raw},
             {"export-frames", &opt.export_frames}, {"frames", &opt.frames}, {"warmup", &opt.warmup},
@@ -86,7 +100,31 @@ Options parseOptions(int argc, char** argv) {
   if (opt.exact_particles < 0 || opt.exact_frames < 0) {
     throw std::invalid_argument("--exact and --exact-frames must be >= 0");
   }
+  if (opt.workloads != "all") {
+    size_t pos = 0;
+    while (pos <= opt.workloads.size()) {
+      const size_t comma = opt.workloads.find(',', pos);
+      const std::string item =
+          opt.workloads.substr(pos, comma == std::string::npos ? std::string::npos : comma - pos);
+      bool known = false;
+      for (const Workload& w : kWorkloads) known |= item == w.name;
+      if (!known) {
+        throw std::invalid_argument("--workload: unknown workload '" + item +
+                                    "' (paper, cpu, full, scale, large, building or all)");
+      }
+      if (comma == std::string::npos) break;
+      pos = comma + 1;
+    }
+  }
   return opt;
+}
+
+// Whether a listed workload runs on `input`.
+bool wanted(const Options& opt, WorkloadInput input) {
+  for (const Workload& w : kWorkloads) {
+    if (w.input == input && listed(opt.workloads, w.name)) return true;
+  }
+  return false;
 }
 
 // The 7-Scenes M=1000 map and frames, else the synthetic scene (said so in the output);
@@ -136,30 +174,82 @@ void loadData(Options* opt_io, GmmMap* map, FrameSet* frames, std::string* map_s
 }
 
 // The `large` workload's map: the same scene fitted with M=4000 (DESIGN.md), only with the
-// 7-Scenes frames. Returns why it is absent ("" when loaded or not wanted).
-std::string loadLargeMap(Options* opt_io, const std::string& map_source, GmmMap* large_map) {
+// 7-Scenes frames. Sets data->large_absent to why it is absent ("" when loaded or not wanted).
+void loadLargeMap(Options* opt_io, BenchData* data) {
   Options& opt = *opt_io;
-  std::string large_absent;
-  bool want_large = false;
-  for (const Workload& w : kWorkloads) want_large |= w.large_map && listed(opt.workloads, w.name);
-  if (want_large && !opt.step) {
+  std::string& large_absent = data->large_absent;
+  if (wanted(opt, WorkloadInput::kLargeMap) && !opt.step) {
     const char* env_large = std::getenv("GMM_MCL_LARGE_MAP");
     if (opt.large_map_path.empty()) {
       opt.large_map_path =
           env_large && *env_large ? env_large : "build/maps/7scenes_redkitchen_m4000.gmm";
     }
-    if (map_source.compare(0, 9, "synthetic") == 0) {
+    if (data->map_source.compare(0, 9, "synthetic") == 0) {
       large_absent = "the synthetic scene has no M=4000 map";
     } else if (!exists(opt.large_map_path)) {
       large_absent = "no map at '" + opt.large_map_path +
                      "' (scripts/build_map_7scenes.sh with -m 4000, see docs/benchmark.md)";
     } else {
-      *large_map = loadMap(opt.large_map_path);
-      std::printf("# large: map %s (M = %zu)\n", opt.large_map_path.c_str(), large_map->size());
+      data->large_map = loadMap(opt.large_map_path);
+      std::printf("# large: map %s (M = %zu)\n", opt.large_map_path.c_str(),
+                  data->large_map.size());
     }
     if (!large_absent.empty()) std::printf("# large: skipped (%s)\n", large_absent.c_str());
   }
-  return large_absent;
+}
+
+// The `building` workload's map and frames: the building world of scripts/make_building.sh (a
+// ~100,000-component map of 36 rooms, the camera in one), its first --frames frames. Named in
+// --workload (or with --export-building-frames), a missing input is an error; listed by `all`,
+// the workload is skipped with the reason (data->building_absent).
+void loadBuilding(Options* opt_io, BenchData* data) {
+  Options& opt = *opt_io;
+  const bool exporting = !opt.export_building_frames.empty();
+  if (!exporting && !wanted(opt, WorkloadInput::kBuilding)) return;
+  const char* env_dir = std::getenv("GMM_MCL_BUILDING_DIR");
+  const std::string dir = env_dir && *env_dir ? env_dir : "build/building";
+  if (opt.building_map_path.empty()) opt.building_map_path = dir + "/building_s1.gmm";
+  if (opt.building_dataset.empty()) opt.building_dataset = dir + "/building_s1_walk1";
+  const std::string hint =
+      " (scripts/make_building.sh writes the building world; see docs/benchmark.md)";
+  std::string& absent = data->building_absent;
+  if (!exporting && !exists(opt.building_map_path)) {
+    absent = "no map at '" + opt.building_map_path + "'; give --building-map FILE" + hint;
+  } else if (!opt.building_frames_raw.empty()) {
+    if (!exists(opt.building_frames_raw)) {
+      absent = "no frame file at '" + opt.building_frames_raw + "' (--building-frames-raw)";
+    }
+  } else if (!exists(opt.building_dataset + "/depth.txt")) {
+    absent = "no TUM RGB-D folder at '" + opt.building_dataset +
+             "'; give --building-dataset DIR or --building-frames-raw FILE" + hint;
+  } else {
+#if !defined(GMM_MCL_HAVE_PNG)
+    absent = "built without libpng: cannot read the depth PNGs of '" + opt.building_dataset +
+             "'; give --building-frames-raw FILE (--export-building-frames writes one)";
+#endif
+  }
+  if (!absent.empty()) {
+    if (exporting || opt.workloads != "all") throw std::runtime_error("building: " + absent);
+    std::printf("# building: skipped (%s)\n", absent.c_str());
+    return;
+  }
+  FrameSet& frames = data->building_frames;
+  if (!opt.building_frames_raw.empty()) {
+    frames = loadFrameSet(opt.building_frames_raw);
+    if (static_cast<int>(frames.images.size()) > opt.frames) {
+      frames.images.resize(opt.frames);
+      frames.T_map_cam.resize(opt.frames);
+    }
+    if (frames.images.empty()) {
+      throw std::runtime_error("building: no frames in " + opt.building_frames_raw);
+    }
+  } else {
+    frames = loadTumFrames(opt.building_dataset, 0, opt.frames);
+  }
+  if (exporting) return;
+  data->building_map = loadMap(opt.building_map_path);
+  std::printf("# building: map %s (M = %zu), frames: %s (%zu)\n", opt.building_map_path.c_str(),
+              data->building_map.size(), frames.source.c_str(), frames.images.size());
 }
 
 // The run's settings and the host, as comment lines.
@@ -225,19 +315,17 @@ std::vector<Candidate> makeBackends(const Options& opt) {
 }
 
 // Every listed workload on every backend, then the table.
-void runWorkloads(std::vector<Candidate>* backends, const GmmMap& map, const GmmMap& large_map,
-                  const std::string& large_absent, const FrameSet& frames, const Options& opt) {
+void runWorkloads(std::vector<Candidate>* backends, const BenchData& data, const Options& opt) {
   std::vector<Row> rows;
   for (Candidate& c : *backends) {
     const GmmMap* current = nullptr;
     for (const Workload& w : kWorkloads) {
-      if (!listed(opt.workloads, w.name)) continue;
-      if (w.large_map && !large_absent.empty()) continue;
-      const GmmMap& m = w.large_map ? large_map : map;
+      if (!listed(opt.workloads, w.name) || !data.absent(w).empty()) continue;
+      const GmmMap& m = data.mapFor(w);
       if (current != &m) c.backend->setMap(m);
       current = &m;
       try {
-        rows.push_back(runWorkload(c.backend.get(), c.peak, w, m, frames, opt));
+        rows.push_back(runWorkload(c.backend.get(), c.peak, w, m, data.framesFor(w), opt));
       } catch (const BackendError& e) {  // e.g. a bitmask beyond the GPU's shared memory
         std::printf("# %s/%s: skipped (%s)\n", c.backend->name().c_str(), w.name, e.what());
         current = nullptr;
@@ -253,31 +341,39 @@ void runWorkloads(std::vector<Candidate>* backends, const GmmMap& map, const Gmm
 
 int run(int argc, char** argv) {
   Options opt = parseOptions(argc, argv);
-  GmmMap map;
-  FrameSet frames;
-  std::string map_source;
-  loadData(&opt, &map, &frames, &map_source);
+  BenchData data;
+  // The scene (7-Scenes or synthetic) only where its export or a listed workload needs it.
+  const bool exporting = !opt.export_frames.empty() || !opt.export_building_frames.empty();
+  const bool scene = exporting ? !opt.export_frames.empty()
+                               : wanted(opt, WorkloadInput::kScene) ||
+                                     (wanted(opt, WorkloadInput::kLargeMap) && !opt.step);
+  if (scene) loadData(&opt, &data.map, &data.frames, &data.map_source);
   if (!opt.export_frames.empty()) {
-    saveFrameSet(frames, opt.export_frames);
-    std::printf("wrote %zu frames to %s\n", frames.images.size(), opt.export_frames.c_str());
-    return 0;
+    saveFrameSet(data.frames, opt.export_frames);
+    std::printf("wrote %zu frames to %s\n", data.frames.images.size(), opt.export_frames.c_str());
   }
-  std::printf("# frames: %s (%zu), map: %s (M = %zu)\n", frames.source.c_str(),
-              frames.images.size(), map_source.c_str(), map.size());
-  GmmMap large_map;
-  const std::string large_absent = loadLargeMap(&opt, map_source, &large_map);
+  if (!opt.export_building_frames.empty()) {
+    loadBuilding(&opt, &data);
+    saveFrameSet(data.building_frames, opt.export_building_frames);
+    std::printf("wrote %zu building frames to %s\n", data.building_frames.images.size(),
+                opt.export_building_frames.c_str());
+  }
+  if (exporting) return 0;
+  if (scene) {
+    std::printf("# frames: %s (%zu), map: %s (M = %zu)\n", data.frames.source.c_str(),
+                data.frames.images.size(), data.map_source.c_str(), data.map.size());
+  }
+  loadLargeMap(&opt, &data);
+  loadBuilding(&opt, &data);
   printSettings(opt);
   std::vector<Candidate> backends = makeBackends(opt);
   if (opt.step) {
     std::vector<LikelihoodBackend*> list;
-    for (Candidate& c : backends) {
-      c.backend->setMap(map);
-      list.push_back(c.backend.get());
-    }
-    runSteps(list, map, frames, opt);
+    for (Candidate& c : backends) list.push_back(c.backend.get());
+    runSteps(list, data, opt);
     return 0;
   }
-  runWorkloads(&backends, map, large_map, large_absent, frames, opt);
+  runWorkloads(&backends, data, opt);
   return 0;
 }
 

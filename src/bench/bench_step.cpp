@@ -244,15 +244,23 @@ StepRow runLocalizerStep(const std::string& backend, bool device, const Workload
 
 }  // namespace
 
-void runSteps(const std::vector<LikelihoodBackend*>& backends, const GmmMap& map,
-              const FrameSet& frames, const Options& opt) {
+void runSteps(const std::vector<LikelihoodBackend*>& backends, const BenchData& data,
+              const Options& opt) {
+  // `large` is the likelihood's workload alone; a workload whose input is absent is skipped.
+  auto stepped = [&](const Workload& w) {
+    return listed(opt.workloads, w.name) && w.input != WorkloadInput::kLargeMap &&
+           data.absent(w).empty();
+  };
   std::vector<StepRow> rows;
   for (LikelihoodBackend* b : backends) {
+    const GmmMap* current = nullptr;
     for (const Workload& w : kWorkloads) {
-      if (!listed(opt.workloads, w.name) || w.large_map) continue;
+      if (!stepped(w)) continue;
+      if (current != &data.mapFor(w)) b->setMap(data.mapFor(w));
+      current = &data.mapFor(w);
       for (int device = 0; device < 2; ++device) {
         if (device && b->device() == nullptr) continue;
-        rows.push_back(runFilterStep(b, device != 0, w, frames, opt));
+        rows.push_back(runFilterStep(b, device != 0, w, data.framesFor(w), opt));
         std::fprintf(stderr, "# done %s / %s: %.2f ms\n", rows.back().what.c_str(), w.name,
                      rows.back().total);
       }
@@ -260,10 +268,11 @@ void runSteps(const std::vector<LikelihoodBackend*>& backends, const GmmMap& map
   }
   for (LikelihoodBackend* b : backends) {
     for (const Workload& w : kWorkloads) {
-      if (!listed(opt.workloads, w.name) || w.large_map) continue;
+      if (!stepped(w)) continue;
       for (int device = 0; device < 2; ++device) {
         if (device && b->name() != "cuda") continue;
-        rows.push_back(runLocalizerStep(b->name(), device != 0, w, map, frames, opt));
+        rows.push_back(
+            runLocalizerStep(b->name(), device != 0, w, data.mapFor(w), data.framesFor(w), opt));
         std::fprintf(stderr, "# done %s / %s: %.2f ms\n", rows.back().what.c_str(), w.name,
                      rows.back().total);
       }

@@ -13,23 +13,37 @@
 namespace gmm_mcl {
 namespace bench {
 
+// Where a workload's map and frames come from.
+enum class WorkloadInput {
+  kScene,     // --map and the scene's frames (7-Scenes, --frames-raw, or the synthetic scene)
+  kLargeMap,  // the M=4000 map of the same scene (--large-map) and the scene's frames
+  kBuilding,  // the building world's map (--building-map) and its own frames (--building-dataset)
+};
+
 struct Workload {
   const char* name;
   int particles;
   int stride_px;
-  bool large_map;  // the M=4000 map of the same scene (--large-map) instead of --map
+  WorkloadInput input;
 };
-constexpr Workload kWorkloads[] = {{"paper", 1068, 4, false},
-                                   {"cpu", 1068, 8, false},
-                                   {"full", 1068, 1, false},
-                                   {"scale", 100000, 8, false},
-                                   {"large", 1068, 4, true}};
+// clang-format off
+constexpr Workload kWorkloads[] = {{"paper",    1068,   4, WorkloadInput::kScene},
+                                   {"cpu",      1068,   8, WorkloadInput::kScene},
+                                   {"full",     1068,   1, WorkloadInput::kScene},
+                                   {"scale",    100000, 8, WorkloadInput::kScene},
+                                   {"large",    1068,   4, WorkloadInput::kLargeMap},
+                                   {"building", 1068,   4, WorkloadInput::kBuilding}};
+// clang-format on
 
 struct Options {
   std::string backends = "all";
   std::string workloads = "all";
   std::string map_path;
   std::string large_map_path;
+  std::string building_map_path;
+  std::string building_dataset;     // a TUM RGB-D folder of the building world
+  std::string building_frames_raw;  // or its frames as a raw file (--export-building-frames)
+  std::string export_building_frames;
   std::string frames_dir;
   std::string frames_raw;
   std::string export_frames;
@@ -54,6 +68,35 @@ struct Options {
 
 // Whether `name` is in the comma-separated list (or the list is "all").
 bool listed(const std::string& list, const std::string& name);
+
+// The maps and frames the listed workloads run on. A workload whose own input is missing has
+// the reason in absent(w) and is skipped.
+struct BenchData {
+  GmmMap map;  // the scene's (--map, or the synthetic scene's)
+  FrameSet frames;
+  std::string map_source;
+  GmmMap large_map;
+  std::string large_absent;
+  GmmMap building_map;
+  FrameSet building_frames;
+  std::string building_absent;
+
+  const GmmMap& mapFor(const Workload& w) const {
+    if (w.input == WorkloadInput::kLargeMap) return large_map;
+    if (w.input == WorkloadInput::kBuilding) return building_map;
+    return map;
+  }
+  const FrameSet& framesFor(const Workload& w) const {
+    return w.input == WorkloadInput::kBuilding ? building_frames : frames;
+  }
+  // Why w cannot run ("" when it can).
+  const std::string& absent(const Workload& w) const {
+    static const std::string kNone;
+    if (w.input == WorkloadInput::kLargeMap) return large_absent;
+    if (w.input == WorkloadInput::kBuilding) return building_absent;
+    return kNone;
+  }
+};
 
 // The iterations of a timed loop: opt.warmup warm-up ones, then timed ones until opt.frames are
 // timed, or at least opt.min_timed once opt.budget_s seconds are.
@@ -93,9 +136,10 @@ Row runWorkload(LikelihoodBackend* backend, double fp32_peak_gflops, const Workl
 void printWorkloadTable(const std::vector<Row>& rows);
 
 // --step: the filter's stages (host filter, and device filter with CUDA) and Localizer::step at
-// each listed workload's N, one table (markdown, stdout).
-void runSteps(const std::vector<LikelihoodBackend*>& backends, const GmmMap& map,
-              const FrameSet& frames, const Options& opt);
+// each listed workload's N on its map and frames (`large` excepted), one table (markdown,
+// stdout). Sets each backend's map.
+void runSteps(const std::vector<LikelihoodBackend*>& backends, const BenchData& data,
+              const Options& opt);
 
 }  // namespace bench
 }  // namespace gmm_mcl

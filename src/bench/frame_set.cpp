@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "gmm_mcl/datasets/seven_scenes_sequence.h"
+#include "gmm_mcl/datasets/tum_sequence.h"
 #include "gmm_mcl/sim/box_scene.h"
 #include "gmm_mcl/sim/mesh_scene.h"
 
@@ -36,6 +37,24 @@ FrameSet loadSevenScenes(const std::string& dir, int first, int count) {
   }
   FrameSet set;
   set.source = "7-Scenes " + dir;
+  set.K = sequence.intrinsics();
+  for (int i = first; i < first + count; ++i) {
+    set.images.push_back(sequence.loadDepth(i));
+    set.T_map_cam.push_back(sequence.T_world_cam(i));
+  }
+  return set;
+}
+
+FrameSet loadTumFrames(const std::string& dir, int first, int count) {
+  SequenceOptions options;
+  options.max_frames = first + count;
+  const TumSequence sequence(dir, options);
+  if (sequence.size() < first + count) {
+    throw std::runtime_error(dir + ": " + std::to_string(sequence.size()) + " frames, " +
+                             std::to_string(first + count) + " needed");
+  }
+  FrameSet set;
+  set.source = "TUM RGB-D " + dir;
   set.K = sequence.intrinsics();
   for (int i = first; i < first + count; ++i) {
     set.images.push_back(sequence.loadDepth(i));

@@ -1,6 +1,6 @@
 // Depth frames with ground-truth camera poses for the benchmark and the data-set parity test:
-// 7-Scenes PNGs (with libpng), a raw file (for machines without libpng or the data set), or the
-// synthetic box scene.
+// 7-Scenes or TUM RGB-D PNGs (with libpng), a raw file (for machines without libpng or the data
+// set), or the synthetic box scene.
 #pragma once
 
 #include <Eigen/Geometry>
@@ -24,6 +24,13 @@ struct FrameSet {
 // (SevenScenesSequence: its camera-intrinsics.txt, rotations made orthonormal). Throws
 // std::runtime_error when libpng is not built in, a file is bad or the folder is shorter.
 FrameSet loadSevenScenes(const std::string& dir, int first, int count);
+
+// Frames first..first+count-1 of a TUM RGB-D folder (the building world's walks, which
+// scripts/make_building.sh renders), read by the data-set reader (TumSequence: its
+// intrinsics.txt, depth paired with the nearest ground-truth pose). The poses are the folder's
+// world frame, as written (no gravity alignment), the frame its map is in. Throws
+// std::runtime_error when libpng is not built in, a file is bad or the folder is shorter.
+FrameSet loadTumFrames(const std::string& dir, int first, int count);
 
 // Raw frame file: "GMMFRM1\0", uint32 count, width, height, float fx, fy, cx, cy; per frame 16
 // doubles (T_map_cam, row-major) then width*height uint16 millimetres. Little-endian.
