@@ -8,12 +8,13 @@
 #
 # With GLOBAL_MAP and GLOBAL_SEQS (TUM folders of a building, scripts/make_building.sh, reduced
 # with `gmm_mcl_replay --convert tum --convert-stride 8`), global localization there: replay
-# trials from a whole-map start (--init map) with the CUDA backend, GPU memory sampled by
+# trials from a whole-map start (--init map, plus GLOBAL_ARGS) with the CUDA backend, GPU memory sampled by
 # nvidia-smi, and the memory of 10^5 and 10^6 particles (MEMORY_ARGS, default one candidate per
 # particle at the whole-map start: the particle set's own memory, in seconds).
 #
 #   scripts/gpu_building.sh                 # logs under $OUT (the device tool) or build-gpu/logs
 #   BASE_SRC=.deps/base-src scripts/gpu_building.sh
+#   VARIANTS="groups=--cuda-place-groups,true" scripts/gpu_building.sh   # and with those flags
 #   STEPS=global GLOBAL_MAP=.deps/building/map.gmm GLOBAL_SEQS=".deps/building/walk1" \
 #     scripts/gpu_building.sh
 set -uo pipefail
@@ -71,6 +72,12 @@ for room in $ROOMS; do
   fi
   bench "new_$room" "$ROOT/build-gpu/gmm_mcl_bench" "$map" --workload paper,cpu
   bench "new_step_$room" "$ROOT/build-gpu/gmm_mcl_bench" "$map" --workload cpu --step --budget-s 5
+  for v in ${VARIANTS:-}; do  # NAME=FLAG,VALUE[,FLAG,VALUE...]: the same with those flags
+    IFS=, read -r -a args <<< "${v#*=}"
+    bench "${v%%=*}_$room" "$ROOT/build-gpu/gmm_mcl_bench" "$map" --workload paper,cpu "${args[@]}"
+    bench "${v%%=*}_step_$room" "$ROOT/build-gpu/gmm_mcl_bench" "$map" --workload cpu --step \
+      --budget-s 5 "${args[@]}"
+  done
 done
 
 if step global && [[ -n "${GLOBAL_MAP:-}" ]]; then
@@ -82,12 +89,12 @@ if step global && [[ -n "${GLOBAL_MAP:-}" ]]; then
     smi=$!
     "$ROOT/build-gpu/gmm_mcl_replay" --format tum --dataset "$seq" --map "$GLOBAL_MAP" \
       --backend cuda --init map --trials "$TRIALS" --frames "$GLOBAL_FRAMES" --pixel-stride 8 \
-      --out "$LOGS/global_$name" > "$LOGS/global_$name.txt" 2>&1
+      --out "$LOGS/global_$name" ${GLOBAL_ARGS:-} > "$LOGS/global_$name.txt" 2>&1
     echo "$name: rc=$?, GPU memory peak $(sort -n "$LOGS/memory_$name.txt" | tail -1) MiB"
     kill $smi 2> /dev/null
     grep -E "^trial|^\| [0-9]|mean|success" "$LOGS/global_$name.txt" | head -30
   done
-  for n in 100000 1000000; do
+  for n in ${MEMORY_RUNS-100000 1000000}; do
     seq="$(echo ${GLOBAL_SEQS:-} | cut -d' ' -f1)"
     [[ -n "$seq" ]] || break
     nvidia-smi --query-gpu=memory.used --format=csv,noheader,nounits -lms 100 > "$LOGS/memory_$n.txt" &

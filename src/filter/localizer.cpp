@@ -157,7 +157,9 @@ void Localizer::screenCandidates(const MeasurementContext& ctx, int count, bool 
   // likelihood's basin (a few decimetres), one of the best few often lands beside it.
   const int local =
       local_stage && per > 1 ? static_cast<int>(params_.lost.local_candidate_fraction * total) : 0;
-  const int batch = filter_->size();  // the backend's usual batch size
+  // Batches of at least the largest particle count: a redraw from a shrunken set (1068
+  // particles) scores its candidates in as few launches as a full set would.
+  const int batch = std::max(filter_->size(), params_.filter.num_particles);
   // The uniform stage of a redraw against the blurred map (a wider basin), then the map again.
   const bool blur = local_stage && !blurred_map_.empty();
   if (blur) backend_->setMap(blurred_map_);

@@ -68,6 +68,18 @@ ReplayFrame makeReplayFrame(double stamp_s, const StepResult& step, const Partic
   return rf;
 }
 
+double nearestParticleM(const std::vector<Particle>& particles, const Particle& truth,
+                        double max_yaw_error_rad) {
+  double best = std::numeric_limits<double>::quiet_NaN();
+  for (const Particle& p : particles) {
+    if (std::abs(wrapAngle(p.yaw_rad - truth.yaw_rad)) > max_yaw_error_rad) continue;
+    const double d = std::sqrt(std::pow(p.x_m - truth.x_m, 2) + std::pow(p.y_m - truth.y_m, 2) +
+                               std::pow(p.z_m - truth.z_m, 2));
+    if (!(d >= best)) best = d;
+  }
+  return best;
+}
+
 void finishTrial(const EvaluationParams& params, TrialResult* result) {
   std::vector<FrameError> errors;
   double total_ms = 0.0;
@@ -118,6 +130,10 @@ TrialResult runTrial(const Sequence& seq, const DepthProvider& depth, const GmmM
     in.intrinsics = seq.intrinsics();
     const Particle true_pose = poseToParticle(truth[f]);
     out.frames.push_back(makeReplayFrame(in.stamp_s, loc.step(in), &true_pose));
+    if (params.nearest_particle) {
+      out.frames.back().nearest_particle_m =
+          nearestParticleM(loc.filter().particles(), true_pose, params.nearest_particle_yaw_rad);
+    }
     if (progress) progress(k, steps, out.frames.back());
   }
   finishTrial(params.evaluation, &out);
@@ -145,7 +161,7 @@ void writeFrameCsv(const TrialResult& r, const std::string& path) {
          "neff,loglik_best_per_px,loglik_mean_per_px,floor_hit_fraction,relevant_per_patch,"
          "beta_fraction,reinitialised,lost_redrawn,status,pixels,frame_prep_ms,membership_ms,"
          "likelihood_ms,resample_ms,refined,refined_error_m,refined_error_yaw_deg,refine_ms,"
-         "particles,total_ms,depth_scale\n";
+         "particles,total_ms,depth_scale,nearest_particle_m\n";
   out.precision(7);
   for (const ReplayFrame& f : r.frames) {
     const StepResult& s = f.step;
@@ -173,7 +189,9 @@ void writeFrameCsv(const TrialResult& r, const std::string& path) {
       out << ',';
     }
     out << ',' << s.timings.refine_ms << ',' << s.particles << ',' << s.timings.total_ms << ','
-        << s.depth_scale << '\n';
+        << s.depth_scale << ',';
+    if (std::isfinite(f.nearest_particle_m)) out << f.nearest_particle_m;
+    out << '\n';
   }
 }
 

@@ -37,7 +37,7 @@ const char* kUsage =
     "                      [--lost-candidates-per-particle K]\n"
     "                      [--hold-frames N (30)] [--tail-frames N (100)]\n"
     "                      [--odometry truth|none] [--imu truth|none] [--frame-step K]\n"
-    "                      [--out DIR] [--quiet]\n"
+    "                      [--nearest-particle] [--out DIR] [--quiet]\n"
     "       folder options: [--intrinsics fr1|fr2|fr3|icl|kinect|fx,fy,cx,cy|FILE]\n"
     "                      [--depth-scale UNITS_PER_M] [--tolerance S] [--gravity z-up|\n"
     "                      first-camera|gx,gy,gz] [--trajectory FILE.log] [--rate HZ]\n"
@@ -62,6 +62,8 @@ const char* kUsage =
     "--imu none the attitude (roll and pitch held from the refined estimates); --frame-step K\n"
     "replays every K-th frame (2: 15 Hz, 3: 10 Hz from 30 Hz; --frames counts the sequence's\n"
     "frames; the hold and tail windows shrink by K unless given): docs/no_odometry.md.\n"
+    "--nearest-particle adds each frame's distance from the truth to the nearest particle (yaw\n"
+    "within 0.2 rad) to the CSV (nearest_particle_m): whether the set still holds the truth.\n"
     "Filter parameters: every one as --name-with-dashes (the list under --help).\n";
 
 int makeFixture(const std::string& format, const std::string& dir, int frames, int width,
@@ -128,6 +130,7 @@ struct Options {
   std::string odometry = "truth", imu = "truth";
   bool quiet = false;
   bool host_filter = false;
+  bool nearest_particle = false;
   std::string init = "cube";
   LocalizerParams lp;  // the filter parameters given on the command line
 };
@@ -143,7 +146,8 @@ Options parseOptions(int argc, char** argv, cli::CommandLine* cl_out) {
             {"width", &o.width}, {"hold-frames", &o.hold_frames}, {"tail-frames", &o.tail_frames},
             {"convert-stride", &o.convert_stride}, {"convert", &o.convert},
             {"make-fixture", &o.fixture}, {"quiet", &o.quiet}, {"host-filter", &o.host_filter},
-            {"odometry", &o.odometry}, {"imu", &o.imu}, {"frame-step", &o.frame_step}});
+            {"odometry", &o.odometry}, {"imu", &o.imu}, {"frame-step", &o.frame_step},
+            {"nearest-particle", &o.nearest_particle}});
   // clang-format on
   cli::addSequenceFlags(&cl, &o.so);
   cl.addLocalizerParams(&o.lp, {"backend", "device_filter", "seed", "init_centre",
@@ -200,6 +204,7 @@ ReplayParams replayParams(const Options& o) {
   rp.odometry = o.odometry != "none";
   rp.attitude = o.imu != "none";
   rp.whole_map_start = o.init == "map";
+  rp.nearest_particle = o.nearest_particle;
   rp.localizer = o.lp;
   rp.localizer.backend = o.backend;
   rp.localizer.device_filter = !o.host_filter;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <functional>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -30,6 +31,11 @@ struct ReplayParams {
   // Every frame_step-th frame of the sequence (2: 15 Hz from 30 Hz); the synthesised odometry's
   // noise grows with the interval (variance x frame_step).
   int frame_step = 1;
+  // Per frame, the distance from the truth to the nearest particle whose yaw is within
+  // nearest_particle_yaw_rad of the truth's (NaN: none): whether the set still holds the truth
+  // (global localisation). Copies the particle set down from the device each frame.
+  bool nearest_particle = false;
+  double nearest_particle_yaw_rad = 0.2;
   EvaluationParams evaluation;
 };
 
@@ -41,6 +47,7 @@ struct ReplayFrame {
   Particle truth;
   FrameError error;
   StepResult step;
+  double nearest_particle_m = std::numeric_limits<double>::quiet_NaN();  // see ReplayParams
 };
 
 struct TrialResult {
@@ -76,6 +83,9 @@ inline TrialResult runSevenScenesTrial(const SevenScenesSequence& seq, const Dep
 }
 // Metrics of a trial's frames with truth (evaluateTrial) and the mean step time.
 void finishTrial(const EvaluationParams& params, TrialResult* result);
+// The distance from truth to the nearest particle within max_yaw_error_rad of its yaw (NaN: none).
+double nearestParticleM(const std::vector<Particle>& particles, const Particle& truth,
+                        double max_yaw_error_rad);
 
 // Writers: TUM trajectory (t tx ty tz qx qy qz qw, readable by evo) of the estimate or the
 // truth (frames with truth only), and the per-frame CSV (errors, empty where the truth is
