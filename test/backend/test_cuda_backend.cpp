@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <random>
 #include <set>
 #include <string>
@@ -188,6 +189,38 @@ TEST_F(CudaBackendTest, CloudSpreadOverABuildingMatchesCpu) {
               a.visible_components, b.visible_components, building.size());
   EXPECT_NEAR(b.visible_components, a.visible_components, 0.01 * a.visible_components + 2);
   EXPECT_LT(b.visible_components, static_cast<int>(building.size()));
+}
+
+// More components in the evaluated set than a 16-bit index holds: the likelihood kernel's member
+// lists, built per round of 1024 components, must still name the right components. The room the
+// camera is in comes last in a map of more than 65,536 components, and the view cull is off, so
+// that the set is the whole map and the seen components' indices exceed 65,535. Both member
+// paths (records read through L1, and staged in shared memory) against the CPU backend.
+TEST_F(CudaBackendTest, MoreThan65536ComponentsMatchCpu) {
+  const auto& w = test::world();
+  const int room = static_cast<int>(w.map.size());
+  const int side = static_cast<int>(std::ceil(std::sqrt((65536.0 + 2.0 * room) / room)));
+  const GmmMap tiles = tiledMap(w.map, side, side, 14.0);
+  std::vector<GaussianComponent> comps(tiles.components().begin() + room, tiles.components().end());
+  comps.insert(comps.end(), tiles.components().begin(), tiles.components().begin() + room);
+  const GmmMap big(std::move(comps), "tiles, the camera's room last");
+  ASSERT_GT(big.size() - room, 65536u);
+  CpuBackend cpu;
+  cpu.setMap(big);
+  const Eigen::Isometry3d T_map_base = test::referenceBasePose();
+  const DepthFrame frame = test::renderFrame(T_map_base, test::smallCamera(), test::frameParams(8));
+  const auto poses = perturbedPoses(T_map_base * w.T_base_cam, 16, 5u);
+  for (const char* stage : {"off", "on"}) {
+    CudaTuningParams tuning;
+    tuning.view_cull_min_pairs = std::numeric_limits<long long>::max();
+    tuning.likelihood_shape = "32x4";
+    tuning.stage_members = stage;
+    gpu = std::make_unique<CudaBackend>(0, tuning);
+    gpu->setMap(big);
+    const std::string label =
+        std::string("M = ") + std::to_string(big.size()) + ", room last, staged members " + stage;
+    expectSameLikelihood(big, frame, poses, &cpu, gpu.get(), label.c_str());
+  }
 }
 
 // The pose refinement's pixel sums on the GPU (float per pair, double per block) match the host's

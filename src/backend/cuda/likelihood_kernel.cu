@@ -60,7 +60,8 @@ __device__ __forceinline__ T warpSumToLane0(T x) {
 }
 
 // Expands mask words [w0, w0 + 32) of one patch into the warp's member list (ascending
-// component index); returns the member count. All 32 lanes call it.
+// component index, counted from the round's first component w0 * 32: 16 bits hold it whatever
+// the set's size); returns the member count. All 32 lanes call it.
 __device__ __forceinline__ int buildMemberList(const uint32_t* __restrict__ row, int w0, int words,
                                                int lane, uint16_t* list) {
   const uint32_t bits = w0 + lane < words ? __ldg(row + w0 + lane) : 0u;
@@ -75,7 +76,7 @@ __device__ __forceinline__ int buildMemberList(const uint32_t* __restrict__ row,
   int pos = incl - cnt;
   __syncwarp();  // readers of the previous list are done
   for (uint32_t m = bits; m; m &= m - 1u) {
-    list[pos++] = static_cast<uint16_t>(((w0 + lane) << 5) + __ffs(m) - 1);
+    list[pos++] = static_cast<uint16_t>((lane << 5) + __ffs(m) - 1);  // within the round
   }
   __syncwarp();
   return k;
@@ -226,7 +227,7 @@ __global__ void __launch_bounds__(kThreads, LikelihoodMinBlocks<PX>::value)
           for (int w0 = 0; w0 < words; w0 += 32) {
             const int k = buildMemberList(row, w0, words, lane, list);
             if (c0 == b) k_total += k;
-            accumulateListed<PX, C>(list, k, sl, comps, S2, px, py, pz, sum);
+            accumulateListed<PX, C>(list, k, sl, comps + w0 * 32, S2, px, py, pz, sum);
           }
         }
       } else if (one_round) {
@@ -242,7 +243,7 @@ __global__ void __launch_bounds__(kThreads, LikelihoodMinBlocks<PX>::value)
           if (c0 == b) k_total += k;
           for (int t0 = 0; t0 < k; t0 += kStage) {
             const int n = min(kStage, k - t0);
-            stageMembers(list + t0, n, comps4, lane, rec);
+            stageMembers(list + t0, n, comps4 + 3 * (w0 * 32), lane, rec);
             accumulateStaged<PX, C>(rec, n, sl, S2, px, py, pz, sum);
           }
         }
