@@ -173,16 +173,22 @@ void Localizer::screenCandidates(const MeasurementContext& ctx, int count, bool 
     throw;
   }
   if (blur) backend_->setMap(map_);
-  if (local > 0) {
+  // Each further level draws around the best of the candidates so far, a third as wide: the
+  // search narrows from the blurred map's metre onto the map's own basin (about 0.1 m).
+  const int levels = local > 0 ? params_.lost.local_levels : 0;
+  double sigma_m = params_.lost.local_sigma_m, sigma_rad = params_.lost.local_sigma_rad;
+  for (int level = 0; level < levels; ++level) {
     const int elites =
         std::max(1, static_cast<int>(params_.lost.elite_fraction * filter_->scoredCandidates()));
-    // Blurred scores only chose the centres; the redraw is chosen by the map's own scores.
-    filter_->selectCandidateCentres(elites, blur);
-    for (int done = 0; done < local; done += batch) {
-      filter_->drawCandidatesAroundCentres(params_.lost.local_sigma_m, params_.lost.local_sigma_rad,
-                                           std::min(batch, local - done));
+    // Blurred scores only chose the first centres; the redraw is chosen by the map's own scores.
+    filter_->selectCandidateCentres(elites, blur && level == 0);
+    const int n = level + 1 < levels ? local / levels : local - (levels - 1) * (local / levels);
+    for (int done = 0; done < n; done += batch) {
+      filter_->drawCandidatesAroundCentres(sigma_m, sigma_rad, std::min(batch, n - done));
       filter_->scoreCandidates(ctx);
     }
+    sigma_m /= 3.0;
+    sigma_rad /= 3.0;
   }
 }
 

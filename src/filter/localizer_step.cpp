@@ -179,7 +179,8 @@ StepStatus Localizer::evaluateStep(const MeasurementContext& ctx, long long patc
   EvaluationStats stats;
   try {
     if (screen_pending_ && params_.lost.candidates_per_particle > 1) {
-      screenCandidates(ctx, filter_->size());
+      const double area_m2 = 4.0 * region_.half_extent_m.x() * region_.half_extent_m.y();
+      screenCandidates(ctx, filter_->size(), area_m2 >= params_.lost.start_local_stage_min_area_m2);
       filter_->replaceAllByBestCandidates();
       res->screened_candidates = filter_->size() * params_.lost.candidates_per_particle;
     }

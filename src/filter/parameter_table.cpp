@@ -267,10 +267,20 @@ void addLostParams(ParamTable<P>* t) {
   add(t,
       paramSpec<P>("lost_local_sigma_rad", GMM_MCL_PARAM_FIELD(P, lost.local_sigma_rad), "rad", g,
                    {1e-3, 3.15}, kRuntime, "Lost redraw: spread of the local candidates in yaw"));
+  add(t, paramSpec<P>("lost_local_levels", GMM_MCL_PARAM_FIELD(P, lost.local_levels), "", g, {1, 4},
+                      kRuntime,
+                      "Lost redraw: levels of local candidates, each around the best so far and a "
+                      "third as wide"));
   add(t, paramSpec<P>("lost_redraw_blur_m", GMM_MCL_PARAM_FIELD(P, lost.redraw_blur_m), "m", g,
                       {0, 2}, kRuntime,
                       "Lost redraw: uniform candidates are scored against the map blurred by this "
                       "much (a wider basin; 0 = the map)"));
+  add(t, paramSpec<P>("lost_start_local_stage_min_area_m2",
+                      GMM_MCL_PARAM_FIELD(P, lost.start_local_stage_min_area_m2), "m^2", g,
+                      {0, 1e12}, kRuntime,
+                      "A uniform start over at least this horizontal area (a whole building) "
+                      "searches as a lost redraw does: blurred uniform stage, then local "
+                      "candidates"));
 }
 
 // Depth frame.

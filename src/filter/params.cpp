@@ -107,6 +107,13 @@ std::string LostDetectionParams::validate() const {
   if (!(elite_fraction > 0.0 && elite_fraction <= 1.0)) {
     err << "lost.elite_fraction must be in (0, 1] (got " << elite_fraction << "); ";
   }
+  if (local_levels < 1 || local_levels > 4) {
+    err << "lost.local_levels must be in [1, 4] (got " << local_levels << "); ";
+  }
+  if (!(start_local_stage_min_area_m2 >= 0.0)) {
+    err << "lost.start_local_stage_min_area_m2 must be >= 0 (got " << start_local_stage_min_area_m2
+        << "); ";
+  }
   if (!(redraw_blur_m >= 0.0) || !std::isfinite(redraw_blur_m)) {
     err << "lost.redraw_blur_m must be >= 0 (got " << redraw_blur_m << "); ";
   }

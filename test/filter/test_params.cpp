@@ -29,9 +29,11 @@ TEST(ParamsTest, ValidateNamesEveryFault) {
   p.frame.pixel_stride = 0;
   p.measurement.floor_log_density = std::nanf("");
   p.backend = "tpu";
+  p.lost.local_levels = 0;
+  p.lost.start_local_stage_min_area_m2 = -1.0;
   const std::string err = p.validate();
-  for (const char* what :
-       {"num_particles", "alpha_slow", "pixel_stride", "floor_log_density", "backend must be"}) {
+  for (const char* what : {"num_particles", "alpha_slow", "pixel_stride", "floor_log_density",
+                           "backend must be", "local_levels", "start_local_stage_min_area_m2"}) {
     EXPECT_NE(err.find(what), std::string::npos) << what << " missing from: " << err;
   }
   WeightingMode m;

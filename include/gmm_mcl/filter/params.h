@@ -115,11 +115,19 @@ struct LostDetectionParams {
   double elite_fraction = 0.01;
   double local_sigma_m = 0.25;
   double local_sigma_rad = 0.2;
+  // Levels of local candidates, each around the best of those before it and a third as wide
+  // (the local candidates shared equally among them).
+  int local_levels = 1;
   // A lost redraw scores its uniform candidates against the map blurred by this much (every
   // covariance plus blur^2 I): the likelihood's basin widens from a few decimetres to about a
   // metre, so that far more of the uniform candidates land in the true pose's basin; the local
   // candidates around the best of them are scored against the map itself. 0: no blur.
   double redraw_blur_m = 0.15;
+  // A uniform start over a region of at least this horizontal area (a whole building,
+  // ~global_localization) searches as a lost redraw does: the blurred map's uniform stage, then
+  // the local candidates. Uniform draws alone rarely land in the true pose's basin there. Smaller
+  // regions (the 4 m cube, one room) keep the plain uniform candidates. 0: every start.
+  double start_local_stage_min_area_m2 = 400.0;
 
   std::string validate() const;
 };
