@@ -29,14 +29,16 @@ void get(std::ifstream& f, T* v, const std::string& path) {
 }
 }  // namespace
 
-FrameSet loadSevenScenes(const std::string& dir, int first, int count) {
-  const SevenScenesSequence sequence(dir, first + count);
+namespace {
+// Frames first .. first + count - 1 of a data set's sequence with their ground-truth poses.
+FrameSet framesOf(const Sequence& sequence, const std::string& source, const std::string& dir,
+                  int first, int count) {
   if (sequence.size() < first + count) {
     throw std::runtime_error(dir + ": " + std::to_string(sequence.size()) + " frames, " +
                              std::to_string(first + count) + " needed");
   }
   FrameSet set;
-  set.source = "7-Scenes " + dir;
+  set.source = source + " " + dir;
   set.K = sequence.intrinsics();
   for (int i = first; i < first + count; ++i) {
     set.images.push_back(sequence.loadDepth(i));
@@ -44,23 +46,16 @@ FrameSet loadSevenScenes(const std::string& dir, int first, int count) {
   }
   return set;
 }
+}  // namespace
+
+FrameSet loadSevenScenes(const std::string& dir, int first, int count) {
+  return framesOf(SevenScenesSequence(dir, first + count), "7-Scenes", dir, first, count);
+}
 
 FrameSet loadTumFrames(const std::string& dir, int first, int count) {
   SequenceOptions options;
   options.max_frames = first + count;
-  const TumSequence sequence(dir, options);
-  if (sequence.size() < first + count) {
-    throw std::runtime_error(dir + ": " + std::to_string(sequence.size()) + " frames, " +
-                             std::to_string(first + count) + " needed");
-  }
-  FrameSet set;
-  set.source = "TUM RGB-D " + dir;
-  set.K = sequence.intrinsics();
-  for (int i = first; i < first + count; ++i) {
-    set.images.push_back(sequence.loadDepth(i));
-    set.T_map_cam.push_back(sequence.T_world_cam(i));
-  }
-  return set;
+  return framesOf(TumSequence(dir, options), "TUM RGB-D", dir, first, count);
 }
 
 void saveFrameSet(const FrameSet& set, const std::string& path) {
