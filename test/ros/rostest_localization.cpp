@@ -8,6 +8,7 @@
 //   re-converges.
 #include <geometry_msgs/PoseStamped.h>
 #include <gtest/gtest.h>
+#include <rosgraph_msgs/Log.h>
 #include <std_srvs/Empty.h>
 
 #include <cmath>
@@ -83,6 +84,13 @@ TEST(LocalizationBagTest, TracksResetsAndPublishesTf) {
   ASSERT_TRUE(obs.waitConnected()) << "the nodelet's outputs do not connect";
   ros::Publisher init_pub =
       nh.advertise<geometry_msgs::PoseWithCovarianceStamped>("/initialpose", 1, true);
+  // The nodelet's log: a /initialpose is applied in its own callback, logged as "reset to".
+  int resets_logged = 0;
+  ros::Subscriber rosout =
+      nh.subscribe<rosgraph_msgs::Log>("/rosout", 1000, [&](const rosgraph_msgs::LogConstPtr& m) {
+        resets_logged += m->msg.find("reset to") != std::string::npos ? 1 : 0;
+      });
+  ASSERT_TRUE(waitFor([&] { return connectedToAll(rosout); })) << "/rosout does not connect";
   const ros::Time t0 = player.frameStamp(0);
   auto rel = [&](const ros::Time& t) { return (t - t0).toSec(); };
 
@@ -137,7 +145,12 @@ TEST(LocalizationBagTest, TracksResetsAndPublishesTf) {
       init.pose.covariance[0] = init.pose.covariance[7] = init.pose.covariance[14] = 0.05 * 0.05;
       init.pose.covariance[35] = 0.05 * 0.05;
       ASSERT_TRUE(waitFor([&] { return init_pub.getNumSubscribers() > 0; }));
+      const int logged_before = resets_logged;
       init_pub.publish(init);
+      // Applied before the next frame goes out: carried forward to this frame's stamp, not to a
+      // later frame's that a loaded machine might process first.
+      ASSERT_TRUE(waitFor([&] { return resets_logged > logged_before; }))
+          << "the /initialpose was not applied (no \"reset to\" in the nodelet's log)";
       resets = s->resets;
       phase = kToTheEnd;
     } else if (phase == kToTheEnd && t_carried.isZero() && s->resets > resets) {
