@@ -87,6 +87,11 @@ void StampedPoseBuffer::clear() {
   track_.clear();
 }
 
+bool StampedPoseBuffer::reaches(double t_s) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return !track_.empty() && track_.rbegin()->first >= t_s;
+}
+
 size_t StampedPoseBuffer::size() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return track_.size();

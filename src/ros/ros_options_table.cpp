@@ -71,6 +71,10 @@ void addNodeOptions(ParamTable<R>* t) {
                       kRuntime,
                       "IMU attitude farther than this from a frame's stamp is missing (roll and "
                       "pitch from odometry, warned)"));
+  add(t, paramSpec<R>("input_wait", GMM_MCL_PARAM_FIELD(R, input_wait_s), "s", g, {0, 10}, kRuntime,
+                      "A frame whose IMU sample or odometry message (odometry_source topic) at its "
+                      "stamp has not arrived yet waits for them at most this long; sources that "
+                      "never delivered are not waited for (0 = never wait)"));
   add(t, paramSpec<R>(
              "update_min_d", GMM_MCL_PARAM_FIELD(R, update_min_d_m), "m", g, {0, 10}, kRuntime,
              "Motion gate (amcl's): a frame updates the filter once the odometry moved more "

@@ -1,5 +1,8 @@
 #include "gmm_mcl/ros/step_inputs.h"
 
+#include <chrono>
+#include <thread>
+
 #include "gmm_mcl/ros/conversions.h"
 
 namespace gmm_mcl {
@@ -33,8 +36,33 @@ bool StepInputs::odometryAt(const ros::Time& stamp, Eigen::Isometry3d* T_odom_ba
   }
 }
 
+bool StepInputs::inputsArrived(const ros::Time& stamp) const {
+  const double t = stamp.toSec();
+  if (opts_.use_imu && imu_.added() > 0 && !imu_.reaches(t)) return false;
+  if (opts_.odometry_source == "topic" && odom_.added() > 0 && !odom_.reaches(t)) return false;
+  return true;
+}
+
+bool StepInputs::waitForInputs(const ros::Time& stamp) {
+  if (opts_.input_wait_s <= 0.0 || inputsArrived(stamp)) return true;
+  ++waits_begun_;
+  const auto until = std::chrono::steady_clock::now() +
+                     std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                         std::chrono::duration<double>(opts_.input_wait_s));
+  while (std::chrono::steady_clock::now() < until) {
+    std::this_thread::sleep_for(std::chrono::microseconds(500));
+    if (inputsArrived(stamp)) return true;
+  }
+  ++waits_in_vain_;
+  return false;
+}
+
 bool StepInputs::gather(const std_msgs::Header& header, StepInput* in, Gaps* gaps,
                         std::string* why) {
+  // The IMU and odometry topics sent with the frame first (the frame's own connection may be
+  // faster; odometry from tf was awaited by DepthInput's tf message filter); whatever is still
+  // missing after the wait is a gap, reported below.
+  waitForInputs(header.stamp);
   in->stamp_s = header.stamp.toSec();
   try {  // per frame, at its stamp: a gimbal or a moving joint
     T_base_cam_ = ros_conv::isometryFromTransform(

@@ -29,6 +29,9 @@ class StampedPoseBuffer {
   bool attitudeAt(double t_s, double tolerance_s, double* roll_rad, double* pitch_rad,
                   std::string* why = nullptr) const;
 
+  // Whether an entry stamped at or after t has arrived (a lookup at t no longer has to take the
+  // nearest earlier one).
+  bool reaches(double t_s) const;
   // Drops the entries stamped after t (time jumped back: they belong to the old timeline).
   void eraseAfter(double t_s);
   void clear();

@@ -42,6 +42,7 @@ struct RosOptions {
   double transform_tolerance_s = 0.1;
   double odom_timeout_s = 0.2;
   double imu_timeout_s = 0.5;
+  double input_wait_s = 0.1;  // at most, for a frame's IMU and odometry messages (StepInputs)
   int queue_size = 1;
   bool init_from_map_bounds = false;
   double initial_sigma_xy_m = 0.25;  // spread of a requested pose whose covariance gives none

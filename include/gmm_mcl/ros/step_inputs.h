@@ -9,6 +9,7 @@
 #include <std_msgs/Header.h>
 #include <tf2_ros/buffer.h>
 
+#include <atomic>
 #include <string>
 
 #include "gmm_mcl/filter/localizer.h"
@@ -33,7 +34,18 @@ class StepInputs {
     bool imu = false;       // no IMU attitude at the stamp: roll and pitch from odometry
     std::string warnings;   // why, for ~status
   };
-  // Fills `in` (stamp, extrinsics, odometry, attitude) for a frame. False, with why, when the
+  // Whether the IMU sample and the odometry message (odometry_source topic) at the stamp have
+  // arrived; sources that never delivered, or are not used, count as arrived. (Odometry from tf
+  // is awaited before: DepthInput's tf message filter.)
+  bool inputsArrived(const ros::Time& stamp) const;
+  // Waits, at most opts.input_wait_s, until inputsArrived(stamp): messages published with a
+  // frame travel on other connections and threads and may be handled after it. True when
+  // nothing is missing.
+  bool waitForInputs(const ros::Time& stamp);
+  long long waitsBegun() const { return waits_begun_; }     // frames that had to wait
+  long long waitsInVain() const { return waits_in_vain_; }  // of those, timed out
+  // Waits for the frame's inputs (waitForInputs), then fills `in` (stamp, extrinsics, odometry,
+  // attitude) for it. False, with why, when the
   // camera frame has no extrinsics (and none from an earlier frame of the same camera).
   bool gather(const std_msgs::Header& header, StepInput* in, Gaps* gaps, std::string* why);
   // Odometry (odom -> base) at a stamp, from tf or the buffered topic.
@@ -50,6 +62,7 @@ class StepInputs {
   std::string camera_frame_;
   Eigen::Isometry3d T_base_cam_ = Eigen::Isometry3d::Identity();
   bool clear_tf_ = false;
+  std::atomic<long long> waits_begun_{0}, waits_in_vain_{0};
 };
 
 }  // namespace gmm_mcl

@@ -1,0 +1,141 @@
+// A frame's IMU and odometry messages, sent with it but on other connections, may be handled
+// after the frame: StepInputs waits for them (at most input_wait) instead of taking the previous
+// sample.
+// Each case hands the late message over from another thread once the frame has begun waiting
+// (StepInputs::waitsBegun), so that nothing depends on wall time. No ROS master.
+#include <geometry_msgs/TransformStamped.h>
+#include <gtest/gtest.h>
+#include <tf2_ros/buffer.h>
+
+#include <atomic>
+#include <cmath>
+#include <functional>
+#include <thread>
+
+#include "gmm_mcl/ros/step_inputs.h"
+
+namespace gmm_mcl {
+namespace {
+
+constexpr double kWaitLimitS = 60.0;  // never reached when the fix works: a bound, not a window
+
+sensor_msgs::Imu imuAt(double t_s, double roll_rad) {
+  sensor_msgs::Imu m;
+  m.header.stamp = ros::Time(t_s);
+  m.orientation.x = std::sin(0.5 * roll_rad);
+  m.orientation.w = std::cos(0.5 * roll_rad);
+  return m;
+}
+
+geometry_msgs::TransformStamped transformAt(double t_s, const std::string& parent,
+                                            const std::string& child) {
+  geometry_msgs::TransformStamped ts;
+  ts.header.stamp = ros::Time(t_s);
+  ts.header.frame_id = parent;
+  ts.child_frame_id = child;
+  ts.transform.rotation.w = 1.0;
+  return ts;
+}
+
+nav_msgs::Odometry odometryAt(double t_s, double x_m) {
+  nav_msgs::Odometry m;
+  m.header.stamp = ros::Time(t_s);
+  m.pose.pose.position.x = x_m;
+  m.pose.pose.orientation.w = 1.0;
+  return m;
+}
+
+std_msgs::Header frameHeader(double t_s) {
+  std_msgs::Header h;
+  h.stamp = ros::Time(t_s);
+  h.frame_id = "camera";
+  return h;
+}
+
+class StepInputsTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ros::Time::init();
+    tf_.setTransform(transformAt(0.0, "base_link", "camera"), "test", true);
+    opts_.use_imu = true;
+    opts_.odometry_source = "none";
+    opts_.input_wait_s = kWaitLimitS;
+  }
+  // gather() for a frame at t_s while `late` runs on another thread once the frame waits.
+  StepInput gatherWithLate(double t_s, const std::function<void()>& late) {
+    inputs_.setOptions(opts_);
+    std::atomic<bool> done{false};
+    std::thread sender([&] {
+      while (!done && inputs_.waitsBegun() == 0) std::this_thread::yield();
+      if (!done) late();
+    });
+    StepInput in;
+    StepInputs::Gaps gaps;
+    std::string why;
+    EXPECT_TRUE(inputs_.gather(frameHeader(t_s), &in, &gaps, &why)) << why;
+    done = true;
+    sender.join();
+    return in;
+  }
+
+  tf2_ros::Buffer tf_;
+  RosOptions opts_;
+  StepInputs inputs_{&tf_};
+};
+
+TEST_F(StepInputsTest, AFrameWaitsForTheImuSampleAtItsStamp) {
+  inputs_.setOptions(opts_);
+  ASSERT_TRUE(inputs_.addImu(imuAt(1.0, 0.1)));
+  const StepInput in = gatherWithLate(1.2, [&] { inputs_.addImu(imuAt(1.2, 0.3)); });
+  EXPECT_EQ(inputs_.waitsBegun(), 1);
+  EXPECT_EQ(inputs_.waitsInVain(), 0);
+  ASSERT_TRUE(in.has_attitude);
+  EXPECT_NEAR(in.roll_rad, 0.3, 1e-9) << "the frame took the sample before its own";
+}
+
+TEST_F(StepInputsTest, AFrameWaitsForTheOdometryMessageAtItsStamp) {
+  opts_.use_imu = false;
+  opts_.odometry_source = "topic";
+  inputs_.setOptions(opts_);
+  inputs_.addOdometry(odometryAt(1.0, 1.0));
+  const StepInput in = gatherWithLate(1.2, [&] { inputs_.addOdometry(odometryAt(1.2, 2.0)); });
+  EXPECT_EQ(inputs_.waitsBegun(), 1);
+  ASSERT_TRUE(in.has_odometry) << "the frame went on without its odometry";
+  EXPECT_NEAR(in.T_odom_base.translation().x(), 2.0, 1e-9) << "not the odometry at its stamp";
+}
+
+TEST_F(StepInputsTest, ASourceThatNeverDeliveredIsNotWaitedFor) {
+  opts_.odometry_source = "topic";
+  inputs_.setOptions(opts_);
+  StepInput in;
+  StepInputs::Gaps gaps;
+  std::string why;
+  ASSERT_TRUE(inputs_.gather(frameHeader(1.0), &in, &gaps, &why)) << why;
+  EXPECT_EQ(inputs_.waitsBegun(), 0);
+  EXPECT_FALSE(in.has_attitude);
+  EXPECT_FALSE(in.has_odometry);
+  EXPECT_TRUE(gaps.imu);
+  EXPECT_TRUE(gaps.odometry);
+}
+
+TEST_F(StepInputsTest, ASourceThatStopsIsAGapAfterTheWait) {
+  opts_.input_wait_s = 0.01;
+  inputs_.setOptions(opts_);
+  ASSERT_TRUE(inputs_.addImu(imuAt(1.0, 0.1)));
+  StepInput in;
+  StepInputs::Gaps gaps;
+  std::string why;
+  ASSERT_TRUE(inputs_.gather(frameHeader(5.0), &in, &gaps, &why)) << why;
+  EXPECT_EQ(inputs_.waitsBegun(), 1);
+  EXPECT_EQ(inputs_.waitsInVain(), 1);
+  EXPECT_FALSE(in.has_attitude);
+  EXPECT_TRUE(gaps.imu);
+  // input_wait 0: never waits.
+  opts_.input_wait_s = 0.0;
+  inputs_.setOptions(opts_);
+  ASSERT_TRUE(inputs_.gather(frameHeader(6.0), &in, &gaps, &why)) << why;
+  EXPECT_EQ(inputs_.waitsBegun(), 1);
+}
+
+}  // namespace
+}  // namespace gmm_mcl
