@@ -18,7 +18,7 @@
 #   STEPS=global GLOBAL_MAP=.deps/building/map.gmm GLOBAL_SEQS=".deps/building/walk1" \
 #     scripts/gpu_building.sh
 set -uo pipefail
-ROOT="$(cd "$(dirname "$0")/.." && pwd)"
+source "$(dirname "$0")/gpu_common.sh"
 cd "$ROOT"
 LOGS="${OUT:-$ROOT/build-gpu/logs}"
 mkdir -p "$LOGS"
@@ -31,7 +31,6 @@ TARGETS+=" gmm_mcl_replay_tool"
 STEPS="${STEPS:-tests cost global}"
 TRIALS="${TRIALS:-10}"
 GLOBAL_FRAMES="${GLOBAL_FRAMES:-450}"
-step() { [[ " $STEPS " == *" $1 "* ]]; }
 
 build() {  # SOURCE_ROOT TARGETS: scripts/gpu_check.sh's build step there (into its build-gpu)
   (cd "$1" && GPU_CHECK_STEPS=build GPU_CHECK_TARGETS="$2" OUT="$LOGS/build_$(basename "$1")" \

@@ -10,10 +10,9 @@
 #
 #   scripts/gpu_bundle.sh            # CUDA_ARCH=90, GMM_MCL_DATASETS=../shared/datasets
 set -euo pipefail
-ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-source "$ROOT/scripts/common.sh"
-BUNDLE="${BUNDLE:-$ROOT/.deps/gpu}"
-BUILD="${GMM_MCL_GPU_TOOLS_BUILD:-$ROOT/build/gpu-tools}"
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+BUNDLE="${BUNDLE:-$GMM_MCL_ROOT/.deps/gpu}"
+BUILD="${GMM_MCL_GPU_TOOLS_BUILD:-$GMM_MCL_ROOT/build/gpu-tools}"
 ARCH="${CUDA_ARCH:-90}"
 TOOLS=(gmm_mcl_replay gmm_mcl_kidnap gmm_mcl_render gmm_mcl_fit gmm_mcl_bench test_cuda_backend)
 ensure_packages "${CORE_PACKAGES[@]}"
@@ -29,7 +28,7 @@ bundle_binaries "$BUNDLE" "$BUILD" "${TOOLS[@]}"
 # Data: the Replica mesh and trajectory, the maps, the reduced 7-Scenes sequence.
 cp "$DATASETS/replica_office0/office0_mesh.ply" "$DATASETS/replica_office0/traj.txt" \
   "$BUNDLE/data/replica_office0/"
-MAPS="${GMM_MCL_EVAL_MAPS:-$ROOT/build/eval_unseen/maps}"
+MAPS="${GMM_MCL_EVAL_MAPS:-$GMM_MCL_ROOT/build/eval_unseen/maps}"
 mkdir -p "$MAPS"
 SEVEN="$DATASETS/7scenes_redkitchen/data"
 [[ -f "$MAPS/replica_office0_m1000.gmm" ]] || "$BUILD/gmm_mcl_fit" \
@@ -50,7 +49,7 @@ cp "$MAPS"/*.gmm "$BUNDLE/data/maps/"
   "$BUNDLE/data/7scenes_tum8" --convert-stride 8 > /dev/null
 # The Replica segments of scripts/eval_unseen.sh, reduced likewise, when already rendered here
 # (GMM_MCL_EVAL_SEGMENTS: the folder holding replica_seg<first>; default the evaluation's).
-SEGS="${GMM_MCL_EVAL_SEGMENTS:-$ROOT/build/eval_unseen}"
+SEGS="${GMM_MCL_EVAL_SEGMENTS:-$GMM_MCL_ROOT/build/eval_unseen}"
 for first in 0 700 1400; do
   [[ -f "$SEGS/replica_seg$first/depth.txt" ]] || continue
   "$BUILD/gmm_mcl_replay" --format tum --dataset "$SEGS/replica_seg$first" --convert tum \

@@ -16,15 +16,13 @@
 # is there (scripts/gpu_deps.sh puts them and those inputs there). Prebuilt binaries: GMM_MCL_GPU_BUILD_DIR=DIR and
 # the steps without `build`.
 set -uo pipefail
-ROOT="$(cd "$(dirname "$0")/.." && pwd)"
+source "$(dirname "$0")/gpu_common.sh"
 cd "$ROOT"
-BUILD="${GMM_MCL_GPU_BUILD_DIR:-$ROOT/build-gpu}"
-LOGS="${OUT:-$BUILD/logs}"
+gpu_build_dirs
 STEPS="${GPU_CHECK_STEPS:-build test memcheck racecheck bench}"
 JOBS="${JOBS:-$(nproc)}"
 mkdir -p "$BUILD" "$LOGS"
 status=0
-step() { [[ " $STEPS " == *" $1 "* ]]; }
 
 nvidia-smi --query-gpu=name,compute_cap,driver_version,clocks.max.sm --format=csv 2>&1 | tee "$LOGS/gpu.txt"
 ARCH="${CUDA_ARCH:-$(nvidia-smi --query-gpu=compute_cap --format=csv,noheader 2>/dev/null | head -1 | tr -d ' .')}"

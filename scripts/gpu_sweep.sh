@@ -5,10 +5,9 @@
 # is compiled for that many resident blocks per SM. Prints one line per run.
 #   SWEEP="paper:32x2:10 paper:16x4:10 cpu:8x2:10" scripts/gpu_sweep.sh
 set -uo pipefail
-ROOT="$(cd "$(dirname "$0")/.." && pwd)"
+source "$(dirname "$0")/gpu_common.sh"
 cd "$ROOT"
-BUILD="${GMM_MCL_GPU_BUILD_DIR:-$ROOT/build-gpu}"
-LOGS="${OUT:-$BUILD/logs}"
+gpu_build_dirs
 mkdir -p "$LOGS"
 args=(--backend cuda --frames 100 --warmup 3 --budget-s "${BENCH_BUDGET_S:-2}")
 [[ -f .deps/7scenes_redkitchen_m1000.gmm ]] && args+=(--map .deps/7scenes_redkitchen_m1000.gmm)

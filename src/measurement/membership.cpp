@@ -118,28 +118,16 @@ __attribute__((noinline)) void projectAll(const float* __restrict in, int m,
     mm[2] = R[6] * p[0] + R[7] * p[1] + R[8] * p[2] + t[2];
     const float z_raw = mm[2];
     const bool ok = mm[2] >= min_depth_m;  // else the results are not used
-    // projectComponent's arithmetic written out here: with it in shared helpers GCC 12 no
-    // longer vectorises this loop (the `omp simd` private copies of their array arguments).
-    float A[9];
-    for (int r = 0; r < 3; ++r) {
-      const float r0 = R[r * 3 + 0], r1 = R[r * 3 + 1], r2 = R[r * 3 + 2];
-      A[r * 3 + 0] = r0 * S[0] + r1 * S[1] + r2 * S[2];
-      A[r * 3 + 1] = r0 * S[1] + r1 * S[3] + r2 * S[4];
-      A[r * 3 + 2] = r0 * S[2] + r1 * S[4] + r2 * S[5];
-    }
-    float C[6];
-    C[0] = A[0] * R[0] + A[1] * R[1] + A[2] * R[2];
-    C[1] = A[0] * R[3] + A[1] * R[4] + A[2] * R[5];
-    C[2] = A[0] * R[6] + A[1] * R[7] + A[2] * R[8];
-    C[3] = A[3] * R[3] + A[4] * R[4] + A[5] * R[5];
-    C[4] = A[3] * R[6] + A[4] * R[7] + A[5] * R[8];
-    C[5] = A[6] * R[6] + A[7] * R[7] + A[8] * R[8];
+    // projectComponent's arithmetic: the covariance through projection.h's rotateCovariance
+    // (scalar arguments), the rest written out here: with projectComponent itself (its arrays
+    // and output pointer) GCC 12 no longer vectorises this loop (`omp simd` private copies).
+    const SymMat3F C = rotateCovariance(R, S[0], S[1], S[2], S[3], S[4], S[5]);
     const float iz = 1.f / mm[2];
     const float j00 = fx * iz, j02 = -fx * mm[0] * iz * iz;
     const float j11 = fy * iz, j12 = -fy * mm[1] * iz * iz;
-    const float suu = j00 * j00 * C[0] + 2.f * j00 * j02 * C[2] + j02 * j02 * C[5];
-    const float suv = j00 * j11 * C[1] + j00 * j12 * C[2] + j02 * j11 * C[4] + j02 * j12 * C[5];
-    const float svv = j11 * j11 * C[3] + 2.f * j11 * j12 * C[4] + j12 * j12 * C[5];
+    const float suu = j00 * j00 * C.xx + 2.f * j00 * j02 * C.xz + j02 * j02 * C.zz;
+    const float suv = j00 * j11 * C.xy + j00 * j12 * C.xz + j02 * j11 * C.yz + j02 * j12 * C.zz;
+    const float svv = j11 * j11 * C.yy + 2.f * j11 * j12 * C.yz + j12 * j12 * C.zz;
     const float u = cx + fx * mm[0] * iz;
     const float v = cy + fy * mm[1] * iz;
     const float half_tr = 0.5f * (suu + svv);

@@ -132,6 +132,33 @@ void fillBudgetStatus(const BudgetState& b, FilterStatus* s) {
   s->budget_restores = b.restores;
 }
 
+namespace {
+// The counters that /diagnostics lists, each under its label.
+struct CounterRow {
+  const char* label;
+  long long FrameCounters::*count;
+};
+const CounterRow kCounterRows[] = {
+    {"frames received", &FrameCounters::received},
+    {"frames used", &FrameCounters::processed},
+    {"frames not used: no motion", &FrameCounters::gated},
+    {"dropped: conversion", &FrameCounters::dropped_conversion},
+    {"dropped: camera info", &FrameCounters::dropped_camera_info},
+    {"dropped: no extrinsics", &FrameCounters::dropped_extrinsics},
+    {"missed before a callback (seq gaps)", &FrameCounters::missed_seq},
+    {"camera infos received", &FrameCounters::camera_info_received},
+    {"IMU messages received", &FrameCounters::imu_received},
+    {"odometry messages received", &FrameCounters::odometry_received},
+    {"tf not published", &FrameCounters::tf_skipped},
+    {"reinitialised particles (total)", &FrameCounters::reinitialised_total},
+    {"lost events (total)", &FrameCounters::lost_events_total},
+    {"resets", &FrameCounters::resets},
+    {"time jumps back", &FrameCounters::time_jumps},
+    {"odometry gaps", &FrameCounters::odometry_gaps},
+    {"frames without IMU", &FrameCounters::imu_missing},
+};
+}  // namespace
+
 Diagnosis diagnose(const NodeHealth& h) {
   using S = diagnostic_msgs::DiagnosticStatus;
   Diagnosis d;
@@ -203,18 +230,8 @@ Diagnosis diagnose(const NodeHealth& h) {
     s << x;
     return s.str();
   };
-  add("frames received", std::to_string(c.received));
-  add("frames used", std::to_string(c.processed));
-  add("frames not used: no motion", std::to_string(c.gated));
+  for (const CounterRow& row : kCounterRows) add(row.label, std::to_string(c.*row.count));
   add("frames waiting", std::to_string(c.waiting()));
-  add("dropped: conversion", std::to_string(c.dropped_conversion));
-  add("dropped: camera info", std::to_string(c.dropped_camera_info));
-  add("dropped: no extrinsics", std::to_string(c.dropped_extrinsics));
-  add("missed before a callback (seq gaps)", std::to_string(c.missed_seq));
-  add("camera infos received", std::to_string(c.camera_info_received));
-  add("IMU messages received", std::to_string(c.imu_received));
-  add("odometry messages received", std::to_string(c.odometry_received));
-  add("tf not published", std::to_string(c.tf_skipped));
   add("last step", h.have_step ? stepStatusName(h.last_step) : "none yet");
   add("sigma x/y (m)", num(h.sigma_xy_m));
   add("sigma yaw (rad)", num(h.sigma_yaw_rad));
@@ -229,12 +246,6 @@ Diagnosis diagnose(const NodeHealth& h) {
   add("refinement", h.budget.refine ? "as configured" : "off (budget)");
   add("budget cuts / restores",
       std::to_string(h.budget.cuts) + " / " + std::to_string(h.budget.restores));
-  add("reinitialised particles (total)", std::to_string(c.reinitialised_total));
-  add("lost events (total)", std::to_string(c.lost_events_total));
-  add("resets", std::to_string(c.resets));
-  add("time jumps back", std::to_string(c.time_jumps));
-  add("odometry gaps", std::to_string(c.odometry_gaps));
-  add("frames without IMU", std::to_string(c.imu_missing));
   add("last problem", h.problems.empty() ? "" : h.problems.back().first);
   add("backend", h.backend);
   return d;

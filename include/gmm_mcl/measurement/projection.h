@@ -20,6 +20,34 @@ struct ProjectedComponent {
   float depth_m;                 // z of the mean in the camera frame
 };
 
+// A symmetric 3x3 matrix (its upper triangle).
+struct SymMat3F {
+  float xx, xy, xz, yy, yz, zz;
+};
+
+// R S R^T for a row-major rotation R = R_a_b: a covariance S (xx .. zz, its upper triangle) of
+// frame b, expressed in frame a. S comes as scalars: membership.cpp's `omp simd` loop calls
+// this, and GCC 12 no longer vectorises that loop when S is an array or a struct (it keeps a
+// private copy per lane).
+GMM_MCL_HD SymMat3F rotateCovariance(const float* R, float xx, float xy, float xz, float yy,
+                                     float yz, float zz) {
+  float A[9];  // R S
+  for (int r = 0; r < 3; ++r) {
+    const float r0 = R[r * 3 + 0], r1 = R[r * 3 + 1], r2 = R[r * 3 + 2];
+    A[r * 3 + 0] = r0 * xx + r1 * xy + r2 * xz;
+    A[r * 3 + 1] = r0 * xy + r1 * yy + r2 * yz;
+    A[r * 3 + 2] = r0 * xz + r1 * yz + r2 * zz;
+  }
+  SymMat3F C;  // A R^T
+  C.xx = A[0] * R[0] + A[1] * R[1] + A[2] * R[2];
+  C.xy = A[0] * R[3] + A[1] * R[4] + A[2] * R[5];
+  C.xz = A[0] * R[6] + A[1] * R[7] + A[2] * R[8];
+  C.yy = A[3] * R[3] + A[4] * R[4] + A[5] * R[5];
+  C.yz = A[3] * R[6] + A[4] * R[7] + A[5] * R[8];
+  C.zz = A[6] * R[6] + A[7] * R[7] + A[8] * R[8];
+  return C;
+}
+
 // Projects component c (map frame) seen from a camera at T_cam_map. Returns false when the
 // mean is behind the camera or nearer than min_depth_m (the component is dropped).
 // sigma_bound: ellipse radius in standard deviations (3); inflate_px: added to both semi-axes
@@ -30,31 +58,17 @@ GMM_MCL_HD bool projectComponent(const ComponentF& c, const RigidTransformF& T_c
   float m[3];
   transformPoint(T_cam_map, c.mean_m, m);
   if (!(m[2] >= min_depth_m)) return false;
-  const float* R = T_cam_map.R;
   const float* S = c.cov_m2;  // xx xy xz yy yz zz
-  // A = R * S (3x3), then C = A * R^T (symmetric camera-frame covariance).
-  float A[9];
-  for (int r = 0; r < 3; ++r) {
-    const float r0 = R[r * 3 + 0], r1 = R[r * 3 + 1], r2 = R[r * 3 + 2];
-    A[r * 3 + 0] = r0 * S[0] + r1 * S[1] + r2 * S[2];
-    A[r * 3 + 1] = r0 * S[1] + r1 * S[3] + r2 * S[4];
-    A[r * 3 + 2] = r0 * S[2] + r1 * S[4] + r2 * S[5];
-  }
-  float C[6];  // xx xy xz yy yz zz
-  C[0] = A[0] * R[0] + A[1] * R[1] + A[2] * R[2];
-  C[1] = A[0] * R[3] + A[1] * R[4] + A[2] * R[5];
-  C[2] = A[0] * R[6] + A[1] * R[7] + A[2] * R[8];
-  C[3] = A[3] * R[3] + A[4] * R[4] + A[5] * R[5];
-  C[4] = A[3] * R[6] + A[4] * R[7] + A[5] * R[8];
-  C[5] = A[6] * R[6] + A[7] * R[7] + A[8] * R[8];
+  // The camera-frame covariance.
+  const SymMat3F C = rotateCovariance(T_cam_map.R, S[0], S[1], S[2], S[3], S[4], S[5]);
   // Pinhole Jacobian at the mean: J = [[fx/z, 0, -fx x/z^2], [0, fy/z, -fy y/z^2]].
   const float iz = 1.f / m[2];
   const float j00 = K.fx_px * iz, j02 = -K.fx_px * m[0] * iz * iz;
   const float j11 = K.fy_px * iz, j12 = -K.fy_px * m[1] * iz * iz;
   // Sigma2 = J C J^T.
-  const float suu = j00 * j00 * C[0] + 2.f * j00 * j02 * C[2] + j02 * j02 * C[5];
-  const float suv = j00 * j11 * C[1] + j00 * j12 * C[2] + j02 * j11 * C[4] + j02 * j12 * C[5];
-  const float svv = j11 * j11 * C[3] + 2.f * j11 * j12 * C[4] + j12 * j12 * C[5];
+  const float suu = j00 * j00 * C.xx + 2.f * j00 * j02 * C.xz + j02 * j02 * C.zz;
+  const float suv = j00 * j11 * C.xy + j00 * j12 * C.xz + j02 * j11 * C.yz + j02 * j12 * C.zz;
+  const float svv = j11 * j11 * C.yy + 2.f * j11 * j12 * C.yz + j12 * j12 * C.zz;
   out->u_px = K.cx_px + K.fx_px * m[0] * iz;
   out->v_px = K.cy_px + K.fy_px * m[1] * iz;
   out->cov_uu = suu;

@@ -155,10 +155,7 @@ void checkImage(const DepthImage& image, const Intrinsics& K, const FrameParams&
 cuda::FrameConfig frameConfig(const DepthImage& image, const Intrinsics& K, const PatchGrid& grid,
                               const FrameParams& frame_params) {
   cuda::FrameConfig fc;
-  fc.K = K;
-  fc.patch_size_px = grid.patch_size_px;
-  fc.cols = grid.cols;
-  fc.rows = grid.rows;
+  fc.cam = cuda::patchCamera(K, grid);
   fc.stride_px = frame_params.pixel_stride;
   fc.min_range_m = frame_params.min_range_m;
   fc.max_range_m = frame_params.max_range_m;

@@ -51,6 +51,9 @@ struct OutputLayout {
   }
 };
 
+// The camera K with the patch grid `grid`, as the kernels' configurations hold them.
+PatchCamera patchCamera(const Intrinsics& K, const PatchGrid& grid);
+
 // The membership kernel's configuration for a frame's camera and grid.
 MembershipConfig membershipConfig(const Intrinsics& K, const PatchGrid& grid,
                                   const MeasurementParams& params);

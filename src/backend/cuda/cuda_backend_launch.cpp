@@ -72,13 +72,19 @@ void CudaBackend::Impl::run(const DeviceFrameView& f, int n, const MeasurementPa
 }
 
 namespace cuda {
+PatchCamera patchCamera(const Intrinsics& K, const PatchGrid& grid) {
+  PatchCamera cam;
+  cam.K = K;
+  cam.patch_size_px = grid.patch_size_px;
+  cam.patch_cols = grid.cols;
+  cam.patch_rows = grid.rows;
+  return cam;
+}
+
 MembershipConfig membershipConfig(const Intrinsics& K, const PatchGrid& grid,
                                   const MeasurementParams& params) {
   MembershipConfig cfg;
-  cfg.K = K;
-  cfg.patch_size_px = grid.patch_size_px;
-  cfg.patch_cols = grid.cols;
-  cfg.patch_rows = grid.rows;
+  cfg.cam = patchCamera(K, grid);
   cfg.min_depth_m = params.min_component_depth_m;
   cfg.sigma_bound = params.sigma_bound;
   cfg.inflate_px = patchInflation(grid.patch_size_px);
@@ -140,7 +146,7 @@ CudaBackend::Impl::ComponentSet CudaBackend::Impl::cullView(const cuda::Membersh
   // In a large map, only the grid's components near the poses' views are tested: the poses come
   // back to the host (48 bytes each) and the map grid gives the candidates per group of poses.
   if (groupByPlace(cfg, T_cam_map, n)) {
-    viewCandidates(grid, host_T_map_cam, group_order, group_begin, cfg.K, cfg.reach,
+    viewCandidates(grid, host_T_map_cam, group_order, group_begin, cfg.cam.K, cfg.reach,
                    &host_candidates);
     return cullCandidates(cfg, T_cam_map, n, &host_candidates);
   }
@@ -212,7 +218,7 @@ int CudaBackend::Impl::launchBatches(const DeviceFrameView& f, int n,
     if (tuning.place_groups && group_begin.size() > 2) {
       return launchGroups(f, n, params, cfg, max_patch_pixels, ll, hits, evals, pairs);
     }
-    viewCandidates(grid, host_T_map_cam, group_order, group_begin, cfg.K, cfg.reach,
+    viewCandidates(grid, host_T_map_cam, group_order, group_begin, cfg.cam.K, cfg.reach,
                    &host_candidates);
     set = cullCandidates(cfg, f.T_cam_map, n, &host_candidates);
   } else {
@@ -267,8 +273,9 @@ int CudaBackend::Impl::launchGroups(const DeviceFrameView& f, int n,
       ensureEvents(3 * size_t(batches + 1));
       events[3 * batches].record(s);
     }
-    grid.query(groupViewBox(host_T_map_cam, group_order.data() + first, count, cfg.K, cfg.reach),
-               &host_candidates, &grid_scratch);
+    grid.query(
+        groupViewBox(host_T_map_cam, group_order.data() + first, count, cfg.cam.K, cfg.reach),
+        &host_candidates, &grid_scratch);
     const ComponentSet set = cullCandidates(cfg, d_cam_map + first, count, &host_candidates);
     index.resize(set.count);
     if (set.count > 0) {

@@ -3,6 +3,7 @@
 // columns inside each patch) and with its arithmetic (gmm_mcl/camera/depth_frame.h backProject).
 #include <math.h>
 
+#include "cuda/block_scan.cuh"
 #include "cuda/kernels.cuh"
 #include "gmm_mcl/camera/depth_frame.h"
 
@@ -35,13 +36,13 @@ struct PatchPixels {
   int u0, v0, n_u, n_v;
 };
 __device__ __forceinline__ PatchPixels patchPixels(const FrameConfig& cfg, int p) {
-  const int pr = p / cfg.cols, pc = p - pr * cfg.cols;
-  const int ps = cfg.patch_size_px, st = cfg.stride_px;
+  const int pr = p / cfg.cam.patch_cols, pc = p - pr * cfg.cam.patch_cols;
+  const int ps = cfg.cam.patch_size_px, st = cfg.stride_px;
   PatchPixels q;
   q.v0 = ((pr * ps + st - 1) / st) * st;
   q.u0 = ((pc * ps + st - 1) / st) * st;
-  const int v_end = min(cfg.K.height_px, (pr + 1) * ps);
-  const int u_end = min(cfg.K.width_px, (pc + 1) * ps);
+  const int v_end = min(cfg.cam.K.height_px, (pr + 1) * ps);
+  const int u_end = min(cfg.cam.K.width_px, (pc + 1) * ps);
   q.n_v = q.v0 < v_end ? (v_end - q.v0 + st - 1) / st : 0;
   q.n_u = q.u0 < u_end ? (u_end - q.u0 + st - 1) / st : 0;
   return q;
@@ -75,41 +76,14 @@ __global__ void __launch_bounds__(kFrameThreads)
 __global__ void __launch_bounds__(1024)
     frameScanKernel(int num_patches, const int* __restrict__ counts,  // [patches]
                     int* __restrict__ patch_begin) {                  // [patches + 1]
-  __shared__ int s_warp[32];
-  __shared__ int s_carry;
-  const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
-  if (threadIdx.x == 0) s_carry = 0;
-  __syncthreads();
+  __shared__ BlockScan scan;
+  blockScanBegin(&scan);
   for (int base = 0; base < num_patches; base += blockDim.x) {
     const int i = base + threadIdx.x;
-    const int v = i < num_patches ? counts[i] : 0;
-    int incl = v;
-#pragma unroll
-    for (int off = 1; off < 32; off <<= 1) {
-      const int t = __shfl_up_sync(0xffffffffu, incl, off);
-      if (lane >= off) incl += t;
-    }
-    if (lane == 31) s_warp[warp] = incl;
-    __syncthreads();
-    if (warp == 0) {
-      const int nw = blockDim.x >> 5;
-      int w = lane < nw ? s_warp[lane] : 0;
-#pragma unroll
-      for (int off = 1; off < 32; off <<= 1) {
-        const int t = __shfl_up_sync(0xffffffffu, w, off);
-        if (lane >= off) w += t;
-      }
-      if (lane < nw) s_warp[lane] = w;  // inclusive per-warp totals
-    }
-    __syncthreads();
-    const int carry = s_carry;
-    const int excl = carry + (warp > 0 ? s_warp[warp - 1] : 0) + incl - v;
+    const int excl = blockScanRound(i < num_patches ? counts[i] : 0, &scan);
     if (i < num_patches) patch_begin[i] = excl;
-    __syncthreads();
-    if (threadIdx.x == blockDim.x - 1) s_carry = excl + v;
-    __syncthreads();
   }
-  if (threadIdx.x == 0) patch_begin[num_patches] = s_carry;
+  if (threadIdx.x == 0) patch_begin[num_patches] = scan.carry;
 }
 
 // Writes the used pixels of each patch, in raster order inside the patch.
@@ -146,7 +120,7 @@ __global__ void __launch_bounds__(kFrameThreads)
     before += __popc(ballot & ((1u << lane) - 1u));
     if (ok) {
       float pt[3];
-      backProject(cfg.K, static_cast<float>(u), static_cast<float>(v), z, pt);
+      backProject(cfg.cam.K, static_cast<float>(u), static_cast<float>(v), z, pt);
       x_m[before] = pt[0];
       y_m[before] = pt[1];
       z_m[before] = pt[2];
@@ -166,7 +140,7 @@ __global__ void __launch_bounds__(kFrameThreads)
 cudaError_t launchFramePrep(const FrameConfig& cfg, const uint8_t* image, int* counts,
                             int* patch_begin, float* x_m, float* y_m, float* z_m,
                             cudaStream_t stream) {
-  const int patches = cfg.cols * cfg.rows;
+  const int patches = cfg.cam.patch_cols * cfg.cam.patch_rows;
   if (patches <= 0) return cudaSuccess;
   frameCountKernel<<<patches, kFrameThreads, 0, stream>>>(patches, cfg, image, counts);
   cudaError_t err = cudaGetLastError();

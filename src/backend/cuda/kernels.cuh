@@ -13,12 +13,17 @@
 namespace gmm_mcl {
 namespace cuda {
 
-// Geometry of the patch grid and the membership test (DESIGN.md "Measurement model").
-struct MembershipConfig {
+// The camera and its grid of patches, as every kernel that works per patch sees them.
+struct PatchCamera {
   Intrinsics K;
   int patch_size_px;
   int patch_cols;
   int patch_rows;
+};
+
+// Geometry of the patch grid and the membership test (DESIGN.md "Measurement model").
+struct MembershipConfig {
+  PatchCamera cam;
   float min_depth_m;
   float sigma_bound;
   float inflate_px;
@@ -127,9 +132,7 @@ cudaError_t launchReduce(int num_particles, int items_per_particle, const ItemPa
 
 // Frame preparation on the GPU (prepareFrame's pixels, order and arithmetic).
 struct FrameConfig {
-  Intrinsics K;
-  int patch_size_px;
-  int cols, rows;  // patch grid
+  PatchCamera cam;
   int stride_px;
   float min_range_m, max_range_m;
   int millimetres;  // 1: 16UC1 millimetres, 0: 32FC1 metres

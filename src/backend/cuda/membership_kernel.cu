@@ -5,6 +5,7 @@
 
 #include <mutex>
 
+#include "cuda/block_scan.cuh"
 #include "cuda/kernels.cuh"
 #include "gmm_mcl/measurement/depth_noise.h"
 #include "gmm_mcl/measurement/projection.h"
@@ -53,7 +54,7 @@ __global__ void __launch_bounds__(kMembershipThreads, kMembershipMinBlocks)
   const int nw = min(pass_words, words - w0);
   const int c_begin = w0 * 32;
   const int c_end = min(num_components, (w0 + nw) * 32);
-  const int patches = cfg.patch_cols * cfg.patch_rows;
+  const int patches = cfg.cam.patch_cols * cfg.cam.patch_rows;
   uint32_t* mask = smem;                                         // [patches][nw]
   int* shift_key = reinterpret_cast<int*>(smem + patches * nw);  // [patches]
   for (int i = threadIdx.x; i < patches * nw; i += blockDim.x) mask[i] = 0u;
@@ -62,7 +63,7 @@ __global__ void __launch_bounds__(kMembershipThreads, kMembershipMinBlocks)
   __syncthreads();
 
   const RigidTransformF T = T_cam_map[particle];
-  const float ps = static_cast<float>(cfg.patch_size_px);
+  const float ps = static_cast<float>(cfg.cam.patch_size_px);
   const float c0 = 0.5f * (ps - 1.f);  // centre of patch 0, as PatchGrid::centreU
   // Cull 32 components per warp (one per lane), queue the survivors in shared memory and
   // project them 32 at a time, so that the projection and the box tests run with full warps
@@ -75,11 +76,11 @@ __global__ void __launch_bounds__(kMembershipThreads, kMembershipMinBlocks)
     const int i = c_begin + round * blockDim.x + threadIdx.x;
     // The view cull's tests: no patch centre within reach, or outside the view volume (as the
     // CPU backend's cull before its membership): no projection.
-    const bool keep =
-        i < c_end &&
-        componentMayTouchGrid(components[i], T, cfg.K, cfg.patch_size_px, cfg.patch_cols,
-                              cfg.patch_rows, cfg.min_depth_m, cfg.sigma_bound, cfg.inflate_px) &&
-        componentInView(components[i], T, cfg.K, cfg.reach, cfg.sigma_bound);
+    const bool keep = i < c_end &&
+                      componentMayTouchGrid(components[i], T, cfg.cam.K, cfg.cam.patch_size_px,
+                                            cfg.cam.patch_cols, cfg.cam.patch_rows, cfg.min_depth_m,
+                                            cfg.sigma_bound, cfg.inflate_px) &&
+                      componentInView(components[i], T, cfg.cam.K, cfg.reach, cfg.sigma_bound);
     const uint32_t ballot = __ballot_sync(0xffffffffu, keep);
     if (keep) queue[queued + __popc(ballot & ((1u << lane) - 1u))] = i;
     queued += __popc(ballot);
@@ -94,16 +95,17 @@ __global__ void __launch_bounds__(kMembershipThreads, kMembershipMinBlocks)
       if (j < 0) continue;
       const ComponentF c = components[j];
       ProjectedComponent p;
-      if (!projectComponent(c, T, cfg.K, cfg.min_depth_m, cfg.sigma_bound, cfg.inflate_px, &p)) {
+      if (!projectComponent(c, T, cfg.cam.K, cfg.min_depth_m, cfg.sigma_bound, cfg.inflate_px,
+                            &p)) {
         continue;
       }
       // Candidate patches from the inflated ellipse's bounding box (as computeMembership).
       const int col0 = max(0, static_cast<int>(ceilf((p.u_px - p.half_w_px - c0) / ps)));
       const int col1 =
-          min(cfg.patch_cols - 1, static_cast<int>(floorf((p.u_px + p.half_w_px - c0) / ps)));
+          min(cfg.cam.patch_cols - 1, static_cast<int>(floorf((p.u_px + p.half_w_px - c0) / ps)));
       const int row0 = max(0, static_cast<int>(ceilf((p.v_px - p.half_h_px - c0) / ps)));
       const int row1 =
-          min(cfg.patch_rows - 1, static_cast<int>(floorf((p.v_px + p.half_h_px - c0) / ps)));
+          min(cfg.cam.patch_rows - 1, static_cast<int>(floorf((p.v_px + p.half_h_px - c0) / ps)));
       const uint32_t bit = 1u << (j & 31);
       const int word = (j >> 5) - w0;
       float log_norm = c.log_norm;
@@ -116,11 +118,11 @@ __global__ void __launch_bounds__(kMembershipThreads, kMembershipMinBlocks)
       }
       const int key = floatToOrderedInt(log_norm);
       for (int r = row0; r <= row1; ++r) {
-        const float v = static_cast<float>(r * cfg.patch_size_px) + c0;
+        const float v = static_cast<float>(r * cfg.cam.patch_size_px) + c0;
         for (int col = col0; col <= col1; ++col) {
-          const float u = static_cast<float>(col * cfg.patch_size_px) + c0;
+          const float u = static_cast<float>(col * cfg.cam.patch_size_px) + c0;
           if (ellipseContains(p, u, v)) {
-            const int patch = r * cfg.patch_cols + col;
+            const int patch = r * cfg.cam.patch_cols + col;
             atomicOr(&mask[patch * nw + word], bit);
             atomicMax(&shift_key[patch], key);
           }
@@ -185,9 +187,10 @@ __global__ void __launch_bounds__(kCullThreads)
     if (i < 0 || *reinterpret_cast<volatile int*>(visible + i)) continue;
     const ComponentF c = components[i];
     for (int k = 0; k < count; ++k) {
-      if (componentInView(c, s_T[k], cfg.K, cfg.reach, cfg.sigma_bound) &&
-          componentMayTouchGrid(c, s_T[k], cfg.K, cfg.patch_size_px, cfg.patch_cols, cfg.patch_rows,
-                                cfg.min_depth_m, cfg.sigma_bound, cfg.inflate_px)) {
+      if (componentInView(c, s_T[k], cfg.cam.K, cfg.reach, cfg.sigma_bound) &&
+          componentMayTouchGrid(c, s_T[k], cfg.cam.K, cfg.cam.patch_size_px, cfg.cam.patch_cols,
+                                cfg.cam.patch_rows, cfg.min_depth_m, cfg.sigma_bound,
+                                cfg.inflate_px)) {
         visible[i] = 1;
         break;
       }
@@ -202,25 +205,15 @@ constexpr int kCompactThreads = 1024;
 __global__ void __launch_bounds__(kCompactThreads)
     compactKernel(int num_components, const int* __restrict__ visible, int* __restrict__ index_out,
                   int* __restrict__ count_out) {
-  __shared__ int warp_sums[kCompactThreads / 32];
-  __shared__ int base;
-  const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
-  if (threadIdx.x == 0) base = 0;
-  __syncthreads();
+  __shared__ BlockScan scan;
+  blockScanBegin(&scan);
   for (int r = 0; r < num_components; r += blockDim.x) {
     const int i = r + threadIdx.x;
     const bool keep = i < num_components && visible[i] != 0;
-    const uint32_t ballot = __ballot_sync(0xffffffffu, keep);
-    if (lane == 0) warp_sums[warp] = __popc(ballot);
-    __syncthreads();
-    int before = base;
-    for (int w = 0; w < warp; ++w) before += warp_sums[w];
-    if (keep) index_out[before + __popc(ballot & ((1u << lane) - 1u))] = i;
-    __syncthreads();  // every thread has read base and warp_sums
-    if (threadIdx.x == blockDim.x - 1) base = before + __popc(ballot);
-    __syncthreads();
+    const int at = blockScanRound(keep ? 1 : 0, &scan);
+    if (keep) index_out[at] = i;
   }
-  if (threadIdx.x == 0) *count_out = base;
+  if (threadIdx.x == 0) *count_out = scan.carry;
 }
 
 // Compact copies of both tables in the order of the index list (one thread per entry).
@@ -280,7 +273,7 @@ cudaError_t launchMembership(int num_particles, int num_components, int words, i
                              const EvalComponentF* eval, const RigidTransformF* T_cam_map,
                              uint32_t* mask_out, float* shift_out, EvalComponentF* eval_out,
                              cudaStream_t stream) {
-  const int patches = cfg.patch_cols * cfg.patch_rows;
+  const int patches = cfg.cam.patch_cols * cfg.cam.patch_rows;
   if (num_particles <= 0 || patches <= 0) return cudaSuccess;
   const bool noise = cfg.depth_noise.a_m > 0.f || cfg.depth_noise.b_per_m > 0.f;
   if (noise && (eval == nullptr || eval_out == nullptr)) return cudaErrorInvalidValue;
