@@ -64,7 +64,8 @@ TEST(DepthNoiseTest, EvaluationFormMatchesTheConvolvedDensity) {
       20, &rng,
       [&](const Eigen::Isometry3d& T_map_cam, const RigidTransformF& T_cam_map, const ComponentF& c,
           const Eigen::Vector3d& mu, const Eigen::Vector3d& m) {
-        EvalComponentF e, e2;
+        // Value-initialised: GCC does not see that the ASSERT below guards their use.
+        EvalComponentF e{}, e2{};
         const bool ok = makeNoisyEvalComponent(c, T_cam_map, noise, kEvalScaleNats, &e);
         ASSERT_EQ(ok, m.z() > 0.0);
         // Components whose mean projects into a VGA image (585 px focal length): the ones a

@@ -139,7 +139,9 @@ TEST(MembershipTest, ViewCullKeepsEveryContributingComponent) {
       // list equals the whole map's (BackendOnCulledListEqualsWholeMap).
       EXPECT_GT(members, 0u);
       // A cluster looking one way sees part of the room: the cull has something to drop.
-      if (!all_around) EXPECT_LT(visible.size(), w.map.size());
+      if (!all_around) {
+        EXPECT_LT(visible.size(), w.map.size());
+      }
     }
   }
 }
