@@ -17,6 +17,7 @@
 
 #include "gmm_mcl/camera/depth_frame.h"
 #include "gmm_mcl/cli/command_line.h"
+#include "gmm_mcl/cli/report_errors.h"
 #include "gmm_mcl/experiments/figures/nll_sweep.h"
 #include "gmm_mcl/experiments/figures/scenario.h"
 #include "gmm_mcl/experiments/figures/sensitivity.h"
@@ -24,7 +25,6 @@
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/replay/replay.h"
 #if defined(GMM_MCL_FIGURES_HAVE_FIT)
-#include "gmm_mcl/cli/report_errors.h"
 #include "gmm_mcl/experiments/figures/map_series.h"
 #endif
 
