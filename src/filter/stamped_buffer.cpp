@@ -12,11 +12,14 @@ StampedPoseBuffer::StampedPoseBuffer(double max_age_s, double max_gap_s)
     : max_age_s_(max_age_s), max_gap_s_(max_gap_s) {}
 
 void StampedPoseBuffer::add(double stamp_s, const Eigen::Isometry3d& pose) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  track_[stamp_s] = pose;
-  ++added_;
-  const double oldest = track_.rbegin()->first - max_age_s_;
-  while (!track_.empty() && track_.begin()->first < oldest) track_.erase(track_.begin());
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    track_[stamp_s] = pose;
+    ++added_;
+    const double oldest = track_.rbegin()->first - max_age_s_;
+    while (!track_.empty() && track_.begin()->first < oldest) track_.erase(track_.begin());
+  }
+  added_cv_.notify_all();
 }
 
 void StampedPoseBuffer::addAttitude(double stamp_s, double roll_rad, double pitch_rad) {
@@ -90,6 +93,13 @@ void StampedPoseBuffer::clear() {
 bool StampedPoseBuffer::reaches(double t_s) const {
   std::lock_guard<std::mutex> lock(mutex_);
   return !track_.empty() && track_.rbegin()->first >= t_s;
+}
+
+bool StampedPoseBuffer::waitUntilReaches(double t_s,
+                                         std::chrono::steady_clock::time_point deadline) const {
+  std::unique_lock<std::mutex> lock(mutex_);
+  return added_cv_.wait_until(lock, deadline,
+                              [&] { return !track_.empty() && track_.rbegin()->first >= t_s; });
 }
 
 size_t StampedPoseBuffer::size() const {

@@ -1,7 +1,6 @@
 #include "gmm_mcl/ros/step_inputs.h"
 
 #include <chrono>
-#include <thread>
 
 #include "gmm_mcl/ros/conversions.h"
 
@@ -46,13 +45,15 @@ bool StepInputs::inputsArrived(const ros::Time& stamp) const {
 bool StepInputs::waitForInputs(const ros::Time& stamp) {
   if (opts_.input_wait_s <= 0.0 || inputsArrived(stamp)) return true;
   ++waits_begun_;
-  const auto until = std::chrono::steady_clock::now() +
-                     std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                         std::chrono::duration<double>(opts_.input_wait_s));
-  while (std::chrono::steady_clock::now() < until) {
-    std::this_thread::sleep_for(std::chrono::microseconds(500));
-    if (inputsArrived(stamp)) return true;
-  }
+  const auto deadline = std::chrono::steady_clock::now() +
+                        std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                            std::chrono::duration<double>(opts_.input_wait_s));
+  // Each buffer wakes its waiter when a message is added (StampedPoseBuffer::waitUntilReaches).
+  const double t = stamp.toSec();
+  const bool imu = !opts_.use_imu || imu_.added() == 0 || imu_.waitUntilReaches(t, deadline);
+  const bool odom =
+      opts_.odometry_source != "topic" || odom_.added() == 0 || odom_.waitUntilReaches(t, deadline);
+  if (imu && odom) return true;
   ++waits_in_vain_;
   return false;
 }

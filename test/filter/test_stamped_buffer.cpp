@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <thread>
 
@@ -85,6 +86,24 @@ TEST(StampedPoseBufferTest, ConcurrentProducersAndReader) {
   reader.join();
   EXPECT_EQ(b.size(), 20001u);
   EXPECT_EQ(b.added(), 20001);
+}
+
+// A waiter for an entry at t is woken by the add that brings it; without one it gives up at the
+// deadline (a deadline already past: it only looks).
+TEST(StampedPoseBufferTest, WaitUntilReachesWakesOnAdd) {
+  StampedPoseBuffer b;
+  b.add(1.0, pose(1, 0));
+  const auto now = std::chrono::steady_clock::now();
+  EXPECT_TRUE(b.waitUntilReaches(1.0, now));
+  EXPECT_FALSE(b.waitUntilReaches(2.0, now));
+  std::atomic<bool> waiting{false};
+  std::thread producer([&] {
+    while (!waiting) std::this_thread::yield();
+    b.add(2.0, pose(2, 0));
+  });
+  waiting = true;  // the add may come before or during the wait: both must return true
+  EXPECT_TRUE(b.waitUntilReaches(2.0, now + std::chrono::seconds(60)));
+  producer.join();
 }
 
 }  // namespace

@@ -5,6 +5,8 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <chrono>
+#include <condition_variable>
 #include <map>
 #include <mutex>
 #include <string>
@@ -30,8 +32,10 @@ class StampedPoseBuffer {
                   std::string* why = nullptr) const;
 
   // Whether an entry stamped at or after t has arrived (a lookup at t no longer has to take the
-  // nearest earlier one).
+  // nearest earlier one); waitUntilReaches blocks until it has (woken by add) or until the
+  // deadline, and says which.
   bool reaches(double t_s) const;
+  bool waitUntilReaches(double t_s, std::chrono::steady_clock::time_point deadline) const;
   // Drops the entries stamped after t (time jumped back: they belong to the old timeline).
   void eraseAfter(double t_s);
   void clear();
@@ -42,6 +46,7 @@ class StampedPoseBuffer {
  private:
   double max_age_s_, max_gap_s_;
   mutable std::mutex mutex_;
+  mutable std::condition_variable added_cv_;  // notified by add
   std::map<double, Eigen::Isometry3d> track_;
   long long added_ = 0;
 };
