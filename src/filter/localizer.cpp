@@ -192,9 +192,9 @@ void Localizer::screenCandidates(const MeasurementContext& ctx, int count, bool 
   }
 }
 
-const DepthFrame& Localizer::hostFrame(const StepInput& in) {
+const DepthFrame& Localizer::hostFrame() {
   if (!host_frame_ready_) {
-    host_frame_ = prepareFrame(*in.depth, in.intrinsics, params_.frame);
+    host_frame_ = prepareFrame(*cam_.depth, cam_.intrinsics, *cam_.frame);
     host_frame_ready_ = true;
   }
   return host_frame_;

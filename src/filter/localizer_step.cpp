@@ -27,19 +27,25 @@ void Localizer::stepOnce(const StepInput& in, StepResult* res_out) {
   host_frame_ready_ = false;
   takeStepInputs(in, &res);
   predictStep(in, &res);
-  if (in.depth == nullptr) return finishStep(StepStatus::kPredictOnly, "", t_start, &res);
+  const bool any_frame =
+      in.depth != nullptr || std::any_of(in.more_cameras.begin(), in.more_cameras.end(),
+                                         [](const CameraInput& c) { return c.depth != nullptr; });
+  if (!any_frame) return finishStep(StepStatus::kPredictOnly, "", t_start, &res);
   std::string why;
   long long patches_with_pixels = -1;  // from the device frame
-  StepStatus status = prepareStepFrame(in, &patches_with_pixels, &res, &why);
+  int first_camera = -1;
+  StepStatus status = selectStepCamera(in, &patches_with_pixels, &res, &why, &first_camera);
   if (status != StepStatus::kOk) return finishStep(status, why, t_start, &res);
   MeasurementContext ctx;
   ctx.backend = backend_.get();
   ctx.frame = host_frame_ready_ ? &host_frame_ : nullptr;
   ctx.roll_rad = roll_rad_;
   ctx.pitch_rad = pitch_rad_;
-  ctx.T_base_cam = params_.T_base_cam;
-  ctx.params = &params_.measurement;
+  ctx.T_base_cam = cam_.T_base_cam;
+  ctx.params = cam_.measurement;
   status = evaluateStep(ctx, patches_with_pixels, &res, &why);
+  if (status != StepStatus::kOk) return finishStep(status, why, t_start, &res);
+  status = evaluateMoreCameras(in, first_camera, ctx, &res, &why);
   if (status != StepStatus::kOk) return finishStep(status, why, t_start, &res);
   status = weighStep(&res, &why);
   if (status != StepStatus::kOk) return finishStep(status, why, t_start, &res);
@@ -141,18 +147,152 @@ void Localizer::finishStep(StepStatus status, const std::string& why, Clock::tim
   res->timings.total_ms = msSince(t_start);
 }
 
-StepStatus Localizer::prepareStepFrame(const StepInput& in, long long* patches_with_pixels,
-                                       StepResult* res, std::string* why) {
+StepStatus Localizer::selectStepCamera(const StepInput& in, long long* patches_with_pixels,
+                                       StepResult* res, std::string* why, int* first_camera) {
+  // StepInput's own camera, else the first of the others with a usable frame (a rig whose
+  // first camera dropped out goes on with the rest).
+  const int cameras = 1 + static_cast<int>(in.more_cameras.size());
+  if (!in.more_cameras.empty()) {
+    res->cameras.resize(cameras);
+    for (int c = 1; c < cameras; ++c) res->cameras[c].name = in.more_cameras[c - 1].name;
+  }
+  StepStatus first_status = StepStatus::kOk;
+  std::string first_why;
+  for (int c = 0; c < cameras; ++c) {
+    cam_ = StepCamera();
+    if (c == 0) {
+      cam_.depth = in.depth;
+      cam_.intrinsics = in.intrinsics;
+      cam_.T_base_cam = params_.T_base_cam;
+      cam_.frame = &params_.frame;
+      cam_.measurement = &params_.measurement;
+    } else {
+      const CameraInput& m = in.more_cameras[c - 1];
+      cam_.depth = m.depth;
+      cam_.intrinsics = m.intrinsics;
+      cam_.T_base_cam = m.T_base_cam;
+      cam_.frame = &m.frame;
+      cam_.measurement = &m.measurement;
+      cam_.own = false;
+    }
+    if (cam_.depth == nullptr) {
+      if (!res->cameras.empty()) res->cameras[c].problem = "no frame";
+      continue;
+    }
+    host_frame_ready_ = false;
+    std::string camera_why;
+    const StepStatus status = prepareStepFrame(patches_with_pixels, res, &camera_why);
+    if (status == StepStatus::kOk) {
+      *first_camera = c;
+      cam_.pixels = res->pixels;
+      if (!res->cameras.empty()) {
+        res->cameras[c].used = true;
+        res->cameras[c].pixels = res->pixels;
+      }
+      return status;
+    }
+    if (res->cameras.empty()) {
+      *why = camera_why;
+      return status;
+    }
+    res->cameras[c].problem = camera_why;
+    if (first_status == StepStatus::kOk) first_status = status;
+    first_why += std::string(first_why.empty() ? "" : "; ") + "camera " +
+                 (c == 0 ? std::string("1") : "'" + res->cameras[c].name + "'") + ": " + camera_why;
+  }
+  *why = first_why;
+  return first_status;
+}
+
+StepStatus Localizer::evaluateMoreCameras(const StepInput& in, int first_camera,
+                                          const MeasurementContext& ctx, StepResult* res,
+                                          std::string* why) {
+  // Each further camera's frame prepared with its own parameters and scored with its own
+  // measurement model; its log-likelihood added to every particle's (docs/multi_camera.md).
+  bool on_device = false;
+  std::string skipped;
+  first_camera_ = first_camera;
+  more_frames_.assign(in.more_cameras.size() + 1, DepthFrame());
+  for (int c = first_camera + 1; c <= static_cast<int>(in.more_cameras.size()); ++c) {
+    const CameraInput& m = in.more_cameras[c - 1];
+    CameraStepResult& out = res->cameras[c];
+    if (m.depth == nullptr) {
+      out.problem = "no frame";
+      continue;
+    }
+    const Clock::time_point t0 = Clock::now();
+    MeasurementContext more = ctx;
+    more.T_base_cam = m.T_base_cam;
+    more.params = &m.measurement;
+    int pixels = 0;
+    try {
+      DeviceFrameSummary summary;
+      if (filter_->prepareDeviceFrame(*m.depth, m.intrinsics, m.frame, &summary)) {
+        on_device = true;
+        pixels = summary.pixels;
+        more.frame = nullptr;
+      } else {
+        more_frames_[c] = prepareFrame(*m.depth, m.intrinsics, m.frame);
+        pixels = static_cast<int>(more_frames_[c].size());
+        more.frame = &more_frames_[c];
+      }
+    } catch (const BackendError&) {
+      throw;
+    } catch (const std::exception& e) {
+      out.problem = e.what();
+    }
+    res->timings.frame_prep_ms += msSince(t0);
+    if (out.problem.empty() && pixels == 0) out.problem = "no valid depth pixel";
+    if (!out.problem.empty()) {
+      skipped += std::string(skipped.empty() ? "" : "; ") + "camera '" + out.name +
+                 "' not used: " + out.problem;
+      continue;
+    }
+    EvaluationStats stats;
+    try {
+      filter_->accumulateFrame(more, &stats);
+    } catch (const BackendError&) {
+      throw;
+    } catch (const std::exception& e) {
+      *why = std::string("likelihood backend: ") + e.what();
+      return StepStatus::kBackendError;
+    }
+    out.used = true;
+    out.pixels = pixels;
+    res->pixels += pixels;
+    res->evaluations += stats.evaluations;
+    res->timings.projection_membership_ms += stats.projection_membership_ms;
+    res->timings.likelihood_ms += stats.likelihood_ms;
+  }
+  if (first_camera > 0 || !skipped.empty()) {
+    std::string note = skipped;
+    if (first_camera > 0) {
+      note = "camera '" + res->cameras[first_camera].name + "' measured first (" +
+             res->cameras[0].problem + " from camera 1)" + (note.empty() ? "" : "; ") + note;
+    }
+    res->message += (res->message.empty() ? "" : "; ") + note;
+  }
+  // The device holds the last camera's frame now: the first camera's again for the refinement
+  // and any redraw of this step.
+  if (on_device) {
+    DeviceFrameSummary summary;
+    filter_->prepareDeviceFrame(*cam_.depth, cam_.intrinsics, *cam_.frame, &summary);
+  }
+  return StepStatus::kOk;
+}
+
+StepStatus Localizer::prepareStepFrame(long long* patches_with_pixels, StepResult* res,
+                                       std::string* why) {
   // With the device filter the raw image is uploaded once and prepared on the GPU; on the host
   // otherwise (and wherever the host needs the points: refinement).
   const Clock::time_point t0 = Clock::now();
   try {
     DeviceFrameSummary summary;
-    if (filter_->prepareDeviceFrame(*in.depth, in.intrinsics, params_.frame, &summary)) {
+    if (filter_->prepareDeviceFrame(*cam_.depth, cam_.intrinsics, *cam_.frame, &summary)) {
       res->pixels = summary.pixels;
       *patches_with_pixels = summary.patches_with_pixels;
     } else {
-      res->pixels = static_cast<int>(hostFrame(in).size());
+      res->pixels = static_cast<int>(hostFrame().size());
     }
   } catch (const BackendError&) {
     throw;
@@ -162,7 +302,7 @@ StepStatus Localizer::prepareStepFrame(const StepInput& in, long long* patches_w
   }
   res->timings.frame_prep_ms = msSince(t0);
   if (res->pixels == 0) {
-    const DepthFrame& frame = hostFrame(in);
+    const DepthFrame& frame = hostFrame();
     std::ostringstream msg;
     msg << "no valid depth pixel (" << frame.invalid_pixels << " invalid, "
         << frame.out_of_range_pixels << " out of range of " << frame.total_pixels_sampled << ")";
@@ -276,6 +416,28 @@ void Localizer::observeMotion(const StepInput& in, const StepResult& res) {
   }
 }
 
+void Localizer::refineComponents(const Particle& mean, const RefinementFrame& rf,
+                                 const Eigen::Isometry3d& T_base_cam, const FrameParams& frame,
+                                 const MeasurementParams& mp, std::vector<ComponentF>* out) {
+  // The components a camera can meet: the map grid's near its view from the particle mean,
+  // grown by the largest correction the refinement may make (and some attitude), so that its
+  // cost follows the view and not the map (docs/building_scale.md).
+  const ViewReach reach = viewReach(rf.intrinsics, rf.grid.patch_size_px, rf.grid.cols,
+                                    rf.grid.rows, patchInflation(rf.grid.patch_size_px),
+                                    frame.max_range_m, mp.sigma_bound, mp.depth_noise);
+  const Eigen::Isometry3d T_map_cam = particleToPose(mean, roll_rad_, pitch_rad_) * T_base_cam;
+  Box3 box = viewBox(toRigidF(T_map_cam), rf.intrinsics, reach);
+  constexpr double kAttitudeSlackRad = 0.1;
+  const double grow = params_.refinement.max_correction_m +
+                      static_cast<double>(reach.far_m) *
+                          (params_.refinement.max_correction_rad + kAttitudeSlackRad);
+  box.lo.array() -= grow;
+  box.hi.array() += grow;
+  map_.grid().query(box, &refine_index_);
+  out->resize(refine_index_.size());
+  for (size_t k = 0; k < refine_index_.size(); ++k) (*out)[k] = map_.packed()[refine_index_[k]];
+}
+
 void Localizer::refineEstimate(const StepInput& in, StepResult* res) {
   // Warm start from the last refined pose moved by this frame's odometry, while it stays near
   // the particle mean (a few iterations instead of a dozen when tracking).
@@ -291,42 +453,44 @@ void Localizer::refineEstimate(const StepInput& in, StepResult* res) {
   // prepared there), else on the host with the points prepared there now.
   NormalEquationsEvaluator* sums = backend_->normalEquations();
   RefinementFrame rf;
-  const bool with_scale = params_.refinement.estimate_depth_scale;
+  // The depth scale estimated is StepInput's own camera's.
+  const bool with_scale = params_.refinement.estimate_depth_scale && cam_.own;
   if (!host_frame_ready_ && sums != nullptr && sums->hasBackendFrame() &&
       (!with_scale || sums->supportsDepthScale())) {
-    rf.intrinsics = in.intrinsics;
+    rf.intrinsics = cam_.intrinsics;
     rf.grid =
-        PatchGrid::forImage(in.depth->width_px, in.depth->height_px, params_.frame.patch_size_px);
-    rf.pixels = res->pixels;
+        PatchGrid::forImage(cam_.depth->width_px, cam_.depth->height_px, cam_.frame->patch_size_px);
+    rf.pixels = cam_.pixels;
   } else {
     const Clock::time_point tp = Clock::now();
-    rf = RefinementFrame::of(hostFrame(in));
+    rf = RefinementFrame::of(hostFrame());
     res->timings.frame_prep_ms += msSince(tp);
   }
-  // The components it can meet: the map grid's near the view of the particle mean, grown by the
-  // largest correction it may make (and some attitude), so that its cost follows the view and
-  // not the map (docs/building_scale.md).
-  const MeasurementParams& mp = params_.measurement;
-  const ViewReach reach = viewReach(rf.intrinsics, rf.grid.patch_size_px, rf.grid.cols,
-                                    rf.grid.rows, patchInflation(rf.grid.patch_size_px),
-                                    params_.frame.max_range_m, mp.sigma_bound, mp.depth_noise);
-  const Eigen::Isometry3d T_map_cam =
-      particleToPose(res->estimate.mean, roll_rad_, pitch_rad_) * params_.T_base_cam;
-  Box3 box = viewBox(toRigidF(T_map_cam), rf.intrinsics, reach);
-  constexpr double kAttitudeSlackRad = 0.1;
-  const double grow = params_.refinement.max_correction_m +
-                      static_cast<double>(reach.far_m) *
-                          (params_.refinement.max_correction_rad + kAttitudeSlackRad);
-  box.lo.array() -= grow;
-  box.hi.array() += grow;
-  map_.grid().query(box, &refine_index_);
-  refine_components_.resize(refine_index_.size());
-  for (size_t k = 0; k < refine_index_.size(); ++k) {
-    refine_components_[k] = map_.packed()[refine_index_[k]];
+  const MeasurementParams& mp = *cam_.measurement;
+  refineComponents(res->estimate.mean, rf, cam_.T_base_cam, *cam_.frame, mp, &refine_components_);
+  // The rig's other cameras used in this update: their frames on the host.
+  std::vector<RefinementView> more;
+  more_components_.resize(res->cameras.size());
+  for (int c = first_camera_ + 1; c < static_cast<int>(res->cameras.size()); ++c) {
+    if (!res->cameras[c].used) continue;
+    const CameraInput& m = in.more_cameras[c - 1];
+    if (more_frames_[c].intrinsics.width_px == 0) {  // prepared on the device only
+      const Clock::time_point tp = Clock::now();
+      more_frames_[c] = prepareFrame(*m.depth, m.intrinsics, m.frame);
+      res->timings.frame_prep_ms += msSince(tp);
+    }
+    RefinementView v;
+    v.frame = RefinementFrame::of(more_frames_[c]);
+    v.T_base_cam = m.T_base_cam;
+    v.params = &m.measurement;
+    refineComponents(res->estimate.mean, v.frame, m.T_base_cam, m.frame, m.measurement,
+                     &more_components_[c]);
+    v.components = &more_components_[c];
+    more.push_back(v);
   }
   rf.depth_scale = with_scale ? depth_scale_ : 1.0;
   res->refinement = refinePose(refine_components_, rf, start, roll_rad_, pitch_rad_,
-                               params_.T_base_cam, params_.measurement, params_.refinement, sums);
+                               cam_.T_base_cam, mp, params_.refinement, sums, more);
   // Judged against the particle mean, whatever the start.
   const Particle& r = res->refinement.pose;
   const Particle& mean = res->estimate.mean;

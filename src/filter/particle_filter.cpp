@@ -354,6 +354,26 @@ void ParticleFilter::evaluateFrame(const MeasurementContext& ctx, EvaluationStat
   }
 }
 
+void ParticleFilter::accumulateFrame(const MeasurementContext& ctx, EvaluationStats* stats) {
+  if (output_.log_likelihood.size() != particles_.size() || resampled_since_evaluation_) {
+    throw std::logic_error("accumulateFrame: the set has no frame likelihoods to add to");
+  }
+  evaluatePoses(ctx, particles_, &more_output_);
+  for (size_t i = 0; i < particles_.size(); ++i) {
+    output_.log_likelihood[i] += more_output_.log_likelihood[i];
+    output_.floor_hits[i] += more_output_.floor_hits[i];
+  }
+  output_.evaluations += more_output_.evaluations;
+  output_.relevant_pairs += more_output_.relevant_pairs;
+  if (stats) {
+    stats->evaluations = more_output_.evaluations;
+    stats->relevant_pairs = more_output_.relevant_pairs;
+    stats->patches_with_pixels = more_output_.patches_with_pixels;
+    stats->projection_membership_ms = more_output_.projection_membership_ms;
+    stats->likelihood_ms = more_output_.likelihood_ms;
+  }
+}
+
 void ParticleFilter::setFrameLogLikelihoods(const std::vector<double>& log_likelihood,
                                             const std::vector<int>& floor_hits) {
   if (log_likelihood.size() != floor_hits.size()) {

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <memory>
 #include <sstream>
 #include <stdexcept>
 
@@ -43,8 +44,9 @@ class Objective {
  public:
   Objective(const std::vector<ComponentF>& components, const RefinementFrame& frame,
             const Eigen::Isometry3d& T_base_cam, const MeasurementParams& params,
-            NormalEquationsEvaluator* sums, bool estimate_scale)
-      : components_(components),
+            NormalEquationsEvaluator* sums, bool estimate_scale, bool scaled = true)
+      : scaled_(scaled),
+        components_(components),
         frame_(frame),
         T_base_cam_(T_base_cam),
         params_(params),
@@ -105,9 +107,9 @@ class Objective {
     d.t[0] = pose.p.x_m;
     d.t[1] = pose.p.y_m;
     d.t[2] = pose.p.z_m;
-    d.scale = pose.scale;
+    d.scale = scaled_ ? pose.scale : 1.0;
     for (int a = 0; a < 3; ++a) d.scale_origin[a] = T_base_cam_.translation()[a];
-    d.estimate_scale = estimate_scale_;
+    d.estimate_scale = estimate_scale_ && scaled_;
     NormalEquationSums s;
     sums_->evaluate(d, params_.floor_log_density, linearise, &s);
     Linearisation out;
@@ -122,6 +124,7 @@ class Objective {
   }
 
  private:
+  bool scaled_;  // the depth scale applies to this frame's points
   const std::vector<ComponentF>& components_;
   const RefinementFrame& frame_;
   Eigen::Isometry3d T_base_cam_;
@@ -166,7 +169,8 @@ std::string RefinementParams::validate() const {
 RefinementResult refinePose(const std::vector<ComponentF>& components, const RefinementFrame& frame,
                             const Particle& start, double roll_rad, double pitch_rad,
                             const Eigen::Isometry3d& T_base_cam, const MeasurementParams& params,
-                            const RefinementParams& refinement, NormalEquationsEvaluator* sums) {
+                            const RefinementParams& refinement, NormalEquationsEvaluator* sums,
+                            const std::vector<RefinementView>& more) {
   const auto t0 = std::chrono::steady_clock::now();
   RefinementResult r;
   r.pose = start;
@@ -193,7 +197,34 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
   }
   HostNormalEquations host_sums;
   Objective objective(components, frame, T_base_cam, params, sums ? sums : &host_sums, with_scale);
-  const double px = static_cast<double>(frame.pixels);
+  // The rig's other frames: their own objectives, summed.
+  std::vector<HostNormalEquations> more_sums(more.size());
+  std::vector<std::unique_ptr<Objective>> more_objectives;
+  double px = static_cast<double>(frame.pixels);
+  for (size_t k = 0; k < more.size(); ++k) {
+    if (more[k].frame.points == nullptr || more[k].components == nullptr ||
+        more[k].params == nullptr) {
+      throw std::invalid_argument("refinePose: another frame without host points or parameters");
+    }
+    more_objectives.push_back(std::make_unique<Objective>(*more[k].components, more[k].frame,
+                                                          more[k].T_base_cam, *more[k].params,
+                                                          &more_sums[k], with_scale, false));
+    px += more[k].frame.pixels;
+  }
+  auto lineariseAll = [&](const Pose6& p) {
+    objective.linearisePatches(p);
+    for (auto& o : more_objectives) o->linearisePatches(p);
+  };
+  auto evaluateAll = [&](const Pose6& p) {
+    Linearisation sum = objective.evaluate(p, true);
+    for (auto& o : more_objectives) {
+      const Linearisation l = o->evaluate(p, true);
+      sum.loglik += l.loglik;
+      sum.H += l.H;
+      sum.g += l.g;
+    }
+    return sum;
+  };
   // Roll and pitch: free with a Gaussian prior at the attitude input (sigma > 0), else fixed.
   const double sigma_att = refinement.attitude_prior_sigma_rad;
   const bool six_dof = sigma_att > 0.0;
@@ -211,8 +242,8 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
   };
   Pose6 pose{start, roll_rad, pitch_rad, scale0};
   r.depth_scale = scale0;
-  objective.linearisePatches(pose);
-  Linearisation cur = objective.evaluate(pose, true);
+  lineariseAll(pose);
+  Linearisation cur = evaluateAll(pose);
   double cur_post = logPosterior(pose, cur.loglik);
   r.loglik_start = cur.loglik / px;
   double lambda = 1e-3;  // Levenberg-Marquardt damping, relative to the diagonal
@@ -255,14 +286,14 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
     next.p.yaw_rad = wrapAngle(next.p.yaw_rad + delta[5]);
     next.scale = std::min(scale_hi, std::max(scale_lo, next.scale + delta[6]));
     delta[6] = next.scale - pose.scale;
-    Linearisation cand = objective.evaluate(next, true);
+    Linearisation cand = evaluateAll(next);
     double cand_post = logPosterior(next, cand.loglik);
     if (cand_post > cur_post) {
       // A step of more than a centimetre or degree: membership and noise at the new pose.
       if (delta.head<3>().norm() > kRelineariseM ||
           delta.segment<3>(3).cwiseAbs().maxCoeff() > kRelineariseRad) {
-        objective.linearisePatches(next);
-        cand = objective.evaluate(next, true);
+        lineariseAll(next);
+        cand = evaluateAll(next);
         cand_post = logPosterior(next, cand.loglik);
       }
       pose = next;

@@ -92,6 +92,34 @@ BoxScene makeDefaultScene() {
   return s;
 }
 
+BoxScene makeCorridorScene() {
+  BoxScene s;
+  s.room = makeBox(0.0, 0.0, 0.0, 30.0, 2.0, 3.0);
+  // x0, length, y0, width: irregular gaps (0.4-1.3 m) and sizes, none a copy of another.
+  const double boxes[][4] = {
+      {1.0, 0.7, 0.2, 0.6},   {2.4, 0.5, 1.1, 0.7},  {3.5, 1.1, 0.4, 0.5},  {5.3, 0.4, 0.9, 0.9},
+      {6.2, 0.9, 0.1, 0.8},   {7.9, 0.6, 1.2, 0.5},  {8.9, 0.5, 0.3, 1.2},  {10.3, 1.0, 1.0, 0.6},
+      {11.8, 0.45, 0.5, 0.5}, {12.9, 0.8, 0.2, 0.4}, {13.8, 0.6, 1.3, 0.6}, {15.2, 1.2, 0.6, 0.7},
+      {16.9, 0.5, 0.15, 0.5}, {17.8, 0.7, 0.9, 0.9}, {19.1, 0.9, 0.3, 0.6}, {20.6, 0.4, 1.2, 0.6},
+      {21.5, 1.0, 0.5, 0.8},  {23.0, 0.6, 0.1, 0.5}, {24.1, 0.8, 1.0, 0.8}, {25.5, 0.5, 0.4, 1.1},
+      {26.6, 1.1, 1.2, 0.6},  {28.2, 0.6, 0.3, 0.7},
+  };
+  for (const auto& b : boxes)
+    s.blocks.push_back(makeBox(b[0], b[2], 0.0, b[0] + b[1], b[2] + b[3], 0.2));
+  return s;
+}
+
+Eigen::Isometry3d baseToCamera(const Eigen::Vector3d& position_m, const Eigen::Vector3d& view,
+                               const Eigen::Vector3d& right) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  const Eigen::Vector3d z = view.normalized(), x = right.normalized();
+  T.linear().col(0) = x;
+  T.linear().col(1) = z.cross(x);
+  T.linear().col(2) = z;
+  T.translation() = position_m;
+  return T;
+}
+
 double castRay(const BoxScene& scene, const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
   double t_in, t_out;
   double best = kInf;

@@ -98,6 +98,76 @@ TEST(CudaParticleFilterTest, LikelihoodOfDeviceParticlesMatchesTheHostPath) {
   }
 }
 
+TEST(CudaParticleFilterTest, ASecondCamerasFrameAddsUpLikeTheHosts) {
+  // A rig: the reference camera and a second one looking back and down from the same base;
+  // each frame prepared on the GPU in turn, the second's likelihoods added (accumulateFrame).
+  const auto& w = test::world();
+  const ReferenceView view(4);
+  Eigen::Isometry3d T_base_cam2 = w.T_base_cam;
+  T_base_cam2.linear() = Eigen::AngleAxisd(2.5, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
+                         Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY()).toRotationMatrix() *
+                         w.T_base_cam.linear();
+  const FrameParams fp2 = test::frameParams(8);
+  // renderImage renders from T_map_base * T_base_cam.
+  const DepthImage image2 = test::renderImage(
+      view.T_map_base * T_base_cam2 * w.T_base_cam.inverse(), view.K, fp2.max_range_m + 1.0);
+  const DepthFrame frame2 = prepareFrame(image2, view.K, fp2);
+  ASSERT_GT(frame2.size(), 0u);
+  const int n = 2000;
+  const ParticleFilterParams p = filterParams(n);
+  CpuBackend cpu;
+  std::unique_ptr<CudaBackend> gpu = makeCuda();
+  cpu.setMap(w.map);
+  gpu->setMap(w.map);
+  MeasurementParams mp;
+  MeasurementContext a;
+  a.frame = &view.frame;
+  a.T_base_cam = w.T_base_cam;
+  a.params = &mp;
+  MeasurementContext b = a;
+  b.frame = &frame2;
+  b.T_base_cam = T_base_cam2;
+  const Particle ref = poseToParticle(view.T_map_base);
+  std::vector<Particle> particles(n, ref);
+  std::mt19937_64 rng(72);
+  std::uniform_real_distribution<double> um(-0.4, 0.4), ua(-0.3, 0.3);
+  for (int i = 1; i < n; ++i) {
+    particles[i].x_m += um(rng);
+    particles[i].y_m += um(rng);
+    particles[i].yaw_rad = wrapAngle(particles[i].yaw_rad + ua(rng));
+  }
+  ParticleFilter host(p);
+  host.setParticles(particles, std::vector<double>(n, 1.0));
+  a.backend = b.backend = &cpu;
+  host.evaluateFrame(a, nullptr);
+  host.accumulateFrame(b, nullptr);
+  const std::vector<double> expected = host.frameLogLikelihoods();
+  CudaParticleFilter device(p, gpu.get());
+  device.setParticles(particles, std::vector<double>(n, 1.0));
+  a.backend = b.backend = gpu.get();
+  a.frame = b.frame = nullptr;
+  DeviceFrameSummary summary;
+  ASSERT_TRUE(device.prepareDeviceFrame(view.image, view.K, view.fp, &summary));
+  device.evaluateFrame(a, nullptr);
+  ASSERT_TRUE(device.prepareDeviceFrame(image2, view.K, fp2, &summary));
+  EXPECT_EQ(summary.pixels, static_cast<int>(frame2.size()));
+  EvaluationStats stats;
+  device.accumulateFrame(b, &stats);
+  EXPECT_GT(stats.evaluations, 0);
+  const std::vector<double> got = device.frameLogLikelihoods();
+  ASSERT_EQ(got.size(), expected.size());
+  const double floor_scale = static_cast<double>(view.frame.size() + frame2.size());
+  double worst = 0.0;
+  for (int i = 0; i < n; ++i) {
+    worst =
+        std::max(worst, relDiff(got[i], expected[i], std::max(std::abs(expected[i]), floor_scale)));
+  }
+  std::printf("[ measured ] two cameras: max relative log-likelihood difference %.2e\n", worst);
+  EXPECT_LT(worst, kLikelihoodRelTol);
+  device.resample();
+  EXPECT_THROW(device.accumulateFrame(b, nullptr), std::logic_error);
+}
+
 TEST(CudaParticleFilterTest, ScreeningScoresTheDrawsAndKeepsTheBest) {
   const auto& w = test::world();
   const ReferenceView view(8);

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "gmm_mcl/backend/likelihood_backend_base.h"
 #include "gmm_mcl/camera/depth_image.h"
@@ -12,6 +13,7 @@
 #include "gmm_mcl/filter/motion_model.h"
 #include "gmm_mcl/filter/particle_filter.h"
 #include "gmm_mcl/filter/particle_filter_base.h"
+#include "gmm_mcl/filter/pose_refinement.h"
 
 namespace gmm_mcl {
 
@@ -26,6 +28,20 @@ enum class StepStatus {
   kTimeJumpBack,       // stamp went backwards: filter re-initialised from the initial region
 };
 const char* stepStatusName(StepStatus status);
+
+// Another depth camera of the same update (a rig: forward + down; docs/multi_camera.md). Its
+// log-likelihood is added to the other cameras' for every particle: one update per frame set.
+// Its frame is prepared with its own parameters (stride, range) and scored with its own
+// measurement parameters (depth noise); copy the localizer's (params().frame, .measurement)
+// for the defaults.
+struct CameraInput {
+  std::string name;                   // in messages and StepResult::cameras
+  const DepthImage* depth = nullptr;  // nullptr: no frame of this camera in this set
+  Intrinsics intrinsics;
+  Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();  // its optical frame in base
+  FrameParams frame;
+  MeasurementParams measurement;
+};
 
 struct StepInput {
   double stamp_s = 0.0;
@@ -42,6 +58,18 @@ struct StepInput {
   // joint); false: params().T_base_cam. Kept for the following frames; the belief is untouched.
   bool has_T_base_cam = false;
   Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();
+  // The rig's other cameras at this stamp. When the first camera (depth) has no frame or no
+  // usable pixel, the first usable of these takes its place for the step: screening, redraws
+  // and the refinement use that one camera; the update sums over all usable ones.
+  std::vector<CameraInput> more_cameras;
+};
+
+// One camera of a step (the first camera, then more_cameras in order).
+struct CameraStepResult {
+  std::string name;     // "" for the first camera
+  bool used = false;    // its likelihood is in this update
+  int pixels = 0;       // its used pixels
+  std::string problem;  // why not used (no frame, no valid pixel, a bad frame)
 };
 
 struct StepTimings {
@@ -73,7 +101,9 @@ struct StepResult {
   double depth_scale = 1.0;
   double neff = 0.0;  // effective sample size after the update (before resampling)
   int particles = 0;  // particle count of this step
-  int pixels = 0;     // used pixels
+  int pixels = 0;     // used pixels (over all cameras used)
+  // Per camera when more_cameras is not empty (the first camera first); empty otherwise.
+  std::vector<CameraStepResult> cameras;
   double best_loglik_per_pixel = 0.0;
   double mean_loglik_per_pixel = 0.0;  // weighted mean over particles
   double floor_hit_fraction = 0.0;     // of used pixels, at the best particle
@@ -140,13 +170,25 @@ class Localizer {
   // (finishStep) with *why.
   void takeStepInputs(const StepInput& input, StepResult* res);  // stamp, mount, attitude
   void predictStep(const StepInput& input, StepResult* res);
-  StepStatus prepareStepFrame(const StepInput& input, long long* patches_with_pixels,
-                              StepResult* res, std::string* why);
+  // The camera that measures first this step (StepInput's own, or the first usable of
+  // more_cameras): prepared (cam_), else the status of the first camera tried with *why.
+  StepStatus selectStepCamera(const StepInput& input, long long* patches_with_pixels,
+                              StepResult* res, std::string* why, int* first_camera);
+  StepStatus prepareStepFrame(long long* patches_with_pixels, StepResult* res, std::string* why);
+  // The rig's other cameras after `first_camera`: prepared and their likelihoods added.
+  StepStatus evaluateMoreCameras(const StepInput& input, int first_camera,
+                                 const MeasurementContext& context, StepResult* res,
+                                 std::string* why);
   StepStatus evaluateStep(const MeasurementContext& context, long long patches_with_pixels,
                           StepResult* res, std::string* why);
   StepStatus weighStep(StepResult* res, std::string* why);
   void estimateAndRefine(const StepInput& input, StepResult* res);
   void refineEstimate(const StepInput& input, StepResult* res);  // the converged estimate
+  // The packed components a camera (its frame rf, extrinsics, parameters) can meet while the
+  // refinement moves the pose from `mean`.
+  void refineComponents(const Particle& mean, const RefinementFrame& rf,
+                        const Eigen::Isometry3d& T_base_cam, const FrameParams& frame,
+                        const MeasurementParams& mp, std::vector<ComponentF>* out);
   // The motion model's velocity sample and the held attitude (no attitude input) of a step.
   void observeMotion(const StepInput& input, const StepResult& res);
   StepStatus resampleAndRecover(const MeasurementContext& context, StepResult* res,
@@ -154,8 +196,9 @@ class Localizer {
   // An early end: the status (unless one is set), the message, the estimate and the timings.
   void finishStep(StepStatus status, const std::string& why,
                   std::chrono::steady_clock::time_point t_start, StepResult* res);
-  // The host frame of this step (prepared here when the filter prepared it on the device).
-  const DepthFrame& hostFrame(const StepInput& input);
+  // The host frame of this step's first camera (prepared here when the filter prepared it on
+  // the device).
+  const DepthFrame& hostFrame();
   // A backend failure: the status, and with cpu_fallback the switch to the CPU backend.
   void backendFailed(const std::string& what, StepResult* res);
   // What the map and the measurement parameters determine: the backend's map, the blurred map
@@ -173,7 +216,23 @@ class Localizer {
   double map_self_ll_ = 0.0;
   LostDetector lost_;
   bool screen_pending_ = true;  // after a uniform (re)initialisation: screen the next frame
+  // The camera measuring first this step: its frame, extrinsics and parameters.
+  struct StepCamera {
+    const DepthImage* depth = nullptr;
+    Intrinsics intrinsics;
+    Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();
+    const FrameParams* frame = nullptr;
+    const MeasurementParams* measurement = nullptr;
+    bool own = true;  // StepInput's own camera (its depth scale is the one estimated)
+    int pixels = 0;   // its used pixels
+  };
+  StepCamera cam_;
   DepthFrame host_frame_;
+  // The rig's other cameras this step (indexed like StepResult::cameras): their host frames
+  // (an unprepared frame has zero width), their refinement components.
+  int first_camera_ = 0;
+  std::vector<DepthFrame> more_frames_;
+  std::vector<std::vector<ComponentF>> more_components_;
   bool host_frame_ready_ = false;
   bool have_estimate_ = false;  // last_estimate_: the last step's (a fallback's belief)
   PoseEstimate last_estimate_;

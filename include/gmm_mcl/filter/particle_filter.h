@@ -78,6 +78,7 @@ class ParticleFilter : public ParticleFilterBase {
   // ParticleFilterBase: the frame's likelihoods from the backend (poses built here), weights,
   // recovery and the candidate pool with the calls above.
   void evaluateFrame(const MeasurementContext& context, EvaluationStats* stats) override;
+  void accumulateFrame(const MeasurementContext& context, EvaluationStats* stats) override;
   bool weighFrame(int pixels, FrameScores* scores) override;
   int recoverFrame(int pixels, const InitRegion& region) override;
   void clearCandidates() override;
@@ -119,6 +120,7 @@ class ParticleFilter : public ParticleFilterBase {
   mutable std::vector<uint64_t> keys_;
   // The frame's likelihoods (evaluateFrame) and whether a resampling came after them.
   BackendOutput output_;
+  BackendOutput more_output_;  // another camera's (accumulateFrame)
   bool resampled_since_evaluation_ = false;
   std::vector<double> ll_scratch_;
   std::vector<RigidTransformF> poses_;

@@ -88,14 +88,26 @@ struct RefinementFrame {
   }
 };
 
-// Maximises the frame's log-likelihood around `start` (a base pose; roll and pitch shared as in
-// the filter). `components`: the map's packed components. `sums`: where the pixel sums run (a
-// backend's evaluator, LikelihoodBackend::normalEquations()); nullptr: on the host.
+// Another camera of a rig in the same refinement (docs/multi_camera.md): its frame (points on the
+// host), its components (packed map components near its view), extrinsics and measurement
+// parameters. Its pixel sums run on the host; the depth scale is the first frame's only.
+struct RefinementView {
+  const std::vector<ComponentF>* components = nullptr;
+  RefinementFrame frame;
+  Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();
+  const MeasurementParams* params = nullptr;
+};
+
+// Maximises the frame's log-likelihood (with `more`, the sum over the rig's frames) around `start`
+// (a base pose; roll and pitch shared as in the filter). `components`: the map's packed components.
+// `sums`: where the pixel sums run (a backend's evaluator, LikelihoodBackend::normalEquations());
+// nullptr: on the host.
 RefinementResult refinePose(const std::vector<ComponentF>& components, const RefinementFrame& frame,
                             const Particle& start, double roll_rad, double pitch_rad,
                             const Eigen::Isometry3d& T_base_cam, const MeasurementParams& params,
                             const RefinementParams& refinement,
-                            NormalEquationsEvaluator* sums = nullptr);
+                            NormalEquationsEvaluator* sums = nullptr,
+                            const std::vector<RefinementView>& more = {});
 inline RefinementResult refinePose(const std::vector<ComponentF>& components,
                                    const DepthFrame& frame, const Particle& start, double roll_rad,
                                    double pitch_rad, const Eigen::Isometry3d& T_base_cam,

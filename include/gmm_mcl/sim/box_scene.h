@@ -31,6 +31,17 @@ struct BoxScene {
 // 8 m x 6 m x 3 m room with ten blocks of different sizes, none symmetric to another.
 BoxScene makeDefaultScene();
 
+// A camera rig's ambiguous case (docs/multi_camera.md): a 30 m x 2 m x 3 m corridor with blank
+// walls and flat boxes (20 cm high) of different sizes at irregular places on its floor. A level
+// forward camera ranging 3 m from 1.5 m height sees only the blank side walls, so its position
+// along the corridor is unobservable; a downward camera sees the boxes.
+BoxScene makeCorridorScene();
+
+// The optical frame (z along the view, x along image right) of a camera at position_m in the
+// base frame looking along `view` with image right along `right` (base axes, orthogonal).
+Eigen::Isometry3d baseToCamera(const Eigen::Vector3d& position_m, const Eigen::Vector3d& view,
+                               const Eigen::Vector3d& right);
+
 // Distance along a unit ray to the first surface; +inf when nothing is hit.
 double castRay(const BoxScene& scene, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir);
 

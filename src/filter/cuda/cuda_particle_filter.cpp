@@ -164,6 +164,29 @@ void CudaParticleFilter::evaluateFrame(const MeasurementContext& ctx, Evaluation
   }
 }
 
+void CudaParticleFilter::accumulateFrame(const MeasurementContext& ctx, EvaluationStats* stats) {
+  Impl& d = *impl_;
+  const cuda::DeviceScope scope(d.device);
+  if (d.ll_count != d.n || d.resampled_since_evaluation || !d.frame_ll_valid) {
+    throw std::logic_error("accumulateFrame: the set has no frame likelihoods to add to");
+  }
+  d.ll_more.reserve(d.capacity, d.stream);
+  d.hits_more.reserve(d.capacity, d.stream);
+  d.scorePoses(ctx, d.particles.data(), d.n, d.T_map_cam.data(), d.T_cam_map.data(),
+               d.ll_more.data(), d.hits_more.data(), d.evals.data(), d.pairs.data());
+  GMM_MCL_CUDA_CHECK(cuda::launchAddFrame(d.n, d.ll_more.data(), d.hits_more.data(), d.ll.data(),
+                                          d.hits.data(), d.stream));
+  d.have_ws = false;
+  GMM_MCL_CUDA_CHECK(
+      cuda::launchSumCounts(d.n, d.evals.data(), d.pairs.data(), d.count_sums.data(), d.stream));
+  cuda::copyToHost(d.h_count_sums.data(), d.count_sums.data(), 2, d.stream);
+  if (stats) {
+    stats->evaluations = static_cast<long long>(d.h_count_sums[0]);
+    stats->relevant_pairs = static_cast<long long>(d.h_count_sums[1]);
+    d.backend->deviceStageMs(&stats->projection_membership_ms, &stats->likelihood_ms);
+  }
+}
+
 bool CudaParticleFilter::weighFrame(int pixels, FrameScores* scores) {
   Impl& d = *impl_;
   const cuda::DeviceScope scope(d.device);

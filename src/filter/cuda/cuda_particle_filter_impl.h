@@ -37,6 +37,8 @@ struct CudaParticleFilter::Impl {
   cuda::DeviceBuffer<double> weights, weights_swap, w_new;
   cuda::DeviceBuffer<double> ll, ll_follow, ll_follow_swap;  // as evaluated; following resampling
   cuda::DeviceBuffer<int> hits;
+  cuda::DeviceBuffer<double> ll_more;  // another camera's (accumulateFrame)
+  cuda::DeviceBuffer<int> hits_more;
   cuda::DeviceBuffer<long long> evals, pairs;
   cuda::DeviceBuffer<RigidTransformF> T_map_cam, T_cam_map;
   int ll_count = 0;  // particles when evaluated

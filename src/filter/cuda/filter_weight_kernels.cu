@@ -261,6 +261,16 @@ __global__ void __launch_bounds__(kThreads)
   if (i < n) w[i] /= total[0];
 }
 
+__global__ void __launch_bounds__(kThreads)
+    addFrameKernel(int n, const double* __restrict__ ll_more, const int* __restrict__ hits_more,
+                   double* __restrict__ ll, int* __restrict__ hits) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x;
+  if (i < n) {
+    ll[i] += ll_more[i];
+    hits[i] += hits_more[i];
+  }
+}
+
 }  // namespace
 
 // ---- launchers --------------------------------------------------------------------------------
@@ -327,6 +337,11 @@ cudaError_t launchSumCounts(int n, const long long* a, const long long* b, unsig
 
 cudaError_t launchDivide(int n, const double* total, double* w, cudaStream_t stream) {
   return launchOver(n, stream, divideKernel, n, total, w);
+}
+
+cudaError_t launchAddFrame(int n, const double* ll_more, const int* hits_more, double* ll,
+                           int* hits, cudaStream_t stream) {
+  return launchOver(n, stream, addFrameKernel, n, ll_more, hits_more, ll, hits);
 }
 
 }  // namespace cuda
