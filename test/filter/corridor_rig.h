@@ -69,8 +69,9 @@ inline LocalizerParams corridorParams() {
 struct CorridorRun {
   double final_error_m = 0.0;       // of the refined pose, else the mean, at the last frame
   double worst_last_error_m = 0.0;  // the worst of the last 10 steps
-  double final_sigma_x_m = 0.0;  // the belief's spread along the corridor at the last frame
-  int two_camera_updates = 0;    // steps whose update used both cameras
+  double last_step_ms = 0.0;        // their mean Localizer::step time
+  double final_sigma_x_m = 0.0;     // the belief's spread along the corridor at the last frame
+  int two_camera_updates = 0;       // steps whose update used both cameras
 };
 
 inline CorridorRun runCorridor(bool with_down_camera, int frames,
@@ -111,10 +112,12 @@ inline CorridorRun runCorridor(bool with_down_camera, int frames,
     res = loc.step(in);
     EXPECT_EQ(res.status, StepStatus::kOk) << res.message;
     if (f >= frames - 30) {
+      run.last_step_ms += res.timings.total_ms / 10.0;
       const Particle g = poseToParticle(T);
       const Particle& e = res.refinement.pose;
-      run.worst_last_error_m = std::max(
-          run.worst_last_error_m, std::hypot(std::hypot(e.x_m - g.x_m, e.y_m - g.y_m), e.z_m - g.z_m));
+      run.worst_last_error_m =
+          std::max(run.worst_last_error_m,
+                   std::hypot(std::hypot(e.x_m - g.x_m, e.y_m - g.y_m), e.z_m - g.z_m));
     }
     if (res.cameras.size() == 2 && res.cameras[0].used && res.cameras[1].used) {
       ++run.two_camera_updates;

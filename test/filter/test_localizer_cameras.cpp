@@ -10,24 +10,23 @@
 #include <random>
 #include <stdexcept>
 
+#include "corridor_rig.h"
 #include "gmm_mcl/backend/cpu_backend.h"
 #include "gmm_mcl/filter/localizer.h"
 #include "gmm_mcl/filter/particle_filter.h"
-#include "corridor_rig.h"
 #include "test_utils/synthetic_fixtures.h"
 
 namespace gmm_mcl {
 namespace {
 
 using test::Corridor;
-using test::CorridorRun;
 using test::corridor;
 using test::corridorParams;
 using test::corridorPose;
+using test::CorridorRun;
 using test::downCamera;
 using test::forwardCamera;
 using test::runCorridor;
-
 
 TEST(LocalizerCamerasTest, AccumulatedFrameIsTheSumOfEachCamerasLikelihood) {
   const Corridor& c = corridor();
@@ -162,12 +161,13 @@ TEST(LocalizerCamerasTest, ADownwardCameraResolvesTheCorridorTheForwardCameraCan
   constexpr int kFrames = 240;  // 8 s along the corridor
   const CorridorRun forward_only = runCorridor(false, kFrames);
   const CorridorRun rig = runCorridor(true, kFrames);
-  std::printf("[ measured ] corridor, forward camera alone: error %.3f m, sigma_x %.3f m\n",
-              forward_only.final_error_m, forward_only.final_sigma_x_m);
+  std::printf(
+      "[ measured ] corridor, forward camera alone: error %.3f m, sigma_x %.3f m, step %.1f ms\n",
+      forward_only.final_error_m, forward_only.final_sigma_x_m, forward_only.last_step_ms);
   std::printf(
       "[ measured ] corridor, forward + down cameras: error %.3f m (worst of the last 10 steps "
-      "%.3f m), sigma_x %.3f m\n",
-      rig.final_error_m, rig.worst_last_error_m, rig.final_sigma_x_m);
+      "%.3f m), sigma_x %.3f m, step %.1f ms\n",
+      rig.final_error_m, rig.worst_last_error_m, rig.final_sigma_x_m, rig.last_step_ms);
   // Alone, the forward camera does not know where it is along the corridor: either the belief
   // stays spread or it settled somewhere wrong.
   EXPECT_TRUE(forward_only.final_error_m > 0.5 || forward_only.final_sigma_x_m > 0.5);
