@@ -1,5 +1,6 @@
 #include "gmm_mcl/sim/box_scene.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -107,6 +108,26 @@ BoxScene makeCorridorScene() {
   for (const auto& b : boxes)
     s.blocks.push_back(makeBox(b[0], b[2], 0.0, b[0] + b[1], b[2] + b[3], 0.2));
   return s;
+}
+
+Eigen::Isometry3d corridorForwardCamera() {
+  return baseToCamera(Eigen::Vector3d(0.1, 0.0, 0.0), Eigen::Vector3d::UnitX(),
+                      -Eigen::Vector3d::UnitY());
+}
+
+Eigen::Isometry3d corridorDownCamera() {
+  return baseToCamera(Eigen::Vector3d(0.0, 0.0, -0.1), -Eigen::Vector3d::UnitZ(),
+                      Eigen::Vector3d::UnitX());
+}
+
+std::vector<Eigen::Isometry3d> corridorTrajectory(int n) {
+  std::vector<Eigen::Isometry3d> poses(std::max(n, 0), Eigen::Isometry3d::Identity());
+  for (int f = 0; f < n; ++f) {
+    const double t = f / 30.0;
+    poses[f].linear() = rotationFromRpy(0.0, 0.0, 0.05 * std::sin(0.7 * t));
+    poses[f].translation() = Eigen::Vector3d(11.0 + 0.6 * t, 1.0 + 0.15 * std::sin(0.5 * t), 1.5);
+  }
+  return poses;
 }
 
 Eigen::Isometry3d baseToCamera(const Eigen::Vector3d& position_m, const Eigen::Vector3d& view,

@@ -1,8 +1,11 @@
 // Offline demo: the localizer on the built-in synthetic scene (no ROS, no data files).
 // Renders depth along a smooth trajectory (default: the mesh scene with boxes and cylinders,
 // ray cast through the BVH, with the structured-light sensor model; --scene box: the analytic
-// box scene with its simple noise), feeds drifting odometry and noisy attitude (the protocol's
-// OdometrySynthesizer), starts from a uniform 4 m cube / pi yaw range and prints the error.
+// box scene with its simple noise; --scene corridor: the camera rig's corridor, where a forward
+// camera alone cannot tell where it is and --down-camera adds the downward one,
+// docs/multi_camera.md), feeds drifting odometry and noisy attitude (the protocol's
+// OdometrySynthesizer), starts from a uniform 4 m cube / pi yaw range (the corridor: 8 m of it)
+// and prints the error.
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -29,7 +32,8 @@ const char* kUsage =
     "                        [--pixel-stride PX (8)]\n"
     "                        [--weighting paper|tempered] [--temperature T] [--backend cpu|cuda]\n"
     "                        [--width PX] [--map-spacing M] [--map-normal-sigma M]\n"
-    "                        [--scene mesh|box] [--no-sensor-noise] [--save-map FILE]\n"
+    "                        [--scene mesh|box|corridor] [--down-camera]\n"
+    "                        [--no-sensor-noise] [--save-map FILE]\n"
     "                        [--save-mesh FILE.ply] [--quiet]\n"
     "Filter parameters: every one as --name-with-dashes (the list under --help).\n";
 
@@ -41,7 +45,7 @@ int run(int argc, char** argv) {
   int width_px = 640;
   uint64_t seed = 1;
   std::string backend = "cpu", save_map, save_mesh, scene_name = "mesh";
-  bool quiet = false, sensor_noise = true;
+  bool quiet = false, sensor_noise = true, down_camera = false;
   LocalizerParams params;
   cli::CommandLine cl("gmm_mcl_sim_demo", kUsage);
   // clang-format off
@@ -49,6 +53,7 @@ int run(int argc, char** argv) {
            {"map-spacing", &spacing_m}, {"map-normal-sigma", &normal_sigma_m}, {"width", &width_px},
            {"backend", &backend}, {"save-map", &save_map}, {"scene", &scene_name},
            {"no-sensor-noise", cli::Clear{&sensor_noise}}, {"save-mesh", &save_mesh},
+           {"down-camera", &down_camera},
            {"quiet", &quiet}});
   // clang-format on
   params.frame.pixel_stride = 8;
@@ -57,12 +62,17 @@ int run(int argc, char** argv) {
   cl.alias("particles", "num-particles");
   cl.parse(argc, argv);
 
-  if (scene_name != "mesh" && scene_name != "box") {
-    std::fprintf(stderr, "unknown scene '%s' (mesh, box)\n", scene_name.c_str());
+  if (scene_name != "mesh" && scene_name != "box" && scene_name != "corridor") {
+    std::fprintf(stderr, "unknown scene '%s' (mesh, box, corridor)\n", scene_name.c_str());
+    return 2;
+  }
+  const bool corridor = scene_name == "corridor";
+  if (down_camera && !corridor) {
+    std::fprintf(stderr, "--down-camera: only with --scene corridor\n");
     return 2;
   }
   const bool mesh_scene = scene_name == "mesh";
-  const sim::BoxScene box_scene = sim::makeDefaultScene();
+  const sim::BoxScene box_scene = corridor ? sim::makeCorridorScene() : sim::makeDefaultScene();
   sim::MeshScene scene;
   if (mesh_scene) scene = sim::makeDefaultMeshScene();
   GmmMap map = mesh_scene ? sim::tileScene(scene.primitives, spacing_m, normal_sigma_m)
@@ -74,26 +84,42 @@ int run(int argc, char** argv) {
     boxes_only.boxes = box_scene.blocks;
     sim::savePlyMesh(mesh_scene ? scene.mesh : sim::meshFromScene(boxes_only), save_mesh);
   }
-  const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(frames);
-  const Eigen::Isometry3d T_base_cam = sim::defaultBaseToCamera();
+  const std::vector<Eigen::Isometry3d> truth =
+      corridor ? sim::corridorTrajectory(frames) : sim::makeTrajectory(frames);
+  const Eigen::Isometry3d T_base_cam =
+      corridor ? sim::corridorForwardCamera() : sim::defaultBaseToCamera();
   const Intrinsics K = sim::defaultCamera(width_px);
 
   params.filter.seed = seed;
-  if (!cl.given("max-range-m")) params.frame.max_range_m = 6.0f;
+  // The corridor's forward camera ranges 3 m: it sees only the blank walls.
+  if (!cl.given("max-range-m")) params.frame.max_range_m = corridor ? 3.0f : 6.0f;
   params.T_base_cam = T_base_cam;
   params.backend = backend;
   const Particle start = poseToParticle(truth[0]);
   params.init.centre_m = Eigen::Vector3d(start.x_m, start.y_m, start.z_m);
   params.init.yaw_centre_rad = start.yaw_rad;
+  if (corridor) {  // anywhere along 8 m of the corridor, 60 cm across
+    params.init.centre_m = Eigen::Vector3d(13.0, 1.0, 1.5);
+    if (!cl.given("init-half-extent")) params.init.half_extent_m = Eigen::Vector3d(4.0, 0.3, 0.05);
+  }
+  CameraInput down;  // the corridor's downward camera, with the first camera's parameters
+  down.name = "down";
+  down.T_base_cam = sim::corridorDownCamera();
+  down.frame = params.frame;
+  down.measurement = params.measurement;
+  down.intrinsics = K;
   Localizer localizer(params, map);
   if (!localizer.backendWarning().empty()) {
     std::fprintf(stderr, "warning: %s\n", localizer.backendWarning().c_str());
   }
   std::printf(
-      "gmm_mcl demo: synthetic %s scene, %zu components, %d particles, %dx%d depth, stride %d, "
+      "gmm_mcl demo: synthetic %s scene, %zu components, %d particles, %dx%d depth%s, stride %d, "
       "%s weighting, %s backend, seed %llu\n",
-      mesh_scene ? "mesh (boxes and cylinders)" : "box", map.size(), params.filter.num_particles,
-      K.width_px, K.height_px, params.frame.pixel_stride,
+      mesh_scene ? "mesh (boxes and cylinders)"
+      : corridor ? "corridor"
+                 : "box",
+      map.size(), params.filter.num_particles, K.width_px, K.height_px,
+      down_camera ? " (forward and down cameras)" : "", params.frame.pixel_stride,
       weightingModeName(params.filter.weighting), localizer.backend().name().c_str(),
       static_cast<unsigned long long>(seed));
 
@@ -116,7 +142,16 @@ int run(int argc, char** argv) {
                                sensor_noise ? &sensor : nullptr, sim::frameSeed(seed, f))
             : sim::renderDepth(box_scene, K, T_map_cam, DepthEncoding::kMono16Millimetres, 8.0,
                                sensor_noise ? box_noise : sim::DepthNoise(), &rng);
-    const StepResult r = localizer.step(sim::frameInput(f / 30.0, odom, roll, pitch, depth, K));
+    StepInput in = sim::frameInput(f / 30.0, odom, roll, pitch, depth, K);
+    DepthImage down_depth;
+    if (down_camera) {
+      down_depth = sim::renderDepth(box_scene, K, truth[f] * down.T_base_cam,
+                                    DepthEncoding::kMono16Millimetres, 8.0,
+                                    sensor_noise ? box_noise : sim::DepthNoise(), &rng);
+      down.depth = &down_depth;
+      in.more_cameras.push_back(down);
+    }
+    const StepResult r = localizer.step(in);
     total_ms += r.timings.total_ms;
     const Particle est = r.estimate.mean;
     const Particle gt = poseToParticle(truth[f]);

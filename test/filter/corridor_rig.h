@@ -19,16 +19,9 @@ namespace test {
 
 constexpr double kCorridorDt = 1.0 / 30.0;
 
-// Forward (level, looking along base x) and downward cameras, 10 cm apart; the downward one's
-// wider image axis along base x.
-inline Eigen::Isometry3d forwardCamera() {
-  return sim::baseToCamera(Eigen::Vector3d(0.1, 0.0, 0.0), Eigen::Vector3d::UnitX(),
-                           -Eigen::Vector3d::UnitY());
-}
-inline Eigen::Isometry3d downCamera() {
-  return sim::baseToCamera(Eigen::Vector3d(0.0, 0.0, -0.1), -Eigen::Vector3d::UnitZ(),
-                           Eigen::Vector3d::UnitX());
-}
+// Forward (level, looking along base x) and downward cameras, 10 cm apart.
+inline Eigen::Isometry3d forwardCamera() { return sim::corridorForwardCamera(); }
+inline Eigen::Isometry3d downCamera() { return sim::corridorDownCamera(); }
 
 struct Corridor {
   sim::BoxScene scene;
@@ -45,11 +38,7 @@ inline const Corridor& corridor() {
 
 // The drone along the corridor at 1.5 m, 0.6 m/s, with a slight weave in y and yaw.
 inline Eigen::Isometry3d corridorPose(int frame) {
-  const double t = frame * kCorridorDt;
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = rotationFromRpy(0.0, 0.0, 0.05 * std::sin(0.7 * t));
-  T.translation() = Eigen::Vector3d(11.0 + 0.6 * t, 1.0 + 0.15 * std::sin(0.5 * t), 1.5);
-  return T;
+  return sim::corridorTrajectory(frame + 1)[frame];
 }
 
 inline LocalizerParams corridorParams() {

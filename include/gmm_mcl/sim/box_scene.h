@@ -37,6 +37,14 @@ BoxScene makeDefaultScene();
 // along the corridor is unobservable; a downward camera sees the boxes.
 BoxScene makeCorridorScene();
 
+// The corridor's rig: a level forward camera 10 cm ahead of the base and a downward one 10 cm
+// below it (its wider image axis along base x).
+Eigen::Isometry3d corridorForwardCamera();
+Eigen::Isometry3d corridorDownCamera();
+// The drone along the corridor at 1.5 m height and 0.6 m/s from x = 11 m, with a slight weave in
+// y and yaw: n base poses at 30 Hz.
+std::vector<Eigen::Isometry3d> corridorTrajectory(int n);
+
 // The optical frame (z along the view, x along image right) of a camera at position_m in the
 // base frame looking along `view` with image right along `right` (base axes, orthogonal).
 Eigen::Isometry3d baseToCamera(const Eigen::Vector3d& position_m, const Eigen::Vector3d& view,
