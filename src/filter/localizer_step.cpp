@@ -185,6 +185,7 @@ StepStatus Localizer::selectStepCamera(const StepInput& in, long long* patches_w
     if (status == StepStatus::kOk) {
       *first_camera = c;
       cam_.pixels = res->pixels;
+      cameras_used_ = 1;
       if (!res->cameras.empty()) {
         res->cameras[c].used = true;
         res->cameras[c].pixels = res->pixels;
@@ -248,9 +249,12 @@ StepStatus Localizer::evaluateMoreCameras(const StepInput& in, int first_camera,
                  "' not used: " + out.problem;
       continue;
     }
+    // Scaled to the first camera's pixel count: each camera's frame is one frame's evidence,
+    // whatever its stride and resolution (docs/multi_camera.md).
+    const double scale = static_cast<double>(cam_.pixels) / pixels;
     EvaluationStats stats;
     try {
-      filter_->accumulateFrame(more, &stats);
+      filter_->accumulateFrame(more, scale, &stats);
     } catch (const BackendError&) {
       throw;
     } catch (const std::exception& e) {
@@ -260,6 +264,7 @@ StepStatus Localizer::evaluateMoreCameras(const StepInput& in, int first_camera,
     out.used = true;
     out.pixels = pixels;
     res->pixels += pixels;
+    ++cameras_used_;
     res->evaluations += stats.evaluations;
     res->timings.projection_membership_ms += stats.projection_membership_ms;
     res->timings.likelihood_ms += stats.likelihood_ms;
@@ -346,13 +351,19 @@ StepStatus Localizer::evaluateStep(const MeasurementContext& ctx, long long patc
 StepStatus Localizer::weighStep(StepResult* res, std::string* why) {
   const Clock::time_point t0 = Clock::now();
   FrameScores scores;
-  if (!filter_->weighFrame(res->pixels, &scores)) {
+  // A rig's log-likelihoods are scaled to the first camera's pixel count (evaluateMoreCameras):
+  // the tempered exponent takes that count, so that each camera's frame is one frame's
+  // evidence, and the per-pixel levels are the cameras' mean (one camera: its pixels).
+  const int per_pixel = cameras_used_ * cam_.pixels;
+  const int weigh_pixels =
+      params_.filter.weighting == WeightingMode::kTempered ? cam_.pixels : per_pixel;
+  if (!filter_->weighFrame(weigh_pixels, &scores)) {
     *why = "no particle has a usable likelihood: weights kept";
     return StepStatus::kDegenerateWeights;
   }
   res->beta_fraction = scores.beta_fraction;
-  res->best_loglik_per_pixel = scores.best_loglik / res->pixels;
-  res->mean_loglik_per_pixel = scores.mean_loglik / res->pixels;
+  res->best_loglik_per_pixel = scores.best_loglik / per_pixel;
+  res->mean_loglik_per_pixel = scores.mean_loglik / per_pixel;
   res->floor_hit_fraction = static_cast<double>(scores.best_floor_hits) / res->pixels;
   if (scores.best_floor_hits >= res->pixels) {
     res->message += std::string(res->message.empty() ? "" : "; ") +
@@ -481,6 +492,7 @@ void Localizer::refineEstimate(const StepInput& in, StepResult* res) {
     }
     RefinementView v;
     v.frame = RefinementFrame::of(more_frames_[c]);
+    v.weight = static_cast<double>(cam_.pixels) / std::max<size_t>(1, more_frames_[c].size());
     v.T_base_cam = m.T_base_cam;
     v.params = &m.measurement;
     refineComponents(res->estimate.mean, v.frame, m.T_base_cam, m.frame, m.measurement,
@@ -516,7 +528,18 @@ StepStatus Localizer::resampleAndRecover(const MeasurementContext& ctx, StepResu
                                          std::string* why) {
   const Clock::time_point t0 = Clock::now();
   res->resampled = filter_->resampleIfNeeded();
-  res->reinitialised = filter_->recoverFrame(res->pixels, region_);
+  res->reinitialised = filter_->recoverFrame(cameras_used_ * cam_.pixels, region_);
+  // A rig whose set of cameras changed (one dropped out, came back) scores another per-pixel
+  // level: the lost detector's reference restarts from the map's rather than call that lost.
+  uint64_t camera_set = 1;
+  if (!res->cameras.empty()) {
+    camera_set = 0;
+    for (size_t c = 0; c < res->cameras.size() && c < 64; ++c) {
+      if (res->cameras[c].used) camera_set |= uint64_t{1} << c;
+    }
+  }
+  if (camera_set_ != 0 && camera_set != camera_set_) lost_.rebase();
+  camera_set_ = camera_set;
   // Absolute-quality recovery: the worst particles by this frame's likelihood (after any
   // resampling, each particle carries its source's likelihood) are redrawn.
   if (lost_.update(res->best_loglik_per_pixel)) {

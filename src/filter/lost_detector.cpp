@@ -91,6 +91,12 @@ void LostDetector::restart() {
   frames_since_restart_ = 0;
 }
 
+void LostDetector::rebase() {
+  reference_ = floor_;
+  frames_below_ = 0;
+  restart();
+}
+
 bool LostDetector::update(double best) {
   if (!enabled() || !std::isfinite(best)) return false;
   ++frames_since_restart_;

@@ -354,13 +354,14 @@ void ParticleFilter::evaluateFrame(const MeasurementContext& ctx, EvaluationStat
   }
 }
 
-void ParticleFilter::accumulateFrame(const MeasurementContext& ctx, EvaluationStats* stats) {
+void ParticleFilter::accumulateFrame(const MeasurementContext& ctx, double scale,
+                                     EvaluationStats* stats) {
   if (output_.log_likelihood.size() != particles_.size() || resampled_since_evaluation_) {
     throw std::logic_error("accumulateFrame: the set has no frame likelihoods to add to");
   }
   evaluatePoses(ctx, particles_, &more_output_);
   for (size_t i = 0; i < particles_.size(); ++i) {
-    output_.log_likelihood[i] += more_output_.log_likelihood[i];
+    output_.log_likelihood[i] += scale * more_output_.log_likelihood[i];
     output_.floor_hits[i] += more_output_.floor_hits[i];
   }
   output_.evaluations += more_output_.evaluations;

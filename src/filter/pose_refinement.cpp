@@ -209,7 +209,7 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
     more_objectives.push_back(std::make_unique<Objective>(*more[k].components, more[k].frame,
                                                           more[k].T_base_cam, *more[k].params,
                                                           &more_sums[k], with_scale, false));
-    px += more[k].frame.pixels;
+    px += more[k].weight * more[k].frame.pixels;
   }
   auto lineariseAll = [&](const Pose6& p) {
     objective.linearisePatches(p);
@@ -217,11 +217,11 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
   };
   auto evaluateAll = [&](const Pose6& p) {
     Linearisation sum = objective.evaluate(p, true);
-    for (auto& o : more_objectives) {
-      const Linearisation l = o->evaluate(p, true);
-      sum.loglik += l.loglik;
-      sum.H += l.H;
-      sum.g += l.g;
+    for (size_t k = 0; k < more_objectives.size(); ++k) {
+      const Linearisation l = more_objectives[k]->evaluate(p, true);
+      sum.loglik += more[k].weight * l.loglik;
+      sum.H += more[k].weight * l.H;
+      sum.g += more[k].weight * l.g;
     }
     return sum;
   };

@@ -140,7 +140,7 @@ TEST(CudaParticleFilterTest, ASecondCamerasFrameAddsUpLikeTheHosts) {
   host.setParticles(particles, std::vector<double>(n, 1.0));
   a.backend = b.backend = &cpu;
   host.evaluateFrame(a, nullptr);
-  host.accumulateFrame(b, nullptr);
+  host.accumulateFrame(b, 0.25, nullptr);
   const std::vector<double> expected = host.frameLogLikelihoods();
   CudaParticleFilter device(p, gpu.get());
   device.setParticles(particles, std::vector<double>(n, 1.0));
@@ -152,11 +152,11 @@ TEST(CudaParticleFilterTest, ASecondCamerasFrameAddsUpLikeTheHosts) {
   ASSERT_TRUE(device.prepareDeviceFrame(image2, view.K, fp2, &summary));
   EXPECT_EQ(summary.pixels, static_cast<int>(frame2.size()));
   EvaluationStats stats;
-  device.accumulateFrame(b, &stats);
+  device.accumulateFrame(b, 0.25, &stats);
   EXPECT_GT(stats.evaluations, 0);
   const std::vector<double> got = device.frameLogLikelihoods();
   ASSERT_EQ(got.size(), expected.size());
-  const double floor_scale = static_cast<double>(view.frame.size() + frame2.size());
+  const double floor_scale = static_cast<double>(view.frame.size() + 0.25 * frame2.size());
   double worst = 0.0;
   for (int i = 0; i < n; ++i) {
     worst =
@@ -165,7 +165,7 @@ TEST(CudaParticleFilterTest, ASecondCamerasFrameAddsUpLikeTheHosts) {
   std::printf("[ measured ] two cameras: max relative log-likelihood difference %.2e\n", worst);
   EXPECT_LT(worst, kLikelihoodRelTol);
   device.resample();
-  EXPECT_THROW(device.accumulateFrame(b, nullptr), std::logic_error);
+  EXPECT_THROW(device.accumulateFrame(b, 1.0, nullptr), std::logic_error);
 }
 
 TEST(CudaParticleFilterTest, ScreeningScoresTheDrawsAndKeepsTheBest) {

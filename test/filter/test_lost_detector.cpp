@@ -84,6 +84,25 @@ TEST(LostDetectorTest, RestartBeginsTheGraceAgain) {
   EXPECT_EQ(next, 30);
 }
 
+TEST(LostDetectorTest, RebaseDropsTheLearnedReferenceToItsFloor) {
+  // A rig's camera drops out: the level the remaining cameras score is another one. The
+  // reference learned with both (0.0) goes back to the starting floor (-1.5) and the grace
+  // restarts, so that a level 4 nats below the learned one is no reason to fire.
+  LostDetector d(params(), -1.0);
+  for (int f = 0; f < 200; ++f) d.update(0.0);
+  ASSERT_NEAR(d.reference(), 0.0, 1e-3);
+  LostDetector kept = d;
+  d.rebase();
+  EXPECT_DOUBLE_EQ(d.reference(), -1.5);
+  int fired = 0, fired_kept = 0;
+  for (int f = 0; f < 100; ++f) {
+    fired += d.update(-4.0) ? 1 : 0;
+    fired_kept += kept.update(-4.0) ? 1 : 0;
+  }
+  EXPECT_EQ(fired, 0);
+  EXPECT_GT(fired_kept, 0);  // without the rebase it would have called the filter lost
+}
+
 TEST(LostDetectorTest, SetParamsRaisesTheReferenceOnlyToTheNewFloor) {
   LostDetector d(params(), -1.0);
   // A map predicting a higher level: the reference rises to its floor (2.0 - 0.5).

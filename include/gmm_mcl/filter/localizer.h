@@ -3,6 +3,7 @@
 #pragma once
 
 #include <chrono>
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -231,6 +232,9 @@ class Localizer {
   // The rig's other cameras this step (indexed like StepResult::cameras): their host frames
   // (an unprepared frame has zero width), their refinement components.
   int first_camera_ = 0;
+  int cameras_used_ = 1;  // cameras in this step's update
+  uint64_t camera_set_ =
+      0;  // the last update's cameras (bit c: StepResult::cameras[c]; 0: none yet)
   std::vector<DepthFrame> more_frames_;
   std::vector<std::vector<ComponentF>> more_components_;
   bool host_frame_ready_ = false;

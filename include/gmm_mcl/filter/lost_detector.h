@@ -35,6 +35,9 @@ class LostDetector {
   void setParams(const LostDetectionParams& params, double initial_reference);
   // Restarts the grace period (after any re-initialisation of the particle set).
   void restart();
+  // The reference back to its starting level, and the grace period restarted: the scores'
+  // level changed for another reason than the pose (a rig's camera dropped out or came back).
+  void rebase();
   // Feeds one frame's best per-pixel log-likelihood; returns true when the filter is judged
   // lost on this frame (then the grace period restarts).
   bool update(double best_loglik_per_pixel);

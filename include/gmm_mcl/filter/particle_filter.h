@@ -78,7 +78,8 @@ class ParticleFilter : public ParticleFilterBase {
   // ParticleFilterBase: the frame's likelihoods from the backend (poses built here), weights,
   // recovery and the candidate pool with the calls above.
   void evaluateFrame(const MeasurementContext& context, EvaluationStats* stats) override;
-  void accumulateFrame(const MeasurementContext& context, EvaluationStats* stats) override;
+  void accumulateFrame(const MeasurementContext& context, double scale,
+                       EvaluationStats* stats) override;
   bool weighFrame(int pixels, FrameScores* scores) override;
   int recoverFrame(int pixels, const InitRegion& region) override;
   void clearCandidates() override;

@@ -95,10 +95,12 @@ class ParticleFilterBase {
   }
   // The log-likelihood of every particle on the frame, kept for the calls below.
   virtual void evaluateFrame(const MeasurementContext& context, EvaluationStats* stats) = 0;
-  // Adds every particle's log-likelihood (and floor hits) on another camera's frame to the kept
-  // ones: a camera rig, one update per frame set. After evaluateFrame, before any resampling;
-  // throws std::logic_error otherwise. Stats are this camera's.
-  virtual void accumulateFrame(const MeasurementContext& context, EvaluationStats* stats) = 0;
+  // Adds every particle's log-likelihood on another camera's frame, times `scale`, to the kept
+  // ones (and its floor hits): a camera rig, one update per frame set (the localizer scales
+  // each camera to the first one's pixel count, docs/multi_camera.md). After evaluateFrame,
+  // before any resampling; throws std::logic_error otherwise. Stats are this camera's.
+  virtual void accumulateFrame(const MeasurementContext& context, double scale,
+                               EvaluationStats* stats) = 0;
   // The weights from the kept log-likelihoods (ParticleFilterParams::weighting; kTempered with
   // the Neff-floor bisection), and the frame's scores. False (weights unchanged) when no entry
   // is finite or all weights would vanish.

@@ -96,6 +96,9 @@ struct RefinementView {
   RefinementFrame frame;
   Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();
   const MeasurementParams* params = nullptr;
+  // Its log-likelihood's weight in the sum (the localizer's: the first frame's pixel count over
+  // this one's, so that each camera weighs as one frame).
+  double weight = 1.0;
 };
 
 // Maximises the frame's log-likelihood (with `more`, the sum over the rig's frames) around `start`

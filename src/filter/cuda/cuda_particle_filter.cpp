@@ -164,7 +164,8 @@ void CudaParticleFilter::evaluateFrame(const MeasurementContext& ctx, Evaluation
   }
 }
 
-void CudaParticleFilter::accumulateFrame(const MeasurementContext& ctx, EvaluationStats* stats) {
+void CudaParticleFilter::accumulateFrame(const MeasurementContext& ctx, double scale,
+                                         EvaluationStats* stats) {
   Impl& d = *impl_;
   const cuda::DeviceScope scope(d.device);
   if (d.ll_count != d.n || d.resampled_since_evaluation || !d.frame_ll_valid) {
@@ -174,8 +175,8 @@ void CudaParticleFilter::accumulateFrame(const MeasurementContext& ctx, Evaluati
   d.hits_more.reserve(d.capacity, d.stream);
   d.scorePoses(ctx, d.particles.data(), d.n, d.T_map_cam.data(), d.T_cam_map.data(),
                d.ll_more.data(), d.hits_more.data(), d.evals.data(), d.pairs.data());
-  GMM_MCL_CUDA_CHECK(cuda::launchAddFrame(d.n, d.ll_more.data(), d.hits_more.data(), d.ll.data(),
-                                          d.hits.data(), d.stream));
+  GMM_MCL_CUDA_CHECK(cuda::launchAddFrame(d.n, scale, d.ll_more.data(), d.hits_more.data(),
+                                          d.ll.data(), d.hits.data(), d.stream));
   d.have_ws = false;
   GMM_MCL_CUDA_CHECK(
       cuda::launchSumCounts(d.n, d.evals.data(), d.pairs.data(), d.count_sums.data(), d.stream));

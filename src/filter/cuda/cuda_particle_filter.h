@@ -47,7 +47,8 @@ class CudaParticleFilter : public ParticleFilterBase {
   bool prepareDeviceFrame(const DepthImage& image, const Intrinsics& K,
                           const FrameParams& frame_params, DeviceFrameSummary* summary) override;
   void evaluateFrame(const MeasurementContext& context, EvaluationStats* stats) override;
-  void accumulateFrame(const MeasurementContext& context, EvaluationStats* stats) override;
+  void accumulateFrame(const MeasurementContext& context, double scale,
+                       EvaluationStats* stats) override;
   bool weighFrame(int pixels, FrameScores* scores) override;
   PoseEstimate estimate() const override;
   double effectiveSampleSize() const override;

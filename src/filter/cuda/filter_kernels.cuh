@@ -109,9 +109,9 @@ cudaError_t launchEstimate(int n, const ParticleState* particles, const double* 
 cudaError_t launchSum(int n, const double* w, double* total, ReduceScratch scratch,
                       cudaStream_t stream);
 cudaError_t launchDivide(int n, const double* total, double* w, cudaStream_t stream);
-// ll[i] += ll_more[i], hits[i] += hits_more[i] (another camera's frame).
-cudaError_t launchAddFrame(int n, const double* ll_more, const int* hits_more, double* ll,
-                           int* hits, cudaStream_t stream);
+// ll[i] += scale * ll_more[i], hits[i] += hits_more[i] (another camera's frame).
+cudaError_t launchAddFrame(int n, double scale, const double* ll_more, const int* hits_more,
+                           double* ll, int* hits, cudaStream_t stream);
 // sums[0] = sum of a, sums[1] = sum of b (evaluation counts).
 cudaError_t launchSumCounts(int n, const long long* a, const long long* b, unsigned long long* sums,
                             cudaStream_t stream);

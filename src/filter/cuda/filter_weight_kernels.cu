@@ -262,11 +262,12 @@ __global__ void __launch_bounds__(kThreads)
 }
 
 __global__ void __launch_bounds__(kThreads)
-    addFrameKernel(int n, const double* __restrict__ ll_more, const int* __restrict__ hits_more,
-                   double* __restrict__ ll, int* __restrict__ hits) {
+    addFrameKernel(int n, double scale, const double* __restrict__ ll_more,
+                   const int* __restrict__ hits_more, double* __restrict__ ll,
+                   int* __restrict__ hits) {
   const int i = blockIdx.x * blockDim.x + threadIdx.x;
   if (i < n) {
-    ll[i] += ll_more[i];
+    ll[i] += scale * ll_more[i];
     hits[i] += hits_more[i];
   }
 }
@@ -339,9 +340,9 @@ cudaError_t launchDivide(int n, const double* total, double* w, cudaStream_t str
   return launchOver(n, stream, divideKernel, n, total, w);
 }
 
-cudaError_t launchAddFrame(int n, const double* ll_more, const int* hits_more, double* ll,
-                           int* hits, cudaStream_t stream) {
-  return launchOver(n, stream, addFrameKernel, n, ll_more, hits_more, ll, hits);
+cudaError_t launchAddFrame(int n, double scale, const double* ll_more, const int* hits_more,
+                           double* ll, int* hits, cudaStream_t stream) {
+  return launchOver(n, stream, addFrameKernel, n, scale, ll_more, hits_more, ll, hits);
 }
 
 }  // namespace cuda
