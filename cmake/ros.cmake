@@ -8,7 +8,7 @@ set(GMM_MCL_ROS_COMPONENTS
   image_transport message_filters dynamic_reconfigure rosbag message_generation)
 find_package(catkin REQUIRED COMPONENTS ${GMM_MCL_ROS_COMPONENTS})
 
-add_message_files(DIRECTORY msg FILES FilterStatus.msg)
+add_message_files(DIRECTORY msg FILES FilterStatus.msg CameraStatus.msg)
 add_service_files(DIRECTORY srv FILES ResetToPose.srv LoadMap.srv)
 generate_messages(DEPENDENCIES std_msgs geometry_msgs)
 generate_dynamic_reconfigure_options(cfg/Localizer.cfg)
@@ -28,6 +28,7 @@ add_library(gmm_mcl_ros SHARED
   src/ros/ros_options_table.cpp
   src/ros/node_status.cpp
   src/ros/step_inputs.cpp
+  src/ros/frame_sets.cpp
   src/ros/map_markers.cpp
   src/ros/depth_input.cpp
   src/ros/debug_image.cpp

@@ -32,6 +32,15 @@ void LocalizationNodelet::onInit() {
                  localizer_->map().size(), opts_.map_path.c_str(),
                  localizer_->backend().name().c_str(), localizer_->filter().size(),
                  describeParams(params_, opts_).c_str());
+    for (const RigCameraParams& c : rig_) {
+      NODELET_INFO(
+          "gmm_mcl: camera '%s': %s on %s/, pixel_stride %d, range %.2f-%.2f m, depth noise "
+          "%s (a %.4g m, b %.4g 1/m, z0 %.3g m)",
+          c.name.c_str(), c.depth_input.c_str(), c.name.c_str(), c.frame.pixel_stride,
+          c.frame.min_range_m, c.frame.max_range_m, c.measurement.depth_noise_preset.c_str(),
+          c.measurement.depth_noise.a_m, c.measurement.depth_noise.b_per_m,
+          c.measurement.depth_noise.z0_m);
+    }
     if (!localizer_->backendWarning().empty())
       NODELET_WARN("gmm_mcl: %s", localizer_->backendWarning().c_str());
     advertise();
@@ -52,6 +61,7 @@ void LocalizationNodelet::onInit() {
 
 bool LocalizationNodelet::configure(std::vector<std::string>* unknown) {
   std::string error = loadRosParams(getPrivateNodeHandle(), &params_, &opts_, unknown);
+  error += loadRigCameras(getPrivateNodeHandle(), params_, opts_, &rig_, unknown);
   if (error.empty()) localizer_ = makeLocalizer(&params_, opts_, &error);
   health_.setWarnLimits(opts_.warn_sigma_xy_m, opts_.warn_sigma_yaw_rad);
   health_.set([&](NodeHealth* h) { h->config_error = error; });
@@ -105,12 +115,58 @@ void LocalizationNodelet::advertise() {
   };
   cb.dropped = [this](FrameDrop d, const std::string& why) { onDrop(d, why); };
   cb.frame = [this](const std_msgs::Header& h, const DepthImage& d, const Intrinsics& K) {
-    onFrame(h, d, K);
+    if (sets_) return onCameraFrame(0, h, d, K);
+    onFrame(h, d, K);  // one camera: every frame is an update, as it always was
   };
   cb.note = [this](const std::string& note) { NODELET_WARN_ONCE("gmm_mcl: %s", note.c_str()); };
+  if (!rig_.empty()) {
+    sets_ = std::make_unique<FrameSets>(static_cast<int>(rig_.size()) + 1, FrameSetParams());
+    applyOptions();  // the sets' parameters
+    cb.arrived = [this](const std_msgs::Header& h) {
+      health_.arrived(h.seq, nowS());
+      health_.cameraArrived(0);
+    };
+  }
   input_ = std::make_unique<DepthInput>(nh, pnh, tf_.get(), opts_, cb);
+  // The rig's other cameras, each like the first in its own namespace; on the same queue (the
+  // tf message filters' rule above), so a set never blocks while it waits for them.
+  for (size_t i = 0; i < rig_.size(); ++i) {
+    const size_t camera = i + 1;
+    const std::string name = rig_[i].name;
+    RosOptions o = opts_;
+    o.depth_input = rig_[i].depth_input;
+    o.image_transport = rig_[i].image_transport;
+    DepthInput::Callbacks c;
+    c.arrived = [this, camera](const std_msgs::Header&) { health_.cameraArrived(camera); };
+    c.camera_info = [](const std_msgs::Header&) {};
+    c.frame_clock = [](const std_msgs::Header&) {};  // the budget times the first camera
+    c.dropped = [this, camera, name](FrameDrop, const std::string& why) {
+      health_.cameraDropped(camera);
+      problem("camera '" + name + "': depth frame dropped: " + why);
+    };
+    c.frame = [this, camera](const std_msgs::Header& h, const DepthImage& d, const Intrinsics& K) {
+      onCameraFrame(camera, h, d, K);
+    };
+    c.note = [this, name](const std::string& note) {
+      NODELET_WARN_ONCE("gmm_mcl: camera '%s': %s", name.c_str(), note.c_str());
+    };
+    more_inputs_.push_back(
+        std::make_unique<DepthInput>(nh, ros::NodeHandle(pnh, name), tf_.get(), o, c, name));
+  }
   health_.set([this](NodeHealth* h) {
     h->depth_topic = input_->depthTopic(), h->camera_info_topic = input_->cameraInfoTopic();
+    h->cameras.clear();
+    if (!sets_) return;
+    CameraHealth first;
+    first.name = "depth";
+    first.topic = input_->depthTopic();
+    h->cameras.push_back(first);
+    for (size_t i = 0; i < rig_.size(); ++i) {
+      CameraHealth c;
+      c.name = rig_[i].name;
+      c.topic = more_inputs_[i]->depthTopic();
+      h->cameras.push_back(c);
+    }
   });
   // Services last: once they answer, every subscription is in place.
   global_srv_ =
@@ -147,22 +203,31 @@ void LocalizationNodelet::jumpedBack(const ros::Time& stamp) {
 }
 
 void LocalizationNodelet::onFrame(const std_msgs::Header& header, const DepthImage& depth,
-                                  const Intrinsics& K) {
+                                  const Intrinsics& K, const FrameSet* set) {
   const auto t0 = std::chrono::steady_clock::now();
   const ros::Time stamp = header.stamp;
   if (have_step_ && (stamp - last_stamp_).toSec() < -kTimeJumpToleranceS) jumpedBack(stamp);
   StepInput in;
   StepInputs::Gaps gaps;
   std::string why;
-  if (!inputs_->gather(header, &in, &gaps, &why)) return onDrop(FrameDrop::kExtrinsics, why);
+  std::vector<std::string> problems;
+  // A set: every camera's extrinsics by fillCameras (before gather(), which may clear tf); one
+  // without them is left out of the set, said why, and the others go on.
+  if (set) fillCameras(*set, &in, &problems);
+  if (!inputs_->gather(header, &in, &gaps, &why, !set)) return onDrop(FrameDrop::kExtrinsics, why);
   if (gaps.odometry) health_.count(&FrameCounters::odometry_gaps);
   if (gaps.imu) health_.count(&FrameCounters::imu_missing);
   if (gaps.odometry || gaps.imu) problem(gaps.warnings);
   const bool gated = !gate_.shouldUpdate(in.has_odometry, in.T_odom_base);
   Eigen::Isometry3d T_map_base = T_map_odom_ * in.T_odom_base;  // hovering: follows odometry
   if (!gated) {
-    in.depth = &depth;
-    in.intrinsics = K;
+    if (!set) {
+      in.depth = &depth;
+      in.intrinsics = K;
+    } else if (set->frames[0] && problems[0].empty()) {
+      in.depth = &set->frames[0]->depth;
+      in.intrinsics = set->frames[0]->intrinsics;
+    }
     last_result_ = localizer_->step(in);
     gate_.updated(in.has_odometry, in.T_odom_base);
     T_map_base =
@@ -184,7 +249,8 @@ void LocalizationNodelet::onFrame(const std_msgs::Header& header, const DepthIma
   last_stamp_ = stamp;
   const double ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  publish(header, last_result_, T_map_base, depth, K, ms, gaps.warnings, gated);
+  if (set) recordCameras(*set, last_result_, problems);
+  publish(header, last_result_, T_map_base, depth, K, ms, gaps.warnings, gated, set);
   markers_.follow(T_map_base.translation());
   if (!gated) {
     budgetUpdate(
@@ -194,6 +260,115 @@ void LocalizationNodelet::onFrame(const std_msgs::Header& header, const DepthIma
     pose_saver_.offer(opts_.save_pose_rate_hz, stamp, last_result_.estimate.mean,
                       last_result_.estimate.covariance, last_result_.depth_scale);
   }
+}
+
+void LocalizationNodelet::onCameraFrame(size_t camera, const std_msgs::Header& header,
+                                        const DepthImage& depth, const Intrinsics& K) {
+  CameraFrame f;
+  f.header = header;
+  f.depth = depth;
+  f.intrinsics = K;
+  sets_->add(static_cast<int>(camera), std::move(f));
+  drainSets();
+}
+
+void LocalizationNodelet::drainSets() {
+  FrameSet set;
+  while (sets_->takeReady(&set)) {
+    if (set.lead != last_lead_) {
+      const FrameSetParams& p = sets_->params();
+      if (set.lead == 0) {
+        NODELET_INFO("gmm_mcl: camera 'depth' delivers again: its frames lead the frame sets");
+      } else {
+        NODELET_WARN(
+            "gmm_mcl: camera '%s' leads the frame sets: no frame of the cameras before it for "
+            "more than %.3g s (camera_timeout)",
+            rig_[set.lead - 1].name.c_str(), p.timeout_s);
+      }
+      last_lead_ = set.lead;
+    }
+    const CameraFrame& lead = *set.frames[set.lead];
+    onFrame(lead.header, lead.depth, lead.intrinsics, &set);
+  }
+  for (const CameraTransition& t : sets_->takeTransitions()) {
+    const std::string name = t.camera == 0 ? "depth" : rig_[t.camera - 1].name;
+    if (t.dropped_out) {
+      NODELET_WARN(
+          "gmm_mcl: camera '%s' dropped out: no frame for %.3g s: updating with the others",
+          name.c_str(), t.gap_s);
+    } else {
+      NODELET_INFO("gmm_mcl: camera '%s' is back after %.3g s: used again", name.c_str(), t.gap_s);
+    }
+  }
+  // The first camera's frames that no set took: dropped, so that its frames stay accounted for.
+  for (; first_dropped_in_sets_ < sets_->stats(0).dropped; ++first_dropped_in_sets_)
+    health_.dropped(FrameDrop::kFrameSet);
+  health_.set([this](NodeHealth* h) {
+    for (size_t i = 0; i < h->cameras.size(); ++i) h->cameras[i].sets = sets_->stats(i);
+  });
+  if (!sets_->pending()) {
+    set_timer_.stop();
+  } else if (armed_generation_ != sets_->generation()) {
+    armed_generation_ = sets_->generation();
+    const unsigned long generation = armed_generation_;
+    set_timer_ = getNodeHandle().createWallTimer(
+        ros::WallDuration(std::max(sets_->params().wait_s, 1e-6)),
+        [this, generation](const ros::WallTimerEvent&) {
+          sets_->expire(generation);
+          drainSets();
+        },
+        true);
+  }
+}
+
+void LocalizationNodelet::fillCameras(const FrameSet& set, StepInput* in,
+                                      std::vector<std::string>* problems) {
+  problems->assign(set.frames.size(), "");
+  if (!set.frames[0]) {
+    (*problems)[0] = "no frame in this set";
+  } else {
+    in->has_T_base_cam =
+        inputs_->extrinsicsAt(set.frames[0]->header, 0, &in->T_base_cam, &(*problems)[0]);
+    if (!in->has_T_base_cam) problem("camera 'depth': " + (*problems)[0]);
+  }
+  for (size_t i = 1; i < set.frames.size(); ++i) {
+    const RigCameraParams& p = rig_[i - 1];
+    CameraInput c;
+    c.name = p.name;
+    c.frame = p.frame;
+    c.measurement = p.measurement;
+    const CameraFrame* f = set.frames[i].get();
+    if (!f) {
+      (*problems)[i] = "no frame in this set";
+    } else if (inputs_->extrinsicsAt(f->header, i, &c.T_base_cam, &(*problems)[i])) {
+      c.depth = &f->depth;
+      c.intrinsics = f->intrinsics;
+    } else {
+      problem("camera '" + p.name + "': " + (*problems)[i]);
+    }
+    in->more_cameras.push_back(c);
+  }
+}
+
+void LocalizationNodelet::recordCameras(const FrameSet& set, const StepResult& r,
+                                        const std::vector<std::string>& problems) {
+  health_.set([&](NodeHealth* h) {
+    for (size_t i = 0; i < h->cameras.size() && i < set.frames.size(); ++i) {
+      CameraHealth& c = h->cameras[i];
+      c.leads = static_cast<int>(i) == set.lead;
+      c.in_last_set = set.frames[i] != nullptr;
+      c.sets = sets_->stats(i);
+      if (i < r.cameras.size()) {  // the core's word (one per camera when given more_cameras)
+        c.used_last = r.cameras[i].used;
+        c.pixels = r.cameras[i].pixels;
+        c.problem = problems[i].empty() ? r.cameras[i].problem : problems[i];
+      } else {
+        c.used_last = false;
+        c.pixels = 0;
+        c.problem = problems[i].empty() ? "not reported by the filter" : problems[i];
+      }
+    }
+  });
 }
 
 void LocalizationNodelet::logMotionSource(bool has_odometry) {
@@ -217,7 +392,7 @@ void LocalizationNodelet::logMotionSource(bool has_odometry) {
 void LocalizationNodelet::publish(const std_msgs::Header& header, const StepResult& r,
                                   const Eigen::Isometry3d& T_map_base, const DepthImage& depth,
                                   const Intrinsics& K, double callback_ms,
-                                  const std::string& warnings, bool gated) {
+                                  const std::string& warnings, bool gated, const FrameSet* set) {
   outputs_.poses(header, r, T_map_base, gated, opts_.map_frame);
   const std::string& child = opts_.mapToBase() ? opts_.base_frame : opts_.odom_frame;
   const bool send_tf =  // future-dated by transform_tolerance from the frame stamp
@@ -228,11 +403,13 @@ void LocalizationNodelet::publish(const std_msgs::Header& header, const StepResu
   FilterStatus s =
       health_.frame(r, gated, send_tf, nowS(), params_.lost, localizer_->backend().name(),
                     localizer_->backendWarning(), callback_ms, warnings, inputs_->imuReceived(),
-                    inputs_->odometryReceived());
+                    inputs_->odometryReceived(), !set || set->frames[0] != nullptr);
   s.header = header;
   fillBudgetStatus(budget_.state(), &s);
+  if (set) fillCameraStatus(health_.snapshot(), header.stamp.toSec(), &s);
   outputs_.status(s);
-  outputs_.debugImage(header, depth, K, *localizer_, T_map_base * inputs_->extrinsics());
+  outputs_.debugImage(header, depth, K, *localizer_,
+                      T_map_base * inputs_->extrinsics(set ? set->lead : 0));
 }
 
 void LocalizationNodelet::budgetUpdate(const StepResult& r, double callback_ms) {
@@ -344,6 +521,14 @@ void LocalizationNodelet::onReconfigure(LocalizerConfig& config, uint32_t) {
 // The run-time options (at start and on dynamic_reconfigure), the budget's choice with them.
 void LocalizationNodelet::applyOptions() {
   if (inputs_) inputs_->setOptions(opts_);
+  if (sets_) {
+    FrameSetParams p;
+    p.window_s = opts_.camera_set_window_s;
+    p.wait_s = opts_.camera_set_wait_s;
+    p.timeout_s = opts_.camera_timeout_s;
+    sets_->setParams(p);
+    health_.set([&p](NodeHealth* h) { h->timeout_s = p.timeout_s; });
+  }
   gate_.setThresholds(opts_.update_min_d_m, opts_.update_min_a_rad);
   markers_.setPeriod(opts_.markers_period_s);
   markers_.setLimits(opts_.markers_max, opts_.markers_radius_m);

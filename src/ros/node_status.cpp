@@ -19,6 +19,7 @@ void FrameCounters::arrived(uint32_t seq) {
 void FrameCounters::drop(FrameDrop reason) {
   ++(reason == FrameDrop::kConversion   ? dropped_conversion
      : reason == FrameDrop::kCameraInfo ? dropped_camera_info
+     : reason == FrameDrop::kFrameSet   ? dropped_frame_set
                                         : dropped_extrinsics);
 }
 
@@ -89,14 +90,38 @@ void fillStatus(const StepResult& r, const FrameCounters& c, const std::string& 
   s->imu_missing = c.imu_missing;
   s->tf_skipped = c.tf_skipped;
   s->time_jumps = c.time_jumps;
+  s->dropped_frame_set = c.dropped_frame_set;
+  s->updates_other_cameras = c.updates_other_cameras;
+}
+
+void fillCameraStatus(const NodeHealth& h, double set_stamp_s, FilterStatus* s) {
+  s->cameras.clear();
+  for (const CameraHealth& c : h.cameras) {
+    CameraStatus m;
+    m.name = c.name;
+    m.topic = c.topic;
+    m.leads = c.leads;
+    m.in_set = c.in_last_set;
+    m.used = c.used_last;
+    m.pixels = c.pixels;
+    m.problem = c.problem;
+    m.state = c.sets.last_stamp_s < 0 ? "no_frame_yet" : c.sets.dropped_out ? "dropped_out" : "ok";
+    m.frame_age_s = c.sets.last_stamp_s < 0 ? 0.0 : set_stamp_s - c.sets.last_stamp_s;
+    m.frames_received = c.sets.frames;
+    m.frames_used = c.sets.used;
+    m.frames_missing = c.sets.missing;
+    m.frames_dropped = c.sets.dropped;
+    s->cameras.push_back(m);
+  }
 }
 
 void recordFrame(const StepResult& r, bool gated, bool sent_tf, double now_s,
                  const LostDetectionParams& lost, const std::string& backend,
                  const std::string& backend_warning, double callback_ms,
-                 const std::string& warnings, NodeHealth* h, FilterStatus* status) {
+                 const std::string& warnings, NodeHealth* h, FilterStatus* status,
+                 bool first_camera) {
   FrameCounters& c = h->counters;
-  ++(gated ? c.gated : c.processed);
+  ++(!first_camera ? c.updates_other_cameras : gated ? c.gated : c.processed);
   if (!sent_tf) ++c.tf_skipped;
   if (!gated) {
     c.reinitialised_total += r.reinitialised;
@@ -145,6 +170,8 @@ const CounterRow kCounterRows[] = {
     {"dropped: conversion", &FrameCounters::dropped_conversion},
     {"dropped: camera info", &FrameCounters::dropped_camera_info},
     {"dropped: no extrinsics", &FrameCounters::dropped_extrinsics},
+    {"dropped: not in a frame set", &FrameCounters::dropped_frame_set},
+    {"updates led by another camera", &FrameCounters::updates_other_cameras},
     {"missed before a callback (seq gaps)", &FrameCounters::missed_seq},
     {"camera infos received", &FrameCounters::camera_info_received},
     {"IMU messages received", &FrameCounters::imu_received},
@@ -200,6 +227,22 @@ Diagnosis diagnose(const NodeHealth& h) {
     }
     find(S::WARN, m.str());
   }
+  // Several cameras: one that dropped out, or never delivered a usable frame.
+  for (const CameraHealth& cam : h.cameras) {
+    m.str("");
+    m.precision(3);
+    if (cam.sets.dropped_out) {
+      m << "camera '" << cam.name << "': no frame for " << h.now_s - cam.sets.last_stamp_s
+        << " s: updating with the others";
+    } else if (cam.sets.used == 0 && h.have_step) {
+      m << "camera '" << cam.name << "' not used yet: "
+        << (cam.arrived == 0 ? "no frame on " + cam.topic
+                             : std::to_string(cam.arrived) + " frames arrived, none usable");
+    } else {
+      continue;
+    }
+    find(S::WARN, m.str());
+  }
   if (h.below_lost_reference || (h.frames_since_lost >= 0 && h.frames_since_lost < 30)) {
     find(S::WARN, "lost: the best particle scores below the lost detector's reference (" +
                       std::to_string(c.lost_events_total) + " lost events)");
@@ -246,6 +289,26 @@ Diagnosis diagnose(const NodeHealth& h) {
   add("refinement", h.budget.refine ? "as configured" : "off (budget)");
   add("budget cuts / restores",
       std::to_string(h.budget.cuts) + " / " + std::to_string(h.budget.restores));
+  if (!h.cameras.empty()) {
+    int used = 0;
+    for (const CameraHealth& cam : h.cameras) used += cam.used_last;
+    add("cameras in the last update", std::to_string(used));
+  }
+  for (const CameraHealth& cam : h.cameras) {
+    const std::string k = "camera " + cam.name + ": ";
+    add(k + "state", cam.sets.last_stamp_s < 0 ? "no frame yet"
+                     : cam.sets.dropped_out
+                         ? "WARN no frame for " + num(h.now_s - cam.sets.last_stamp_s) +
+                               " s: updating with the others"
+                         : "OK");
+    add(k + "frames used", std::to_string(cam.sets.used));
+    add(k + "frames missing", std::to_string(cam.sets.missing));
+    add(k + "frames dropped", std::to_string(cam.sets.dropped) + " (superseded or late), " +
+                                  std::to_string(cam.dropped_input) + " (input)");
+    add(k + "last stamp", cam.sets.last_stamp_s < 0 ? "none" : num(cam.sets.last_stamp_s));
+    add(k + "topic", cam.topic);
+    if (!cam.problem.empty()) add(k + "problem", cam.problem);
+  }
   add("last problem", h.problems.empty() ? "" : h.problems.back().first);
   add("backend", h.backend);
   return d;
@@ -304,14 +367,24 @@ FilterStatus HealthMonitor::frame(const StepResult& r, bool gated, bool sent_tf,
                                   const LostDetectionParams& lost, const std::string& backend,
                                   const std::string& backend_warning, double callback_ms,
                                   const std::string& warnings, long long imu_received,
-                                  long long odometry_received) {
+                                  long long odometry_received, bool first_camera) {
   std::lock_guard<std::mutex> lock(mutex_);
   health_.counters.imu_received = imu_received;
   health_.counters.odometry_received = odometry_received;
   FilterStatus s;
   recordFrame(r, gated, sent_tf, now_s, lost, backend, backend_warning, callback_ms, warnings,
-              &health_, &s);
+              &health_, &s, first_camera);
   return s;
+}
+
+void HealthMonitor::cameraArrived(size_t camera) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (camera < health_.cameras.size()) ++health_.cameras[camera].arrived;
+}
+
+void HealthMonitor::cameraDropped(size_t camera) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (camera < health_.cameras.size()) ++health_.cameras[camera].dropped_input;
 }
 
 }  // namespace gmm_mcl

@@ -76,6 +76,29 @@ void addNodeOptions(ParamTable<R>* t) {
                       "stamp has not arrived yet waits for them at most this long; sources that "
                       "never delivered are not waited for (0 = never wait)"));
   add(t, paramSpec<R>(
+             "more_cameras", GMM_MCL_PARAM_FIELD(R, more_cameras), "", g, {}, kStartup,
+             "The rig's other depth cameras (docs/ros.md, Several depth cameras): names, "
+             "comma-separated or a YAML list ([down]); camera NAME subscribes NAME/image + "
+             "NAME/camera_info (or NAME/points) and reads ~NAME/depth_input, image_transport, "
+             "pixel_stride, min_range_m, max_range_m, depth_noise_preset, depth_noise_a_m, "
+             "_b_per_m, _z0_m (defaults: the first camera's); extrinsics from tf. Empty: one "
+             "camera"));
+  add(t, paramSpec<R>("camera_set_window", GMM_MCL_PARAM_FIELD(R, camera_set_window_s), "s", g,
+                      {0, 1}, kRuntime,
+                      "Several cameras: frames whose stamps lie within this of the leading "
+                      "frame's are one frame set, one update (the newest in the window is used)"));
+  add(t, paramSpec<R>("camera_set_wait", GMM_MCL_PARAM_FIELD(R, camera_set_wait_s), "s", g, {0, 10},
+                      kRuntime,
+                      "Several cameras: a frame set waits at most this long (wall time) for the "
+                      "frames of the cameras that delivered for the previous set; cameras that "
+                      "did not, or never delivered, are not waited for (0 = never wait)"));
+  add(t, paramSpec<R>("camera_timeout", GMM_MCL_PARAM_FIELD(R, camera_timeout_s), "s", g,
+                      {1e-3, 60}, kRuntime,
+                      "Several cameras: a camera without a frame for this long (ROS time, by the "
+                      "other cameras' stamps) has dropped out (reported, the others update); the "
+                      "first camera that still delivers, in the order depth, more_cameras, "
+                      "leads the frame sets"));
+  add(t, paramSpec<R>(
              "update_min_d", GMM_MCL_PARAM_FIELD(R, update_min_d_m), "m", g, {0, 10}, kRuntime,
              "Motion gate (amcl's): a frame updates the filter once the odometry moved more "
              "than this or turned more than update_min_a since the last update; both 0: "
@@ -216,6 +239,11 @@ std::string RosOptions::validate() const {
   if (pose_set != 0 && pose_set != 4) {
     err += "~initial_pose_x, _y, _z and _yaw must be given together (a single-pose start); ";
   }
+  if (camera_set_window_s * 2 >= camera_timeout_s)
+    err += "~camera_set_window must be below half of ~camera_timeout; ";
+  std::string names;
+  moreCameraNames(*this, &names);
+  err += names;
   err += budget.validate();
   return err;
 }

@@ -5,6 +5,8 @@
 #include <ros/console.h>
 #include <ros/param.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <set>
 #include <sstream>
@@ -41,6 +43,14 @@ bool fromXmlRpc(XmlRpc::XmlRpcValue& x, ParamType type, ParamValue* v) {
     case ParamType::kDouble:
       return number(x, &v->d);
     case ParamType::kString:
+      if (x.getType() == X::TypeArray) {  // a list of names (~more_cameras: [down, left])
+        v->s.clear();
+        for (int k = 0; k < x.size(); ++k) {
+          if (x[k].getType() != X::TypeString) return false;
+          v->s += (k ? "," : "") + static_cast<std::string>(x[k]);
+        }
+        return true;
+      }
       if (x.getType() != X::TypeString) return false;
       v->s = static_cast<std::string>(x);
       return true;
@@ -205,6 +215,96 @@ std::string loadRosParams(const ros::NodeHandle& pnh, LocalizerParams* core, Ros
     }
   }
   return faults + ros->validate() + core->validate();
+}
+
+std::vector<std::string> moreCameraNames(const RosOptions& ros, std::string* error) {
+  std::vector<std::string> names;
+  std::string name;
+  auto take = [&] {
+    if (name.empty()) return;
+    bool valid = std::isalpha(static_cast<unsigned char>(name[0]));
+    for (char c : name) valid = valid && (std::isalnum(static_cast<unsigned char>(c)) || c == '_');
+    if (!valid) {
+      *error += "~more_cameras: '" + name + "' is not a ROS name (letters, digits, _); ";
+    } else if (name == "depth") {
+      *error += "~more_cameras: 'depth' is the first camera's namespace; ";
+    } else if (std::find(names.begin(), names.end(), name) != names.end()) {
+      *error += "~more_cameras: '" + name + "' is given twice; ";
+    } else {
+      names.push_back(name);
+    }
+    name.clear();
+  };
+  for (char c : ros.more_cameras) {
+    if (c == ',' || std::isspace(static_cast<unsigned char>(c)) || c == '[' || c == ']') {
+      take();
+    } else {
+      name += c;
+    }
+  }
+  take();
+  return names;
+}
+
+const std::vector<std::string>& rigCameraParamNames() {
+  static const std::vector<std::string> names = {
+      "depth_input",     "image_transport",     "pixel_stride",
+      "min_range_m",     "max_range_m",         "depth_noise_preset",
+      "depth_noise_a_m", "depth_noise_b_per_m", "depth_noise_z0_m"};
+  return names;
+}
+
+std::string loadRigCameras(const ros::NodeHandle& pnh, const LocalizerParams& core,
+                           const RosOptions& ros, std::vector<RigCameraParams>* cameras,
+                           std::vector<std::string>* unknown) {
+  std::string faults;
+  const std::vector<std::string> names = moreCameraNames(ros, &faults);
+  const std::vector<std::string>& read = rigCameraParamNames();
+  auto subset = [&read](const auto& table) {
+    typename std::decay<decltype(table)>::type out;
+    for (const auto& p : table) {
+      if (std::find(read.begin(), read.end(), p.name) != read.end()) out.push_back(p);
+    }
+    return out;
+  };
+  // The core's table in its order (depth_noise_preset before the numbers it fills).
+  static const ParamTable<LocalizerParams> core_table = subset(localizerParamTable());
+  static const ParamTable<RosOptions> ros_table = subset(rosOptionsTable());
+  cameras->clear();
+  for (const std::string& name : names) {
+    const ros::NodeHandle nh(pnh, name);
+    LocalizerParams c = core;  // the first camera's values are the defaults
+    RosOptions r = ros;
+    std::string f;
+    loadTable(nh, core_table, &c, &f);
+    loadTable(nh, ros_table, &r, &f);
+    const std::string v = c.frame.validate() + c.measurement.validate();
+    if (!v.empty()) f += v;
+    if (r.image_transport.empty()) f += "~image_transport is empty; ";
+    // "~pixel_stride ..." as "~down/pixel_stride ...".
+    for (size_t at = f.find('~'); at != std::string::npos; at = f.find('~', at + name.size() + 2))
+      f.insert(at + 1, name + "/");
+    if (!f.empty()) faults += "camera '" + name + "': " + f;
+    RigCameraParams cam;
+    cam.name = name;
+    cam.depth_input = r.depth_input;
+    cam.image_transport = r.image_transport;
+    cam.frame = c.frame;
+    cam.measurement = c.measurement;
+    cameras->push_back(cam);
+    if (unknown) {
+      std::vector<std::string> all;
+      ros::param::getParamNames(all);
+      const std::string prefix = nh.getNamespace() + "/";
+      for (const std::string& n : all) {
+        if (n.compare(0, prefix.size(), prefix) != 0) continue;
+        const std::string p = n.substr(prefix.size());
+        if (std::find(read.begin(), read.end(), p) == read.end())
+          unknown->push_back("~" + name + "/" + p);
+      }
+    }
+  }
+  return faults;
 }
 
 GmmMap loadNodeMap(const std::string& path, const RosOptions& ros, std::string* summary) {

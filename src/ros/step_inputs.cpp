@@ -58,26 +58,38 @@ bool StepInputs::waitForInputs(const ros::Time& stamp) {
   return false;
 }
 
-bool StepInputs::gather(const std_msgs::Header& header, StepInput* in, Gaps* gaps,
-                        std::string* why) {
+const Eigen::Isometry3d StepInputs::kIdentity = Eigen::Isometry3d::Identity();
+
+bool StepInputs::extrinsicsAt(const std_msgs::Header& header, size_t camera,
+                              Eigen::Isometry3d* T_base_cam, std::string* why) {
+  if (cameras_.size() <= camera) cameras_.resize(camera + 1);
+  Extrinsics& e = cameras_[camera];
+  try {  // per frame, at its stamp: a gimbal or a moving joint
+    e.T_base_cam = ros_conv::isometryFromTransform(
+        tf_->lookupTransform(opts_.base_frame, header.frame_id, header.stamp).transform);
+    e.frame = header.frame_id;
+  } catch (const tf2::TransformException& ex) {
+    // After a time jump cleared tf, the last extrinsics of the same camera still hold.
+    if (e.frame != header.frame_id) {
+      *why = "no transform " + opts_.base_frame + " <- " + header.frame_id + ": " + ex.what();
+      return false;
+    }
+  }
+  *T_base_cam = e.T_base_cam;
+  return true;
+}
+
+bool StepInputs::gather(const std_msgs::Header& header, StepInput* in, Gaps* gaps, std::string* why,
+                        bool first_camera) {
   // The IMU and odometry topics sent with the frame first (the frame's own connection may be
   // faster; odometry from tf was awaited by DepthInput's tf message filter); whatever is still
   // missing after the wait is a gap, reported below.
   waitForInputs(header.stamp);
   in->stamp_s = header.stamp.toSec();
-  try {  // per frame, at its stamp: a gimbal or a moving joint
-    T_base_cam_ = ros_conv::isometryFromTransform(
-        tf_->lookupTransform(opts_.base_frame, header.frame_id, header.stamp).transform);
-    camera_frame_ = header.frame_id;
-  } catch (const tf2::TransformException& e) {
-    // After a time jump cleared tf, the last extrinsics of the same camera still hold.
-    if (camera_frame_ != header.frame_id) {
-      *why = "no transform " + opts_.base_frame + " <- " + header.frame_id + ": " + e.what();
-      return false;
-    }
+  if (first_camera) {
+    in->has_T_base_cam = true;
+    if (!extrinsicsAt(header, 0, &in->T_base_cam, why)) return false;
   }
-  in->has_T_base_cam = true;
-  in->T_base_cam = T_base_cam_;
   std::string gap;
   in->has_odometry = odometryAt(header.stamp, &in->T_odom_base, &gap);
   if (clear_tf_) tf_->clear();

@@ -1,7 +1,9 @@
 // Writes the built-in synthetic scene (gmm_mcl::sim) as a bag for the nodelet, the rostests and
 // the demo: depth (16UC1 mm or 32FC1 m) + CameraInfo, IMU attitude, drifting odometry (as
 // nav_msgs/Odometry and as tf odom -> base_link), the static base -> camera tf, ground truth,
-// plus the map file and a parameter file with the initial region around the true start.
+// plus the map file and a parameter file with the initial region around the true start. --rig:
+// the camera rig's corridor instead (docs/multi_camera.md), a forward camera on /camera/depth/*
+// and a downward one on /down/depth/*, the initial region anywhere along 8 m of the corridor.
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <nav_msgs/Odometry.h>
@@ -18,6 +20,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <random>
+#include <stdexcept>
 #include <string>
 
 #include "gmm_mcl/cli/command_line.h"
@@ -36,9 +39,10 @@ const char* kUsage =
     "                            [--width PX] [--seed S] [--encoding 16UC1|32FC1]\n"
     "                            [--start-time S] [--init-half-extent M]\n"
     "                            [--init-yaw-half-range RAD] [--compressed] [--cloud]\n"
-    "                            [--save-mesh FILE.ply] [--quiet]\n"
+    "                            [--save-mesh FILE.ply] [--rig] [--quiet]\n"
     "Topics: /camera/depth/image_raw, /camera/depth/camera_info, /imu/data, /odom, /tf,\n"
-    "/tf_static, /ground_truth (base pose in map); --compressed adds\n"
+    "/tf_static, /ground_truth (base pose in map); --rig: the corridor with a downward camera\n"
+    "on /down/depth/image_raw, /down/depth/camera_info too; --compressed adds\n"
     "/camera/depth/image_raw/compressedDepth, --cloud /camera/depth/points (organized).\n"
     "Frames map, odom, base_link,\n"
     "camera_depth_optical_frame; 30 Hz.\n";
@@ -49,7 +53,7 @@ struct Options {
   double start_s = 1000.0, init_half_extent_m = 0.5, init_yaw_half_range_rad = 0.3;
   std::string bag_path, map_path, params_path, encoding = "16UC1";
   std::string mesh_path;  // the scene as a triangle mesh (a map given as a mesh: cloud_map.test)
-  bool quiet = false, compressed = false, cloud = false;
+  bool quiet = false, compressed = false, cloud = false, rig = false;
 };
 
 // The command line, checked: a usage error exits with status 2.
@@ -62,7 +66,8 @@ Options parseOptions(int argc, char** argv) {
             {"encoding", &o.encoding}, {"start-time", &o.start_s},
             {"init-half-extent", &o.init_half_extent_m},
             {"init-yaw-half-range", &o.init_yaw_half_range_rad}, {"quiet", &o.quiet},
-            {"compressed", &o.compressed}, {"cloud", &o.cloud}, {"save-mesh", &o.mesh_path}});
+            {"compressed", &o.compressed}, {"cloud", &o.cloud}, {"save-mesh", &o.mesh_path},
+            {"rig", &o.rig}});
   // clang-format on
   cl.parse(argc, argv);
   if (o.bag_path.empty()) cl.fail("--bag is needed");
@@ -135,12 +140,13 @@ void writeImuAndOdometry(rosbag::Bag* bag, const ros::Time& t, const Eigen::Isom
 // The depth image, its CameraInfo, optionally the organized cloud and the compressedDepth
 // image; false (said on stderr) when compressedDepth cannot encode it.
 bool writeDepth(rosbag::Bag* bag, const ros::Time& t, const DepthImage& depth, const Intrinsics& K,
-                const std::string& cam_frame, const Options& o) {
+                const std::string& cam_frame, const Options& o,
+                const std::string& ns = "/camera/depth") {
   const sensor_msgs::Image img = ros_bag::imageFromDepth(depth, t, cam_frame);
-  bag->write("/camera/depth/image_raw", t, img);
-  bag->write("/camera/depth/camera_info", t, ros_conv::cameraInfoFromIntrinsics(K, t, cam_frame));
+  bag->write(ns + "/image_raw", t, img);
+  bag->write(ns + "/camera_info", t, ros_conv::cameraInfoFromIntrinsics(K, t, cam_frame));
   if (o.cloud) {
-    bag->write("/camera/depth/points", t, ros_bag::organizedCloudFromDepth(depth, K, t, cam_frame));
+    bag->write(ns + "/points", t, ros_bag::organizedCloudFromDepth(depth, K, t, cam_frame));
   }
   if (o.compressed) {
     sensor_msgs::CompressedImage c;
@@ -150,15 +156,32 @@ bool writeDepth(rosbag::Bag* bag, const ros::Time& t, const DepthImage& depth, c
       return false;
     }
     c.header = img.header;
-    bag->write("/camera/depth/image_raw/compressedDepth", t, c);
+    bag->write(ns + "/image_raw/compressedDepth", t, c);
   }
   return true;
 }
 
+// The rig's parameters: the corridor's initial region (anywhere along 8 m of it) and the
+// forward camera's 3 m range (it sees only the blank walls); the downward camera is the
+// launch's to add (more_cameras), so that the same bag runs with the forward camera alone.
+void writeRigYaml(const std::string& path, const std::string& bag_path) {
+  std::ofstream y(path);
+  y << "# The camera rig's corridor of " << bag_path
+    << " (gmm_mcl_make_sim_bag --rig, docs/multi_camera.md)\n"
+    << "init_centre: [13.0, 1.0, 1.5]\n"
+    << "init_half_extent: [4.0, 0.3, 0.05]\n"
+    << "init_yaw_centre: 0.0\n"
+    << "init_yaw_half_range: 0.3\n"
+    << "max_range_m: 3.0\n"
+    << "# The downward camera: more_cameras: [down] (replay.launch more_cameras:=[down]\n"
+    << "# second_camera:=down), its images on /down/depth/image_raw.\n";
+  if (!y) throw std::runtime_error(path + ": cannot write");
+}
+
 int run(int argc, char** argv) {
   const Options o = parseOptions(argc, argv);
-  const sim::BoxScene scene = sim::makeDefaultScene();
-  const GmmMap map = sim::tileScene(scene, 0.4, 0.015);
+  const sim::BoxScene scene = o.rig ? sim::makeCorridorScene() : sim::makeDefaultScene();
+  const GmmMap map = sim::tileScene(scene, o.rig ? 0.25 : 0.4, 0.015);
   saveMap(map, o.map_path);
   if (!o.mesh_path.empty()) {
     sim::PrimitiveScene boxes;
@@ -166,16 +189,22 @@ int run(int argc, char** argv) {
     boxes.boxes = scene.blocks;
     sim::savePlyMesh(sim::meshFromScene(boxes), o.mesh_path);
   }
-  const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(o.frames);
-  const Eigen::Isometry3d T_base_cam = sim::defaultBaseToCamera();
+  const std::vector<Eigen::Isometry3d> truth =
+      o.rig ? sim::corridorTrajectory(o.frames) : sim::makeTrajectory(o.frames);
+  const Eigen::Isometry3d T_base_cam =
+      o.rig ? sim::corridorForwardCamera() : sim::defaultBaseToCamera();
   const Intrinsics K = sim::defaultCamera(o.width_px);
 
   const Particle start = poseToParticle(truth[0]);
   try {
-    ros_bag::writeInitRegionYaml(
-        o.params_path,
-        "Initial region around the true start of " + o.bag_path + " (gmm_mcl_make_sim_bag)", start,
-        o.init_half_extent_m, o.init_yaw_half_range_rad);
+    if (o.rig) {
+      writeRigYaml(o.params_path, o.bag_path);
+    } else {
+      ros_bag::writeInitRegionYaml(
+          o.params_path,
+          "Initial region around the true start of " + o.bag_path + " (gmm_mcl_make_sim_bag)",
+          start, o.init_half_extent_m, o.init_yaw_half_range_rad);
+    }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "%s\n", e.what());
     return 1;
@@ -191,6 +220,8 @@ int run(int argc, char** argv) {
   const std::string cam_frame = "camera_depth_optical_frame";
   const ros::Time t0(o.start_s);
   writeStaticTransform(&bag, t0, T_base_cam, cam_frame);
+  const std::string down_frame = "down_depth_optical_frame";
+  if (o.rig) writeStaticTransform(&bag, t0, sim::corridorDownCamera(), down_frame);
 
   std::mt19937_64 rng(o.seed + 1000);
   std::normal_distribution<double> g(0.0, 1.0);
@@ -213,6 +244,11 @@ int run(int argc, char** argv) {
     const DepthImage depth =
         sim::renderDepth(scene, K, truth[f] * T_base_cam, enc, 8.0, noise, &rng);
     if (!writeDepth(&bag, t, depth, K, cam_frame, o)) return 1;
+    if (o.rig) {
+      const DepthImage down =
+          sim::renderDepth(scene, K, truth[f] * sim::corridorDownCamera(), enc, 8.0, noise, &rng);
+      if (!writeDepth(&bag, t, down, K, down_frame, o, "/down/depth")) return 1;
+    }
 
     geometry_msgs::PoseStamped gt;
     gt.header.stamp = t;

@@ -38,6 +38,8 @@ struct RobotFrame {
   bool dynamic_extrinsics = false;  // base -> camera on /tf at the frame's stamp
   double extrinsics_jitter_deg = 0.0;
   double wall_depth_m = 0.0;  // > 0: a flat wall at this depth instead of the scene
+  bool first_camera = true;   // false: no frame of the first camera (a rig's dropout)
+  bool more_cameras = true;   // frames of the cameras added with addCamera()
 };
 
 class SyntheticRobot {
@@ -82,14 +84,36 @@ class SyntheticRobot {
     // /tf too (odometry at a frame's stamp): a frame whose odometry was lost waits for good.
     return waitFor([&] {
       return connectedToAll(image_pub_) && connectedToAll(info_pub_) && connectedToAll(imu_pub_) &&
-             connectedToAll(tf_pub_) && clock_->connected();
+             connectedToAll(tf_pub_) && clock_->connected() && moreCamerasConnected();
     });
+  }
+  // Another depth camera of the rig: 16UC1 images and CameraInfo on NS/image and NS/camera_info,
+  // its optical frame `frame_id` at T_base_cam on /tf_static (publishStaticExtrinsics).
+  void addCamera(ros::NodeHandle& nh, const std::string& ns, const std::string& frame_id,
+                 const Eigen::Isometry3d& T_base_cam) {
+    RigCamera c;
+    c.frame_id = frame_id;
+    c.T_base_cam = T_base_cam;
+    c.image = nh.advertise<sensor_msgs::Image>(ns + "/image", 100);
+    c.info = nh.advertise<sensor_msgs::CameraInfo>(ns + "/camera_info", 100);
+    more_.push_back(c);
+  }
+  bool moreCamerasConnected() const {
+    for (const RigCamera& c : more_) {
+      if (!connectedToAll(c.image) || !connectedToAll(c.info)) return false;
+    }
+    return true;
   }
   void publishStaticExtrinsics() {
     if (static_sent_) return;
     static_sent_ = true;
-    static_tf_.sendTransform(ros_conv::transformStamped(
-        extrinsics(), "base_link", "camera_depth_optical_frame", ros::Time(0)));
+    // One message: the latched /tf_static keeps only this node's last one.
+    std::vector<geometry_msgs::TransformStamped> all = {ros_conv::transformStamped(
+        extrinsics(), "base_link", "camera_depth_optical_frame", ros::Time(0))};
+    for (const RigCamera& c : more_)
+      all.push_back(
+          ros_conv::transformStamped(c.T_base_cam, "base_link", c.frame_id, ros::Time(0)));
+    static_tf_.sendTransform(all);
   }
   void publishOdometry(const ros::Time& t, const Eigen::Isometry3d& T_map_base) {
     sendTf(ros_conv::transformStamped(T_odom_base(T_map_base), "odom", "base_link", t));
@@ -154,8 +178,23 @@ class SyntheticRobot {
     info.height = K_.height_px * s;
     info.K = {K_.fx_px * s, 0, K_.cx_px * s, 0, K_.fy_px * s, K_.cy_px * s, 0, 0, 1};
     info.P = {K_.fx_px * s, 0, K_.cx_px * s, 0, 0, K_.fy_px * s, K_.cy_px * s, 0, 0, 0, 1, 0};
-    if (f.image) image_pub_.publish(img);
-    if (f.camera_info) info_pub_.publish(info);
+    if (f.image && f.first_camera) image_pub_.publish(img);
+    if (f.camera_info && f.first_camera) info_pub_.publish(info);
+    if (!f.more_cameras) return;
+    for (RigCamera& c : more_) {
+      const DepthImage depth = sim::renderDepth(scene_, K_, T_map_base * c.T_base_cam,
+                                                DepthEncoding::kMono16Millimetres, 8.0);
+      sensor_msgs::Image m = img;
+      m.header.frame_id = c.frame_id;
+      m.header.seq = c.seq++;
+      m.encoding = "16UC1";
+      m.step = static_cast<uint32_t>(depth.row_bytes);
+      m.data = depth.data;
+      sensor_msgs::CameraInfo i = info;
+      i.header = m.header;
+      c.image.publish(m);
+      c.info.publish(i);
+    }
   }
 
  private:
@@ -166,7 +205,15 @@ class SyntheticRobot {
     tf_pub_.publish(m);
   }
 
+  struct RigCamera {
+    std::string frame_id;
+    Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();
+    ros::Publisher image, info;
+    uint32_t seq = 0;
+  };
+
   Clock* clock_;
+  std::vector<RigCamera> more_;
   sim::BoxScene scene_;
   std::vector<Eigen::Isometry3d> truth_;
   Intrinsics K_;

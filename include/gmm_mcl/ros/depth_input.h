@@ -44,10 +44,11 @@ class DepthInput {
     std::function<void(const std::string&)> note;
   };
 
-  // Subscribes on nh (depth/image + depth/camera_info, or depth/points); callbacks run on nh's
-  // callback queue. pnh carries the image_transport hints.
+  // Subscribes on nh (NS/image + NS/camera_info, or NS/points; NS: depth for the first camera,
+  // a rig camera's name for the others); callbacks run on nh's callback queue. pnh carries the
+  // image_transport hints.
   DepthInput(ros::NodeHandle nh, ros::NodeHandle pnh, tf2_ros::Buffer* tf, const RosOptions& opts,
-             Callbacks callbacks);
+             Callbacks callbacks, const std::string& ns = "depth");
   ~DepthInput();
 
   std::string depthTopic() const { return depth_topic_; }

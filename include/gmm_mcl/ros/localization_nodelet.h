@@ -36,6 +36,7 @@
 #include "gmm_mcl/filter/pose_reset.h"
 #include "gmm_mcl/ros/depth_input.h"
 #include "gmm_mcl/ros/frame_outputs.h"
+#include "gmm_mcl/ros/frame_sets.h"
 #include "gmm_mcl/ros/map_markers.h"
 #include "gmm_mcl/ros/node_status.h"
 #include "gmm_mcl/ros/ros_params.h"
@@ -54,7 +55,19 @@ class LocalizationNodelet : public nodelet::Nodelet {
   void advertise();
 
   // Single-threaded queue.
-  void onFrame(const std_msgs::Header& header, const DepthImage& depth, const Intrinsics& K);
+  // One update: a frame of the one camera, or a frame set of a rig (set; header, depth and K
+  // are then its lead frame's).
+  void onFrame(const std_msgs::Header& header, const DepthImage& depth, const Intrinsics& K,
+               const FrameSet* set = nullptr);
+  // Several cameras: camera i's frame to the frame sets; the completed sets updated, the wait
+  // of a pending one armed (a one-shot wall timer on the same queue: nothing blocks it).
+  void onCameraFrame(size_t camera, const std_msgs::Header& header, const DepthImage& depth,
+                     const Intrinsics& K);
+  void drainSets();
+  // The StepInput's cameras of a set (extrinsics from tf); *problems: per camera, why not.
+  void fillCameras(const FrameSet& set, StepInput* in, std::vector<std::string>* problems);
+  void recordCameras(const FrameSet& set, const StepResult& r,
+                     const std::vector<std::string>& problems);
   void onDrop(FrameDrop reason, const std::string& why);
   void onInitialPose(const geometry_msgs::PoseWithCovarianceStampedConstPtr& msg);
   bool onGlobalLocalization(std_srvs::Empty::Request& req, std_srvs::Empty::Response& res);
@@ -71,7 +84,8 @@ class LocalizationNodelet : public nodelet::Nodelet {
   void logMotionSource(bool has_odometry);
   void publish(const std_msgs::Header& header, const StepResult& r,
                const Eigen::Isometry3d& T_map_base, const DepthImage& depth, const Intrinsics& K,
-               double callback_ms, const std::string& warnings, bool gated);
+               double callback_ms, const std::string& warnings, bool gated,
+               const FrameSet* set = nullptr);
   void problem(const std::string& what, bool warn = true);
   // The frame-rate budget: a frame's stamp for the period, an update's duration for the choice,
   // which goes to the localizer (keeping the particles) when it changes.
@@ -90,6 +104,14 @@ class LocalizationNodelet : public nodelet::Nodelet {
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
   std::unique_ptr<image_transport::ImageTransport> it_;
   std::unique_ptr<DepthInput> input_;
+  // Several cameras (~more_cameras): the others' parameters and inputs, the frame sets.
+  std::vector<RigCameraParams> rig_;
+  std::vector<std::unique_ptr<DepthInput>> more_inputs_;
+  std::unique_ptr<FrameSets> sets_;
+  ros::WallTimer set_timer_;  // the pending set's wait
+  unsigned long armed_generation_ = 0;
+  long long first_dropped_in_sets_ = 0;  // the first camera's frames dropped by the sets, counted
+  int last_lead_ = 0;
   ros::Subscriber imu_sub_, odom_sub_, initialpose_sub_;
   FrameOutputs outputs_;  // ~pose, ~refined_pose, tf, ~particles, ~status, ~debug_image
   MapMarkers markers_;

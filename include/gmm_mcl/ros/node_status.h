@@ -12,6 +12,7 @@
 #include "gmm_mcl/FilterStatus.h"
 #include "gmm_mcl/filter/localizer.h"
 #include "gmm_mcl/filter/update_budget.h"
+#include "gmm_mcl/ros/frame_sets.h"
 
 namespace gmm_mcl {
 
@@ -20,19 +21,22 @@ enum class FrameDrop {
   kConversion,  // the image or cloud could not be read (encoding, layout)
   kCameraInfo,  // its CameraInfo was refused, or none came with its stamp
   kExtrinsics,  // no tf to base_frame (or odom_frame) at its stamp in time
+  kFrameSet,    // several cameras: superseded by a newer frame, or too late for its set
 };
 
-// Every depth message that arrives ends in one of: processed (a core step ran), gated (no
-// motion since the last update), dropped for a reason, or still waiting (for tf or for its
-// CameraInfo): received == processed + gated + dropped() + waiting().
+// Every depth message (of the first camera, with several) that arrives ends in one of: processed (a
+// core step ran), gated (no motion since the last update), dropped for a reason, or still waiting
+// (for tf or for its CameraInfo): received == processed + gated + dropped() + waiting().
 struct FrameCounters {
   long long received = 0;
   long long processed = 0;
   long long gated = 0;
-  long long dropped_conversion = 0;   // image or cloud rejected (encoding, layout)
-  long long dropped_camera_info = 0;  // CameraInfo rejected, or none with the image's stamp
-  long long dropped_extrinsics = 0;   // tf to base_frame (or odom_frame) not there in time
-  long long missed_seq = 0;           // never arrived (subscriber queue), from header.seq gaps
+  long long dropped_conversion = 0;     // image or cloud rejected (encoding, layout)
+  long long dropped_camera_info = 0;    // CameraInfo rejected, or none with the image's stamp
+  long long dropped_extrinsics = 0;     // tf to base_frame (or odom_frame) not there in time
+  long long dropped_frame_set = 0;      // several cameras: superseded, or too late for its set
+  long long updates_other_cameras = 0;  // several cameras: updates led by another camera
+  long long missed_seq = 0;             // never arrived (subscriber queue), from header.seq gaps
   long long camera_info_received = 0;
   long long imu_received = 0;
   long long odometry_received = 0;
@@ -43,7 +47,7 @@ struct FrameCounters {
   void arrived(uint32_t seq);
   void drop(FrameDrop reason);
   long long dropped() const {
-    return dropped_conversion + dropped_camera_info + dropped_extrinsics;
+    return dropped_conversion + dropped_camera_info + dropped_extrinsics + dropped_frame_set;
   }
   long long waiting() const { return received - processed - gated - dropped(); }
 
@@ -74,6 +78,18 @@ struct PeriodicSchedule {
 };
 
 // What /diagnostics summarises (a snapshot, times in seconds of ROS time).
+// One camera of a rig (~more_cameras): what /diagnostics and ~status say about it.
+struct CameraHealth {
+  std::string name;             // depth (the first camera) or its ~more_cameras name
+  std::string topic;            // its depth topic
+  long long arrived = 0;        // depth messages (any outcome)
+  long long dropped_input = 0;  // refused by its input (conversion, CameraInfo, tf)
+  CameraSetStats sets;          // the frame sets' counts (frame_sets.h)
+  bool leads = false, in_last_set = false, used_last = false;  // in the last update
+  int pixels = 0;
+  std::string problem;  // why not used in the last update
+};
+
 struct NodeHealth {
   std::string config_error;
   FrameCounters counters;
@@ -99,6 +115,9 @@ struct NodeHealth {
   double warn_sigma_xy_m = 0.25, warn_sigma_yaw_rad = 0.25;
   double neff = 0.0, update_ms = 0.0;
   BudgetState budget;  // the frame-rate budget's choice
+  // Several cameras: each, the first one first; empty with one camera.
+  std::vector<CameraHealth> cameras;
+  double timeout_s = 0.5;  // ~camera_timeout
 };
 
 struct Diagnosis {
@@ -109,10 +128,15 @@ struct Diagnosis {
 // One used frame (updated, or gated: not updated for lack of motion) into the counters and the
 // diagnostics snapshot (imu/odometry counts set by the caller), and its ~status (header left to
 // the caller).
+// first_camera false: an update of several cameras led by another than the first (counted as
+// updates_other_cameras, not as a frame of the first camera).
 void recordFrame(const StepResult& r, bool gated, bool sent_tf, double now_s,
                  const LostDetectionParams& lost, const std::string& backend,
                  const std::string& backend_warning, double callback_ms,
-                 const std::string& warnings, NodeHealth* h, FilterStatus* status);
+                 const std::string& warnings, NodeHealth* h, FilterStatus* status,
+                 bool first_camera = true);
+// ~status' cameras from the health's (several cameras; nothing with one camera).
+void fillCameraStatus(const NodeHealth& h, double set_stamp_s, FilterStatus* status);
 
 // The most severe findings first (ERROR: bad configuration, a backend error; WARN: no input,
 // images without CameraInfo, lost, not converged, a CPU fallback, a recent problem), joined by
@@ -138,7 +162,10 @@ class HealthMonitor {
                      const LostDetectionParams& lost, const std::string& backend,
                      const std::string& backend_warning, double callback_ms,
                      const std::string& warnings, long long imu_received,
-                     long long odometry_received);
+                     long long odometry_received, bool first_camera = true);
+  // Several cameras: a depth message of camera i arrived, or its input refused one.
+  void cameraArrived(size_t camera);
+  void cameraDropped(size_t camera);
 
  private:
   mutable std::mutex mutex_;

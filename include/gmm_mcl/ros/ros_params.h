@@ -43,6 +43,13 @@ struct RosOptions {
   double odom_timeout_s = 0.2;
   double imu_timeout_s = 0.5;
   double input_wait_s = 0.1;  // at most, for a frame's IMU and odometry messages (StepInputs)
+  // A rig of several depth cameras (docs/ros.md, Several depth cameras): the other cameras' names,
+  // comma-separated (a YAML list is accepted too); each subscribes NAME/image + NAME/camera_info
+  // (or NAME/points) and has its own parameters under ~NAME/ (RigCameraParams).
+  std::string more_cameras;
+  double camera_set_window_s = 0.02;  // frames within this of the leading frame's stamp: one set
+  double camera_set_wait_s = 0.1;     // wall time a set waits at most for the other cameras
+  double camera_timeout_s = 0.5;      // ROS time without a frame: a camera has dropped out
   int queue_size = 1;
   bool init_from_map_bounds = false;
   double initial_sigma_xy_m = 0.25;  // spread of a requested pose whose covariance gives none
@@ -85,6 +92,27 @@ struct RosOptions {
 };
 
 const ParamTable<RosOptions>& rosOptionsTable();
+
+// One more depth camera of the rig (RosOptions::more_cameras): its own input and frame and noise
+// parameters, read from ~NAME/ with the first camera's values as defaults.
+struct RigCameraParams {
+  std::string name;               // its namespace: NAME/image + NAME/camera_info, or NAME/points
+  std::string depth_input;        // ~NAME/depth_input: image or cloud
+  std::string image_transport;    // ~NAME/image_transport
+  FrameParams frame;              // ~NAME/pixel_stride, min_range_m, max_range_m
+  MeasurementParams measurement;  // ~NAME/depth_noise_preset, depth_noise_a_m, _b_per_m, _z0_m
+};
+// The names in more_cameras (split at commas and blanks); "" in *error unless each is a valid
+// ROS name, not "depth" (the first camera's namespace) and given once.
+std::vector<std::string> moreCameraNames(const RosOptions& ros, std::string* error);
+// The parameter names a rig camera reads under ~NAME/ (mirroring the first camera's).
+const std::vector<std::string>& rigCameraParamNames();
+// Reads each camera of ros.more_cameras from ~NAME/ (defaults: the first camera's values in
+// core and ros). Returns "" when valid, else every fault; *unknown: parameters under ~NAME/ that
+// a rig camera does not read.
+std::string loadRigCameras(const ros::NodeHandle& pnh, const LocalizerParams& core,
+                           const RosOptions& ros, std::vector<RigCameraParams>* cameras,
+                           std::vector<std::string>* unknown = nullptr);
 
 // Reads the private parameters into *core and *ros (defaults where absent). Returns "" when
 // valid, else every fault (wrong types, values out of range, unknown modes, the core's

@@ -11,6 +11,7 @@
 
 #include <atomic>
 #include <string>
+#include <vector>
 
 #include "gmm_mcl/filter/localizer.h"
 #include "gmm_mcl/filter/stamped_buffer.h"
@@ -47,20 +48,34 @@ class StepInputs {
   // Waits for the frame's inputs (waitForInputs), then fills `in` (stamp, extrinsics, odometry,
   // attitude) for it. False, with why, when the
   // camera frame has no extrinsics (and none from an earlier frame of the same camera).
-  bool gather(const std_msgs::Header& header, StepInput* in, Gaps* gaps, std::string* why);
+  // first_camera false (a frame set led by another camera of the rig): the header's frame is
+  // not the first camera's, whose extrinsics are left to the caller (in->has_T_base_cam and
+  // T_base_cam untouched: extrinsicsAt()).
+  bool gather(const std_msgs::Header& header, StepInput* in, Gaps* gaps, std::string* why,
+              bool first_camera = true);
+  // Camera `camera`'s (0: the first) base -> optical frame at the frame's stamp from tf; after a
+  // time jump cleared tf, the last ones of the same camera frame. False, with why, otherwise.
+  bool extrinsicsAt(const std_msgs::Header& header, size_t camera, Eigen::Isometry3d* T_base_cam,
+                    std::string* why);
   // Odometry (odom -> base) at a stamp, from tf or the buffered topic.
   bool odometryAt(const ros::Time& stamp, Eigen::Isometry3d* T_odom_base, std::string* why) const;
   // Time went back (a looped bag): what the buffers hold after the stamp is dropped; tf is
   // cleared after the next gather (which still reads the frame's own transforms).
   void timeJumpedBack(const ros::Time& stamp);
-  const Eigen::Isometry3d& extrinsics() const { return T_base_cam_; }
+  const Eigen::Isometry3d& extrinsics(size_t camera = 0) const {
+    return camera < cameras_.size() ? cameras_[camera].T_base_cam : kIdentity;
+  }
 
  private:
   tf2_ros::Buffer* tf_;
   RosOptions opts_;
   StampedPoseBuffer imu_{2.0}, odom_{10.0};
-  std::string camera_frame_;
-  Eigen::Isometry3d T_base_cam_ = Eigen::Isometry3d::Identity();
+  struct Extrinsics {
+    std::string frame;  // the camera frame they belong to ("": none yet)
+    Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();
+  };
+  std::vector<Extrinsics> cameras_;  // the last ones of each camera
+  static const Eigen::Isometry3d kIdentity;
   bool clear_tf_ = false;
   std::atomic<long long> waits_begun_{0}, waits_in_vain_{0};
 };
