@@ -34,6 +34,8 @@ void FrameSets::add(int camera, CameraFrame frame) {
   newest_s_ = std::max(newest_s_, t);
   Camera& cam = cams_[camera];
   ++cam.stats.frames;
+  if (cam.stats.last_stamp_s >= 0.0 && t > cam.stats.last_stamp_s)
+    cam.period_s = t - cam.stats.last_stamp_s;
   cam.stats.last_stamp_s = t;
   auto f = std::make_shared<CameraFrame>(std::move(frame));
   cam.frames.push_back(f);
@@ -66,9 +68,14 @@ void FrameSets::open(int camera) {
   const double t = stampS(*open_.frames[camera]);
   awaited_.assign(cams_.size(), false);
   for (int i = 0; i < cameras(); ++i) {
+    // Awaited when its next frame is due within the window: by its period once known (a camera
+    // slower than the lead is awaited only for the sets its frames fall in, a camera that
+    // stopped only once), else when it was in the last set.
     const double last = cams_[i].stats.last_stamp_s;
-    awaited_[i] = i != camera && params_.wait_s > 0.0 && delivers(i, t) &&
-                  (last_set_s_ < 0.0 || last >= last_set_s_ - params_.window_s);
+    const double period = cams_[i].period_s;
+    const bool due = period > 0.0 ? std::abs(last + period - t) <= params_.window_s
+                                  : last_set_s_ < 0.0 || last >= last_set_s_ - params_.window_s;
+    awaited_[i] = i != camera && params_.wait_s > 0.0 && delivers(i, t) && due;
   }
   pending_ = true;
   ++generation_;
@@ -141,6 +148,7 @@ void FrameSets::restart() {
     cam.stats.last_stamp_s = -1.0;  // nobody is waited for before it delivers again
     cam.stats.dropped_out = false;
     cam.stats.last_used_s = -1.0;
+    cam.period_s = -1.0;
   }
   if (pending_) ++cams_[open_.lead].stats.dropped;
   pending_ = false;

@@ -222,6 +222,61 @@ TEST(MultiCameraTest, FirstCameraDropsOutAndComesBack) {
                                    f.dropped_frame_set + f.frames_waiting);
 }
 
+TEST(MultiCameraTest, AHalfRateCameraAndFramesItCannotUse) {
+  // The down camera at 15 Hz beside the 30 Hz forward one: used in the sets its frames fall
+  // in (the others do not wait for it), never reported out.
+  SyntheticRobot::Frame both, forward_only;
+  forward_only.more_cameras = false;
+  int used = 0;
+  double worst = 0.0;
+  const FilterStatus* s = nullptr;
+  for (int i = 0; i < 20; ++i) {
+    ros::Time t;
+    s = next(i % 2 == 0 ? both : forward_only, &t);
+    ASSERT_NE(s, nullptr) << "frame " << i << " at half rate: " << w->obs.describe();
+    const CameraStatus* down = camera(*s, "down");
+    ASSERT_NE(down, nullptr);
+    EXPECT_NE(down->state, "dropped_out") << describeCameras(*s);
+    if (i % 2 == 1) EXPECT_FALSE(down->used) << describeCameras(*s);
+    used += down->used ? 1 : 0;
+    worst = std::max(worst, errorOfFrame(t, w->k));
+  }
+  std::printf("[ measured ] down camera at half rate: in %d of 10 sets, worst error %.3f m\n", used,
+              worst);
+  EXPECT_GE(used, 8);  // all but the first two (its period known from its second frame)
+  EXPECT_LT(worst, kTrackedM);
+
+  // Its CameraInfo twice its images' size: its frames are refused and named, the forward
+  // camera goes on.
+  SyntheticRobot::Frame bad_info;
+  bad_info.more_info_scale = 2;
+  for (int i = 0; i < 6; ++i) {
+    ros::Time t;
+    s = next(bad_info, &t);
+    ASSERT_NE(s, nullptr) << w->obs.describe();
+    EXPECT_FALSE(camera(*s, "down")->used) << describeCameras(*s);
+    EXPECT_TRUE(camera(*s, "depth")->used) << describeCameras(*s);
+    EXPECT_LT(errorOfFrame(t, w->k), kTrackedM);
+  }
+  Diag d;
+  EXPECT_TRUE(diagUntil(
+      [](const Diag& d) {
+        return d.level >= diagnostic_msgs::DiagnosticStatus::WARN &&
+               d.message.find("camera 'down': depth frame dropped") != std::string::npos &&
+               d.message.find("CameraInfo says") != std::string::npos;
+      },
+      &d, 5))
+      << d.message;
+  // Good frames again: used within four (its period is learned again).
+  int until_used = 0;
+  for (; until_used < 5; ++until_used) {
+    s = next(both);
+    ASSERT_NE(s, nullptr) << w->obs.describe();
+    if (camera(*s, "down")->used) break;
+  }
+  EXPECT_LT(until_used, 5) << describeCameras(*s);
+}
+
 }  // namespace lockstep
 }  // namespace gmm_mcl
 

@@ -40,6 +40,7 @@ struct RobotFrame {
   double wall_depth_m = 0.0;  // > 0: a flat wall at this depth instead of the scene
   bool first_camera = true;   // false: no frame of the first camera (a rig's dropout)
   bool more_cameras = true;   // frames of the cameras added with addCamera()
+  int more_info_scale = 1;    // their CameraInfo for an image this many times larger
 };
 
 class SyntheticRobot {
@@ -192,6 +193,11 @@ class SyntheticRobot {
       m.data = depth.data;
       sensor_msgs::CameraInfo i = info;
       i.header = m.header;
+      const int ms = f.more_info_scale;
+      i.width = K_.width_px * ms;
+      i.height = K_.height_px * ms;
+      i.K = {K_.fx_px * ms, 0, K_.cx_px * ms, 0, K_.fy_px * ms, K_.cy_px * ms, 0, 0, 1};
+      i.P = {K_.fx_px * ms, 0, K_.cx_px * ms, 0, 0, K_.fy_px * ms, K_.cy_px * ms, 0, 0, 0, 1, 0};
       c.image.publish(m);
       c.info.publish(i);
     }

@@ -41,6 +41,27 @@ TEST(FrameSetsTest, OneSetPerLeadFrameWithTheOthersInTheWindow) {
   EXPECT_FALSE(s.waited_in_vain);
 }
 
+TEST(FrameSetsTest, ASlowerCameraIsAwaitedOnlyForTheSetsItsFramesFallIn) {
+  // The second camera at 15 Hz beside a 30 Hz first one, each of its frames handed in after
+  // the first camera's of the same stamp (another connection): once its period is known, the
+  // sets its frames fall in wait for them and the others do not.
+  FrameSets sets(2, FrameSetParams());
+  FrameSet s;
+  int used = 0, in_vain = 0;
+  for (int k = 0; k < 20; ++k) {
+    sets.add(0, frameAt(k * kPeriodS));
+    if (k % 2 == 0) sets.add(1, frameAt(k * kPeriodS));
+    if (sets.pending()) sets.expire(sets.generation());  // the caller's timer
+    ASSERT_TRUE(sets.takeReady(&s)) << k;
+    in_vain += s.waited_in_vain ? 1 : 0;
+    used += s.frames[1] ? 1 : 0;
+    if (k >= 4) EXPECT_EQ(static_cast<bool>(s.frames[1]), k % 2 == 0) << k;
+  }
+  EXPECT_EQ(used, 8);     // from its third frame on (its period known from the second)
+  EXPECT_EQ(in_vain, 1);  // the set after its first frame, which it was in
+  EXPECT_FALSE(sets.stats(1).dropped_out);
+}
+
 TEST(FrameSetsTest, DropoutWaitsOnceThenNotReportedAndBack) {
   FrameSets sets(2, FrameSetParams());
   FrameSet s;

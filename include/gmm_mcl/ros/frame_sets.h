@@ -94,6 +94,7 @@ class FrameSets {
   struct Camera {
     std::deque<std::shared_ptr<CameraFrame>> frames;  // not used yet, oldest first
     CameraSetStats stats;
+    double period_s = -1.0;  // between its last two frames; < 0: not known yet
   };
   int leadFor(double stamp_s) const;
   bool delivers(int camera, double stamp_s) const;
