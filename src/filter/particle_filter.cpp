@@ -342,16 +342,24 @@ void ParticleFilter::evaluatePoses(const MeasurementContext& ctx,
   ctx.backend->evaluate(*ctx.frame, poses_, *ctx.params, out);
 }
 
+namespace {
+
+// One backend evaluation's counts and stage times (stats may be null).
+void reportEvaluation(const BackendOutput& out, EvaluationStats* stats) {
+  if (!stats) return;
+  stats->evaluations = out.evaluations;
+  stats->relevant_pairs = out.relevant_pairs;
+  stats->patches_with_pixels = out.patches_with_pixels;
+  stats->projection_membership_ms = out.projection_membership_ms;
+  stats->likelihood_ms = out.likelihood_ms;
+}
+
+}  // namespace
+
 void ParticleFilter::evaluateFrame(const MeasurementContext& ctx, EvaluationStats* stats) {
   evaluatePoses(ctx, particles_, &output_);
   resampled_since_evaluation_ = false;
-  if (stats) {
-    stats->evaluations = output_.evaluations;
-    stats->relevant_pairs = output_.relevant_pairs;
-    stats->patches_with_pixels = output_.patches_with_pixels;
-    stats->projection_membership_ms = output_.projection_membership_ms;
-    stats->likelihood_ms = output_.likelihood_ms;
-  }
+  reportEvaluation(output_, stats);
 }
 
 void ParticleFilter::accumulateFrame(const MeasurementContext& ctx, double scale,
@@ -366,13 +374,7 @@ void ParticleFilter::accumulateFrame(const MeasurementContext& ctx, double scale
   }
   output_.evaluations += more_output_.evaluations;
   output_.relevant_pairs += more_output_.relevant_pairs;
-  if (stats) {
-    stats->evaluations = more_output_.evaluations;
-    stats->relevant_pairs = more_output_.relevant_pairs;
-    stats->patches_with_pixels = more_output_.patches_with_pixels;
-    stats->projection_membership_ms = more_output_.projection_membership_ms;
-    stats->likelihood_ms = more_output_.likelihood_ms;
-  }
+  reportEvaluation(more_output_, stats);
 }
 
 void ParticleFilter::setFrameLogLikelihoods(const std::vector<double>& log_likelihood,

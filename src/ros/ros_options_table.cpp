@@ -90,8 +90,9 @@ void addNodeOptions(ParamTable<R>* t) {
   add(t, paramSpec<R>("camera_set_wait", GMM_MCL_PARAM_FIELD(R, camera_set_wait_s), "s", g, {0, 10},
                       kRuntime,
                       "Several cameras: a frame set waits at most this long (wall time) for the "
-                      "frames of the cameras that delivered for the previous set; cameras that "
-                      "did not, or never delivered, are not waited for (0 = never wait)"));
+                      "cameras whose next frame is due within the window (by their period, else "
+                      "when they were in the previous set); cameras that never delivered are not "
+                      "waited for (0 = never wait)"));
   add(t, paramSpec<R>("camera_timeout", GMM_MCL_PARAM_FIELD(R, camera_timeout_s), "s", g,
                       {1e-3, 60}, kRuntime,
                       "Several cameras: a camera without a frame for this long (ROS time, by the "

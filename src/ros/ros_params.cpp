@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <functional>
 #include <set>
 #include <sstream>
 
@@ -196,23 +197,39 @@ void cfgLines(const ParamTable<S>& table, std::set<std::string>* groups, std::os
 
 }  // namespace
 
+namespace {
+
+// The parameters under nh's namespace (their names relative to it) that `known` refuses, as
+// "~" + prefix + name.
+void listUnknown(const ros::NodeHandle& nh, const std::string& prefix,
+                 const std::function<bool(const std::string&)>& known,
+                 std::vector<std::string>* unknown) {
+  std::vector<std::string> names;
+  ros::param::getParamNames(names);
+  const std::string ns = nh.getNamespace() + "/";
+  for (const std::string& n : names) {
+    if (n.compare(0, ns.size(), ns) != 0) continue;
+    const std::string name = n.substr(ns.size());
+    if (!known(name)) unknown->push_back("~" + prefix + name);
+  }
+}
+
+}  // namespace
+
 std::string loadRosParams(const ros::NodeHandle& pnh, LocalizerParams* core, RosOptions* ros,
                           std::vector<std::string>* unknown) {
   std::string faults;
   loadTable(pnh, localizerParamTable(), core, &faults);
   loadTable(pnh, rosOptionsTable(), ros, &faults);
   if (unknown) {
-    std::vector<std::string> names;
-    ros::param::getParamNames(names);
-    const std::string prefix = pnh.getNamespace() + "/";
-    for (const std::string& n : names) {
-      if (n.compare(0, prefix.size(), prefix) != 0) continue;
-      const std::string name = n.substr(prefix.size());
-      if (name.find('/') == std::string::npos && !findParam(localizerParamTable(), name) &&
-          !findParam(rosOptionsTable(), name)) {
-        unknown->push_back("~" + name);
-      }
-    }
+    // Names with a '/' are a rig camera's (loadRigCameras checks those).
+    listUnknown(
+        pnh, "",
+        [](const std::string& name) {
+          return name.find('/') != std::string::npos || findParam(localizerParamTable(), name) ||
+                 findParam(rosOptionsTable(), name);
+        },
+        unknown);
   }
   return faults + ros->validate() + core->validate();
 }
@@ -293,15 +310,12 @@ std::string loadRigCameras(const ros::NodeHandle& pnh, const LocalizerParams& co
     cam.measurement = c.measurement;
     cameras->push_back(cam);
     if (unknown) {
-      std::vector<std::string> all;
-      ros::param::getParamNames(all);
-      const std::string prefix = nh.getNamespace() + "/";
-      for (const std::string& n : all) {
-        if (n.compare(0, prefix.size(), prefix) != 0) continue;
-        const std::string p = n.substr(prefix.size());
-        if (std::find(read.begin(), read.end(), p) == read.end())
-          unknown->push_back("~" + name + "/" + p);
-      }
+      listUnknown(
+          nh, name + "/",
+          [&read](const std::string& p) {
+            return std::find(read.begin(), read.end(), p) != read.end();
+          },
+          unknown);
     }
   }
   return faults;

@@ -1,6 +1,8 @@
 // The device particle filter (CudaParticleFilter) against the host one (ParticleFilter, the
 // reference): the likelihood of device-resident poses, screening and the recovery counts, to stated
 // tolerances. Exits 77 with the reason when no CUDA device is present.
+#include <tuple>
+
 #include "cuda_particle_filter_test_utils.h"
 
 namespace gmm_mcl {
@@ -22,15 +24,24 @@ struct ReferenceView {
   const DepthFrame frame;
 };
 
+// The CPU and the CUDA backend, both with the map.
+struct BothBackends {
+  explicit BothBackends(const GmmMap& map) : gpu(makeCuda()) {
+    cpu.setMap(map);
+    gpu->setMap(map);
+  }
+  CpuBackend cpu;
+  std::unique_ptr<CudaBackend> gpu;
+};
+
 TEST(CudaParticleFilterTest, LikelihoodOfDeviceParticlesMatchesTheHostPath) {
   const auto& w = test::world();
   const ReferenceView view(4);
   const int n = 3000;
   const ParticleFilterParams p = filterParams(n);
-  CpuBackend cpu;
-  std::unique_ptr<CudaBackend> gpu = makeCuda();
-  cpu.setMap(w.map);
-  gpu->setMap(w.map);
+  BothBackends backends(w.map);
+  CpuBackend& cpu = backends.cpu;
+  CudaBackend* gpu = backends.gpu.get();
   MeasurementParams mp;
   MeasurementContext ctx;
   ctx.frame = &view.frame;
@@ -60,7 +71,7 @@ TEST(CudaParticleFilterTest, LikelihoodOfDeviceParticlesMatchesTheHostPath) {
   const double floor_scale = static_cast<double>(view.frame.size());
   for (int source = 0; source < 2; ++source) {
     SCOPED_TRACE(source == 0 ? "frame prepared on the GPU" : "host frame uploaded");
-    CudaParticleFilter device(p, gpu.get());
+    CudaParticleFilter device(p, gpu);
     device.setParticles(particles, std::vector<double>(n, 1.0));
     if (source == 0) {
       DeviceFrameSummary summary;
@@ -69,7 +80,7 @@ TEST(CudaParticleFilterTest, LikelihoodOfDeviceParticlesMatchesTheHostPath) {
     } else {
       gpu->uploadDeviceFrame(view.frame);
     }
-    ctx.backend = gpu.get();
+    ctx.backend = gpu;
     EvaluationStats ds;
     device.evaluateFrame(ctx, &ds);
     const std::vector<double> got = device.frameLogLikelihoods();
@@ -113,20 +124,15 @@ TEST(CudaParticleFilterTest, ASecondCamerasFrameAddsUpLikeTheHosts) {
       view.T_map_base * T_base_cam2 * w.T_base_cam.inverse(), view.K, fp2.max_range_m + 1.0);
   const DepthFrame frame2 = prepareFrame(image2, view.K, fp2);
   ASSERT_GT(frame2.size(), 0u);
+  const MeasurementParams mp;
+  MeasurementContext a, b;  // the reference camera's frame and the second one's
+  std::tie(a.frame, a.T_base_cam, a.params) = std::make_tuple(&view.frame, w.T_base_cam, &mp);
+  std::tie(b.frame, b.T_base_cam, b.params) = std::make_tuple(&frame2, T_base_cam2, &mp);
   const int n = 2000;
   const ParticleFilterParams p = filterParams(n);
-  CpuBackend cpu;
-  std::unique_ptr<CudaBackend> gpu = makeCuda();
-  cpu.setMap(w.map);
-  gpu->setMap(w.map);
-  MeasurementParams mp;
-  MeasurementContext a;
-  a.frame = &view.frame;
-  a.T_base_cam = w.T_base_cam;
-  a.params = &mp;
-  MeasurementContext b = a;
-  b.frame = &frame2;
-  b.T_base_cam = T_base_cam2;
+  BothBackends backends(w.map);
+  CpuBackend& cpu = backends.cpu;
+  CudaBackend* gpu = backends.gpu.get();
   const Particle ref = poseToParticle(view.T_map_base);
   std::vector<Particle> particles(n, ref);
   std::mt19937_64 rng(72);
@@ -142,9 +148,9 @@ TEST(CudaParticleFilterTest, ASecondCamerasFrameAddsUpLikeTheHosts) {
   host.evaluateFrame(a, nullptr);
   host.accumulateFrame(b, 0.25, nullptr);
   const std::vector<double> expected = host.frameLogLikelihoods();
-  CudaParticleFilter device(p, gpu.get());
+  CudaParticleFilter device(p, gpu);
   device.setParticles(particles, std::vector<double>(n, 1.0));
-  a.backend = b.backend = gpu.get();
+  a.backend = b.backend = gpu;
   a.frame = b.frame = nullptr;
   DeviceFrameSummary summary;
   ASSERT_TRUE(device.prepareDeviceFrame(view.image, view.K, view.fp, &summary));

@@ -94,15 +94,22 @@ TEST(LocalizerCamerasTest, ACameraWithoutAUsableFrameIsLeftOutAndTheFirstIsRepla
   cam.frame = params.frame;
   cam.measurement = params.measurement;
 
-  // Both cameras.
   StepInput in;
-  in.stamp_s = 1.0;
-  in.depth = &forward;
   in.intrinsics = K;
   in.has_attitude = true;
-  cam.depth = &down;
-  in.more_cameras = {cam};
-  StepResult res = loc.step(in);
+  // One step with these frames of the forward and the down camera (nullptr: none), 0.1 s on.
+  auto stepWith = [&](const DepthImage* first, const DepthImage* second,
+                      const Intrinsics& second_K) {
+    in.stamp_s += 0.1;
+    in.depth = first;
+    cam.depth = second;
+    cam.intrinsics = second_K;
+    in.more_cameras = {cam};
+    return loc.step(in);
+  };
+
+  // Both cameras.
+  StepResult res = stepWith(&forward, &down, K);
   ASSERT_EQ(res.status, StepStatus::kOk) << res.message;
   ASSERT_EQ(res.cameras.size(), 2u);
   EXPECT_TRUE(res.cameras[0].used && res.cameras[1].used);
@@ -110,10 +117,7 @@ TEST(LocalizerCamerasTest, ACameraWithoutAUsableFrameIsLeftOutAndTheFirstIsRepla
   EXPECT_GT(res.cameras[1].pixels, 0);
 
   // The down camera's frame has no valid pixel: the update goes on with the forward camera.
-  cam.depth = &blank;
-  in.more_cameras = {cam};
-  in.stamp_s = 1.1;
-  res = loc.step(in);
+  res = stepWith(&forward, &blank, K);
   EXPECT_EQ(res.status, StepStatus::kOk) << res.message;
   EXPECT_TRUE(res.cameras[0].used);
   EXPECT_FALSE(res.cameras[1].used);
@@ -122,11 +126,7 @@ TEST(LocalizerCamerasTest, ACameraWithoutAUsableFrameIsLeftOutAndTheFirstIsRepla
   EXPECT_EQ(res.pixels, res.cameras[0].pixels);
 
   // No forward frame: the down camera measures first.
-  in.depth = nullptr;
-  cam.depth = &down;
-  in.more_cameras = {cam};
-  in.stamp_s = 1.2;
-  res = loc.step(in);
+  res = stepWith(nullptr, &down, K);
   EXPECT_EQ(res.status, StepStatus::kOk) << res.message;
   EXPECT_FALSE(res.cameras[0].used);
   EXPECT_EQ(res.cameras[0].problem, "no frame");
@@ -135,10 +135,7 @@ TEST(LocalizerCamerasTest, ACameraWithoutAUsableFrameIsLeftOutAndTheFirstIsRepla
   EXPECT_NE(res.message.find("camera 'down' measured first"), std::string::npos) << res.message;
 
   // Neither usable: predict only, naming both.
-  cam.depth = &blank;
-  in.more_cameras = {cam};
-  in.stamp_s = 1.3;
-  res = loc.step(in);
+  res = stepWith(nullptr, &blank, K);
   EXPECT_EQ(res.status, StepStatus::kNoValidPixels) << res.message;
   EXPECT_NE(res.message.find("camera 'down': no valid depth pixel"), std::string::npos)
       << res.message;
@@ -146,12 +143,7 @@ TEST(LocalizerCamerasTest, ACameraWithoutAUsableFrameIsLeftOutAndTheFirstIsRepla
   // A bad frame (its size disagrees with its intrinsics) is left out the same way.
   Intrinsics wrong = K;
   wrong.width_px = 640;
-  cam.depth = &down;
-  cam.intrinsics = wrong;
-  in.depth = &forward;
-  in.more_cameras = {cam};
-  in.stamp_s = 1.4;
-  res = loc.step(in);
+  res = stepWith(&forward, &down, wrong);
   EXPECT_EQ(res.status, StepStatus::kOk) << res.message;
   EXPECT_FALSE(res.cameras[1].used);
   EXPECT_FALSE(res.cameras[1].problem.empty());

@@ -52,6 +52,18 @@ std::string describeCameras(const FilterStatus& s) {
   return out;
 }
 
+// Frames with both cameras until one whose set used the down camera (at most `limit`; limit
+// when none did or a frame got no status); *s the last status.
+int framesUntilDownUsed(int limit, const FilterStatus** s) {
+  const SyntheticRobot::Frame both;
+  for (int k = 0; k < limit; ++k) {
+    *s = next(both);
+    if (*s == nullptr) return limit;
+    if (camera(**s, "down")->used) return k;
+  }
+  return limit;
+}
+
 bool diagSays(const std::string& row, const std::string& starts) {
   Diag d;
   const bool ok = diagUntil(
@@ -129,13 +141,7 @@ TEST(MultiCameraTest, SecondCameraDropsOutAndComesBack) {
   // Back: used again within two frames (the first may come before its frame does: a camera
   // that missed the last set is not waited for), then in every set.
   const SyntheticRobot::Frame both;
-  int until_used = 0;
-  for (; until_used < 3; ++until_used) {
-    s = next(both);
-    ASSERT_NE(s, nullptr) << w->obs.describe();
-    if (camera(*s, "down")->used) break;
-  }
-  EXPECT_LT(until_used, 3) << describeCameras(*s);
+  EXPECT_LT(framesUntilDownUsed(3, &s), 3) << (s ? describeCameras(*s) : w->obs.describe());
   for (int i = 0; i < 5; ++i) {
     ros::Time t;
     s = next(both, &t);
@@ -268,13 +274,7 @@ TEST(MultiCameraTest, AHalfRateCameraAndFramesItCannotUse) {
       &d, 5))
       << d.message;
   // Good frames again: used within four (its period is learned again).
-  int until_used = 0;
-  for (; until_used < 5; ++until_used) {
-    s = next(both);
-    ASSERT_NE(s, nullptr) << w->obs.describe();
-    if (camera(*s, "down")->used) break;
-  }
-  EXPECT_LT(until_used, 5) << describeCameras(*s);
+  EXPECT_LT(framesUntilDownUsed(5, &s), 5) << (s ? describeCameras(*s) : w->obs.describe());
 }
 
 }  // namespace lockstep

@@ -172,13 +172,7 @@ class SyntheticRobot {
       img.step = static_cast<uint32_t>(depth.row_bytes);
       img.data = depth.data;
     }
-    sensor_msgs::CameraInfo info;
-    info.header = img.header;
-    const int s = f.info_scale;
-    info.width = K_.width_px * s;
-    info.height = K_.height_px * s;
-    info.K = {K_.fx_px * s, 0, K_.cx_px * s, 0, K_.fy_px * s, K_.cy_px * s, 0, 0, 1};
-    info.P = {K_.fx_px * s, 0, K_.cx_px * s, 0, 0, K_.fy_px * s, K_.cy_px * s, 0, 0, 0, 1, 0};
+    const sensor_msgs::CameraInfo info = cameraInfo(img.header, f.info_scale);
     if (f.image && f.first_camera) image_pub_.publish(img);
     if (f.camera_info && f.first_camera) info_pub_.publish(info);
     if (!f.more_cameras) return;
@@ -191,13 +185,7 @@ class SyntheticRobot {
       m.encoding = "16UC1";
       m.step = static_cast<uint32_t>(depth.row_bytes);
       m.data = depth.data;
-      sensor_msgs::CameraInfo i = info;
-      i.header = m.header;
-      const int ms = f.more_info_scale;
-      i.width = K_.width_px * ms;
-      i.height = K_.height_px * ms;
-      i.K = {K_.fx_px * ms, 0, K_.cx_px * ms, 0, K_.fy_px * ms, K_.cy_px * ms, 0, 0, 1};
-      i.P = {K_.fx_px * ms, 0, K_.cx_px * ms, 0, 0, K_.fy_px * ms, K_.cy_px * ms, 0, 0, 0, 1, 0};
+      const sensor_msgs::CameraInfo i = cameraInfo(m.header, f.more_info_scale);
       c.image.publish(m);
       c.info.publish(i);
     }
@@ -209,6 +197,18 @@ class SyntheticRobot {
     tf2_msgs::TFMessage m;
     m.transforms.push_back(t);
     tf_pub_.publish(m);
+  }
+
+  // The camera's CameraInfo for an image `scale` times larger than the rendered one.
+  sensor_msgs::CameraInfo cameraInfo(const std_msgs::Header& header, int scale) const {
+    sensor_msgs::CameraInfo info;
+    info.header = header;
+    const double s = scale;
+    info.width = K_.width_px * scale;
+    info.height = K_.height_px * scale;
+    info.K = {K_.fx_px * s, 0, K_.cx_px * s, 0, K_.fy_px * s, K_.cy_px * s, 0, 0, 1};
+    info.P = {K_.fx_px * s, 0, K_.cx_px * s, 0, 0, K_.fy_px * s, K_.cy_px * s, 0, 0, 0, 1, 0};
+    return info;
   }
 
   struct RigCamera {

@@ -103,12 +103,17 @@ TEST(FrameSetsTest, DropoutWaitsOnceThenNotReportedAndBack) {
   EXPECT_FALSE(sets.stats(1).dropped_out);
 }
 
+// Frames of both cameras at t_s, `first` handed in first, and the set they made.
+bool addBoth(FrameSets* sets, double t_s, int first, FrameSet* s) {
+  sets->add(first, frameAt(t_s));
+  sets->add(1 - first, frameAt(t_s));
+  return sets->takeReady(s);
+}
+
 TEST(FrameSetsTest, AnotherCameraLeadsAfterTheFirstTimesOut) {
   FrameSets sets(2, FrameSetParams());
   FrameSet s;
-  sets.add(0, frameAt(0));
-  sets.add(1, frameAt(0));
-  ASSERT_TRUE(sets.takeReady(&s));
+  ASSERT_TRUE(addBoth(&sets, 0, 0, &s));
   int k = 1;
   // The first camera stops: the second one's frames wait (the first still leads) ...
   for (; k * kPeriodS <= 0.5; ++k) {
@@ -142,9 +147,7 @@ TEST(FrameSetsTest, AnotherCameraLeadsAfterTheFirstTimesOut) {
 TEST(FrameSetsTest, JumpBackStartsAfresh) {
   FrameSets sets(2, FrameSetParams());
   FrameSet s;
-  sets.add(1, frameAt(10));
-  sets.add(0, frameAt(10));
-  ASSERT_TRUE(sets.takeReady(&s));
+  ASSERT_TRUE(addBoth(&sets, 10, 1, &s));
   sets.add(0, frameAt(0));  // a looped bag: nobody is waited for until it delivers again
   ASSERT_TRUE(sets.takeReady(&s));
   EXPECT_NEAR(stampOf(s), 0.0, 1e-9);
