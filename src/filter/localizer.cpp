@@ -238,6 +238,7 @@ void Localizer::backendFailed(const std::string& what, StepResult* res) {
       filter_ = std::move(host);
     }
     const std::string failed = backend_->name();
+    more_sums_.clear();  // the rig's evaluators work on the backend's stream: gone first
     backend_ = makeBackend("cpu", nullptr);
     backend_->setMap(map_);
     backend_warning_ =

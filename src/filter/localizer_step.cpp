@@ -498,6 +498,10 @@ void Localizer::refineEstimate(const StepInput& in, StepResult* res) {
     refineComponents(res->estimate.mean, v.frame, m.T_base_cam, m.frame, m.measurement,
                      &more_components_[c]);
     v.components = &more_components_[c];
+    // The backend's evaluator for this camera (its pixel sums on the GPU with CUDA), else host.
+    if (more_sums_.size() < res->cameras.size()) more_sums_.resize(res->cameras.size());
+    if (!more_sums_[c]) more_sums_[c] = backend_->makeNormalEquations();
+    v.sums = more_sums_[c].get();
     more.push_back(v);
   }
   rf.depth_scale = with_scale ? depth_scale_ : 1.0;

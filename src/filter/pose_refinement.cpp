@@ -206,9 +206,9 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
         more[k].params == nullptr) {
       throw std::invalid_argument("refinePose: another frame without host points or parameters");
     }
-    more_objectives.push_back(std::make_unique<Objective>(*more[k].components, more[k].frame,
-                                                          more[k].T_base_cam, *more[k].params,
-                                                          &more_sums[k], with_scale, false));
+    more_objectives.push_back(std::make_unique<Objective>(
+        *more[k].components, more[k].frame, more[k].T_base_cam, *more[k].params,
+        more[k].sums ? more[k].sums : &more_sums[k], with_scale, false));
     px += more[k].weight * more[k].frame.pixels;
   }
   auto lineariseAll = [&](const Pose6& p) {

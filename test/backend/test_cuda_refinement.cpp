@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
 #include <random>
 #include <set>
 #include <string>
@@ -87,6 +88,56 @@ TEST_F(CudaBackendTest, RefinementSumsMatchHost) {
 
 // The refinement reading the frame the backend prepared on the GPU (no host points; the camera's
 // extrinsics folded into each pose) lands where the host refinement of the same frame does.
+TEST_F(CudaBackendTest, ARigsSecondCameraRefinesOnItsOwnDeviceEvaluator) {
+  // docs/multi_camera.md: the rig's second camera's pixel sums on an evaluator of its own
+  // (makeNormalEquations, points from the host) beside the first camera's on the backend's:
+  // the refined pose as with every sum on the host.
+  const auto& w = test::world();
+  gpu->setMap(w.map);
+  const Eigen::Isometry3d T_map_base = test::referenceBasePose();
+  double roll, pitch, yaw;
+  rpyFromRotation(T_map_base.linear(), &roll, &pitch, &yaw);
+  const Particle truth = poseToParticle(T_map_base);
+  Eigen::Isometry3d T_base_cam2 = w.T_base_cam;
+  T_base_cam2.linear() =
+      Eigen::AngleAxisd(2.5, Eigen::Vector3d::UnitZ()).toRotationMatrix() * w.T_base_cam.linear();
+  const FrameParams fp = test::frameParams(8);
+  const DepthFrame frame = test::renderFrame(T_map_base, test::vgaCamera(), fp);
+  const DepthFrame frame2 =
+      test::renderFrame(T_map_base * T_base_cam2 * w.T_base_cam.inverse(), test::vgaCamera(), fp);
+  ASSERT_GT(frame2.size(), 0u);
+  const MeasurementParams mp;
+  std::unique_ptr<NormalEquationsEvaluator> second = gpu->makeNormalEquations();
+  ASSERT_NE(second, nullptr);
+  RefinementView host_view;
+  host_view.components = &w.map.packed();
+  host_view.frame = RefinementFrame::of(frame2);
+  host_view.T_base_cam = T_base_cam2;
+  host_view.params = &mp;
+  host_view.weight = 0.5;
+  RefinementView device_view = host_view;
+  device_view.sums = second.get();
+  std::mt19937_64 rng(47);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  double worst = 0.0;
+  for (int k = 0; k < 4; ++k) {
+    const Particle start = test::perturbed(truth, n01, rng);
+    const RefinementParams rp;
+    const RefinementResult h = refinePose(w.map.packed(), RefinementFrame::of(frame), start, roll,
+                                          pitch, w.T_base_cam, mp, rp, nullptr, {host_view});
+    const RefinementResult g =
+        refinePose(w.map.packed(), RefinementFrame::of(frame), start, roll, pitch, w.T_base_cam, mp,
+                   rp, gpu->normalEquations(), {device_view});
+    ASSERT_EQ(g.refined, h.refined) << k;
+    worst = std::max(worst, std::hypot(std::hypot(g.pose.x_m - h.pose.x_m, g.pose.y_m - h.pose.y_m),
+                                       g.pose.z_m - h.pose.z_m));
+  }
+  std::printf(
+      "[ measured ] rig refinement, second camera on the GPU: worst %.2e m from the host's\n",
+      worst);
+  EXPECT_LT(worst, kRefinedPoseTolM);
+}
+
 TEST_F(CudaBackendTest, RefinementOnTheDeviceFrameMatchesHost) {
   const auto& w = test::world();
   gpu->setMap(w.map);

@@ -243,7 +243,9 @@ TEST(MultiCameraTest, AHalfRateCameraAndFramesItCannotUse) {
     const CameraStatus* down = camera(*s, "down");
     ASSERT_NE(down, nullptr);
     EXPECT_NE(down->state, "dropped_out") << describeCameras(*s);
-    if (i % 2 == 1) EXPECT_FALSE(down->used) << describeCameras(*s);
+    if (i % 2 == 1) {
+      EXPECT_FALSE(down->used) << describeCameras(*s);
+    }
     used += down->used ? 1 : 0;
     worst = std::max(worst, errorOfFrame(t, w->k));
   }

@@ -55,7 +55,9 @@ TEST(FrameSetsTest, ASlowerCameraIsAwaitedOnlyForTheSetsItsFramesFallIn) {
     ASSERT_TRUE(sets.takeReady(&s)) << k;
     in_vain += s.waited_in_vain ? 1 : 0;
     used += s.frames[1] ? 1 : 0;
-    if (k >= 4) EXPECT_EQ(static_cast<bool>(s.frames[1]), k % 2 == 0) << k;
+    if (k >= 4) {
+      EXPECT_EQ(static_cast<bool>(s.frames[1]), k % 2 == 0) << k;
+    }
   }
   EXPECT_EQ(used, 8);     // from its third frame on (its period known from the second)
   EXPECT_EQ(in_vain, 1);  // the set after its first frame, which it was in

@@ -88,6 +88,10 @@ class LikelihoodBackend {
   // Where the pose refinement's pixel sums run with this backend (owned by it); nullptr: on the
   // host (HostNormalEquations).
   virtual NormalEquationsEvaluator* normalEquations() { return nullptr; }
+  // Another evaluator of the backend's for points set from the host (setPoints): a camera
+  // rig's other cameras, refined beside the first (owned by the caller, used while the backend
+  // lives); nullptr: on the host.
+  virtual std::unique_ptr<NormalEquationsEvaluator> makeNormalEquations() { return nullptr; }
   // The backend's device side (the CUDA backend); nullptr: a host backend.
   virtual DeviceBackend* device() { return nullptr; }
 };

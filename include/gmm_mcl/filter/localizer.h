@@ -237,6 +237,8 @@ class Localizer {
       0;  // the last update's cameras (bit c: StepResult::cameras[c]; 0: none yet)
   std::vector<DepthFrame> more_frames_;
   std::vector<std::vector<ComponentF>> more_components_;
+  // Their refinement's pixel sums on the backend (makeNormalEquations; null: on the host).
+  std::vector<std::unique_ptr<NormalEquationsEvaluator>> more_sums_;
   bool host_frame_ready_ = false;
   bool have_estimate_ = false;  // last_estimate_: the last step's (a fallback's belief)
   PoseEstimate last_estimate_;

@@ -90,12 +90,14 @@ struct RefinementFrame {
 
 // Another camera of a rig in the same refinement (docs/multi_camera.md): its frame (points on the
 // host), its components (packed map components near its view), extrinsics and measurement
-// parameters. Its pixel sums run on the host; the depth scale is the first frame's only.
+// parameters. Its pixel sums run in `sums` (a backend's, LikelihoodBackend::makeNormalEquations;
+// nullptr: on the host); the depth scale is the first frame's only.
 struct RefinementView {
   const std::vector<ComponentF>* components = nullptr;
   RefinementFrame frame;
   Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();
   const MeasurementParams* params = nullptr;
+  NormalEquationsEvaluator* sums = nullptr;
   // Its log-likelihood's weight in the sum (the localizer's: the first frame's pixel count over
   // this one's, so that each camera weighs as one frame).
   double weight = 1.0;

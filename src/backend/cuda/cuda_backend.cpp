@@ -117,6 +117,11 @@ NormalEquationsEvaluator* CudaBackend::normalEquations() {
   return impl_->normal_equations.get();
 }
 
+std::unique_ptr<NormalEquationsEvaluator> CudaBackend::makeNormalEquations() {
+  return std::make_unique<cuda::CudaNormalEquations>(impl_->info.device, impl_->stream.get(),
+                                                     [](cuda::BackendFrameRef*) { return false; });
+}
+
 void CudaBackend::setMap(const GmmMap& map) {
   const cuda::DeviceScope scope(impl_->device);
   const std::vector<ComponentF>& packed = map.packed();

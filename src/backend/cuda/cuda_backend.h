@@ -41,6 +41,7 @@ class CudaBackend : public LikelihoodBackend, public DeviceBackend {
                   const MeasurementParams& params, PatchMembership* out) override;
   // The pose refinement's pixel sums on this backend's device and stream.
   NormalEquationsEvaluator* normalEquations() override;
+  std::unique_ptr<NormalEquationsEvaluator> makeNormalEquations() override;
   DeviceBackend* device() override { return this; }
 
   // evaluate() with the frame prepared on the GPU from the raw image: uploads the image (not
