@@ -279,6 +279,37 @@ TEST(MultiCameraTest, AHalfRateCameraAndFramesItCannotUse) {
   EXPECT_LT(framesUntilDownUsed(5, &s), 5) << (s ? describeCameras(*s) : w->obs.describe());
 }
 
+// multi_camera_no_tf.test: a third camera, `side`, whose frames come with their CameraInfo but
+// whose tf never arrives.
+TEST(MultiCameraNoTfTest, ACameraWhoseTfNeverArrivesIsNamedAndTheOthersGoOn) {
+  ASSERT_TRUE(ensureTracking()) << w->obs.describe();
+  const SyntheticRobot::Frame all;
+  double worst = 0.0;
+  const FilterStatus* s = nullptr;
+  for (int i = 0; i < 20; ++i) {
+    ros::Time t;
+    s = next(all, &t);
+    ASSERT_NE(s, nullptr) << "frame " << i << ": " << w->obs.describe();
+    ASSERT_EQ(s->cameras.size(), 3u);
+    EXPECT_TRUE(camera(*s, "depth")->used && camera(*s, "down")->used) << describeCameras(*s);
+    EXPECT_FALSE(camera(*s, "side")->used) << describeCameras(*s);
+    worst = std::max(worst, errorOfFrame(t, w->k));
+  }
+  std::printf("[ measured ] a third camera without tf: worst error %.3f m (%s)\n", worst,
+              describeCameras(*s).c_str());
+  EXPECT_LT(worst, kTrackedM);
+  Diag d;
+  EXPECT_TRUE(diagUntil(
+      [](const Diag& d) {
+        return d.level >= diagnostic_msgs::DiagnosticStatus::WARN &&
+               d.message.find("camera 'side'") != std::string::npos;
+      },
+      &d, 5))
+      << d.message;
+  std::printf("[ diag ] %s\n", d.message.c_str());
+  EXPECT_TRUE(diagSays("cameras in the last update", "2"));
+}
+
 }  // namespace lockstep
 }  // namespace gmm_mcl
 
@@ -288,6 +319,11 @@ int main(int argc, char** argv) {
   gmm_mcl::lockstep::World world;
   world.robot.addCamera(world.nh, "/down", gmm_mcl::lockstep::kDownFrame,
                         gmm_mcl::lockstep::downCamera());
+  // multi_camera_no_tf.test: a side camera without tf as well.
+  if (ros::NodeHandle("~").param("camera_without_tf", false)) {
+    world.robot.addCamera(world.nh, "/side", "side_camera_optical_frame",
+                          gmm_mcl::lockstep::downCamera(), false);
+  }
   // From pose 40 of the synthetic loop: before it, the forward camera alone is a poor judge of
   // the pose in this map (the core's refined error 6-12 cm over poses 8-36, 0.3-1.9 cm after),
   // and these cases are about the frame sets, not about that stretch.

@@ -89,12 +89,14 @@ class SyntheticRobot {
     });
   }
   // Another depth camera of the rig: 16UC1 images and CameraInfo on NS/image and NS/camera_info,
-  // its optical frame `frame_id` at T_base_cam on /tf_static (publishStaticExtrinsics).
+  // its optical frame `frame_id` at T_base_cam on /tf_static (publishStaticExtrinsics; with
+  // publish_tf false never: a camera whose tf never arrives).
   void addCamera(ros::NodeHandle& nh, const std::string& ns, const std::string& frame_id,
-                 const Eigen::Isometry3d& T_base_cam) {
+                 const Eigen::Isometry3d& T_base_cam, bool publish_tf = true) {
     RigCamera c;
     c.frame_id = frame_id;
     c.T_base_cam = T_base_cam;
+    c.publish_tf = publish_tf;
     c.image = nh.advertise<sensor_msgs::Image>(ns + "/image", 100);
     c.info = nh.advertise<sensor_msgs::CameraInfo>(ns + "/camera_info", 100);
     more_.push_back(c);
@@ -111,9 +113,11 @@ class SyntheticRobot {
     // One message: the latched /tf_static keeps only this node's last one.
     std::vector<geometry_msgs::TransformStamped> all = {ros_conv::transformStamped(
         extrinsics(), "base_link", "camera_depth_optical_frame", ros::Time(0))};
-    for (const RigCamera& c : more_)
-      all.push_back(
-          ros_conv::transformStamped(c.T_base_cam, "base_link", c.frame_id, ros::Time(0)));
+    for (const RigCamera& c : more_) {
+      if (c.publish_tf)
+        all.push_back(
+            ros_conv::transformStamped(c.T_base_cam, "base_link", c.frame_id, ros::Time(0)));
+    }
     static_tf_.sendTransform(all);
   }
   void publishOdometry(const ros::Time& t, const Eigen::Isometry3d& T_map_base) {
@@ -213,6 +217,7 @@ class SyntheticRobot {
 
   struct RigCamera {
     std::string frame_id;
+    bool publish_tf = true;
     Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();
     ros::Publisher image, info;
     uint32_t seq = 0;
