@@ -33,8 +33,7 @@ void Localizer::stepOnce(const StepInput& in, StepResult* res_out) {
   if (!any_frame) return finishStep(StepStatus::kPredictOnly, "", t_start, &res);
   std::string why;
   long long patches_with_pixels = -1;  // from the device frame
-  int first_camera = -1;
-  StepStatus status = selectStepCamera(in, &patches_with_pixels, &res, &why, &first_camera);
+  StepStatus status = selectStepCamera(in, &patches_with_pixels, &res, &why);
   if (status != StepStatus::kOk) return finishStep(status, why, t_start, &res);
   MeasurementContext ctx;
   ctx.backend = backend_.get();
@@ -45,7 +44,7 @@ void Localizer::stepOnce(const StepInput& in, StepResult* res_out) {
   ctx.params = cam_.measurement;
   status = evaluateStep(ctx, patches_with_pixels, &res, &why);
   if (status != StepStatus::kOk) return finishStep(status, why, t_start, &res);
-  status = evaluateMoreCameras(in, first_camera, ctx, &res, &why);
+  status = evaluateMoreCameras(in, ctx, &res, &why);
   if (status != StepStatus::kOk) return finishStep(status, why, t_start, &res);
   status = weighStep(&res, &why);
   if (status != StepStatus::kOk) return finishStep(status, why, t_start, &res);
@@ -148,7 +147,7 @@ void Localizer::finishStep(StepStatus status, const std::string& why, Clock::tim
 }
 
 StepStatus Localizer::selectStepCamera(const StepInput& in, long long* patches_with_pixels,
-                                       StepResult* res, std::string* why, int* first_camera) {
+                                       StepResult* res, std::string* why) {
   // StepInput's own camera, else the first of the others with a usable frame (a rig whose
   // first camera dropped out goes on with the rest).
   const int cameras = 1 + static_cast<int>(in.more_cameras.size());
@@ -173,7 +172,6 @@ StepStatus Localizer::selectStepCamera(const StepInput& in, long long* patches_w
       cam_.T_base_cam = m.T_base_cam;
       cam_.frame = &m.frame;
       cam_.measurement = &m.measurement;
-      cam_.own = false;
     }
     if (cam_.depth == nullptr) {
       if (!res->cameras.empty()) res->cameras[c].problem = "no frame";
@@ -183,7 +181,7 @@ StepStatus Localizer::selectStepCamera(const StepInput& in, long long* patches_w
     std::string camera_why;
     const StepStatus status = prepareStepFrame(patches_with_pixels, res, &camera_why);
     if (status == StepStatus::kOk) {
-      *first_camera = c;
+      first_camera_ = c;
       cam_.pixels = res->pixels;
       cameras_used_ = 1;
       if (!res->cameras.empty()) {
@@ -205,16 +203,14 @@ StepStatus Localizer::selectStepCamera(const StepInput& in, long long* patches_w
   return first_status;
 }
 
-StepStatus Localizer::evaluateMoreCameras(const StepInput& in, int first_camera,
-                                          const MeasurementContext& ctx, StepResult* res,
-                                          std::string* why) {
+StepStatus Localizer::evaluateMoreCameras(const StepInput& in, const MeasurementContext& ctx,
+                                          StepResult* res, std::string* why) {
   // Each further camera's frame prepared with its own parameters and scored with its own
   // measurement model; its log-likelihood added to every particle's (docs/multi_camera.md).
   bool on_device = false;
   std::string skipped;
-  first_camera_ = first_camera;
   more_frames_.assign(in.more_cameras.size() + 1, DepthFrame());
-  for (int c = first_camera + 1; c <= static_cast<int>(in.more_cameras.size()); ++c) {
+  for (int c = first_camera_ + 1; c <= static_cast<int>(in.more_cameras.size()); ++c) {
     const CameraInput& m = in.more_cameras[c - 1];
     CameraStepResult& out = res->cameras[c];
     if (m.depth == nullptr) {
@@ -269,10 +265,10 @@ StepStatus Localizer::evaluateMoreCameras(const StepInput& in, int first_camera,
     res->timings.projection_membership_ms += stats.projection_membership_ms;
     res->timings.likelihood_ms += stats.likelihood_ms;
   }
-  if (first_camera > 0 || !skipped.empty()) {
+  if (first_camera_ > 0 || !skipped.empty()) {
     std::string note = skipped;
-    if (first_camera > 0) {
-      note = "camera '" + res->cameras[first_camera].name + "' measured first (" +
+    if (first_camera_ > 0) {
+      note = "camera '" + res->cameras[first_camera_].name + "' measured first (" +
              res->cameras[0].problem + " from camera 1)" + (note.empty() ? "" : "; ") + note;
     }
     res->message += (res->message.empty() ? "" : "; ") + note;
@@ -465,7 +461,7 @@ void Localizer::refineEstimate(const StepInput& in, StepResult* res) {
   NormalEquationsEvaluator* sums = backend_->normalEquations();
   RefinementFrame rf;
   // The depth scale estimated is StepInput's own camera's.
-  const bool with_scale = params_.refinement.estimate_depth_scale && cam_.own;
+  const bool with_scale = params_.refinement.estimate_depth_scale && first_camera_ == 0;
   if (!host_frame_ready_ && sums != nullptr && sums->hasBackendFrame() &&
       (!with_scale || sums->supportsDepthScale())) {
     rf.intrinsics = cam_.intrinsics;

@@ -174,12 +174,11 @@ class Localizer {
   // The camera that measures first this step (StepInput's own, or the first usable of
   // more_cameras): prepared (cam_), else the status of the first camera tried with *why.
   StepStatus selectStepCamera(const StepInput& input, long long* patches_with_pixels,
-                              StepResult* res, std::string* why, int* first_camera);
+                              StepResult* res, std::string* why);
   StepStatus prepareStepFrame(long long* patches_with_pixels, StepResult* res, std::string* why);
-  // The rig's other cameras after `first_camera`: prepared and their likelihoods added.
-  StepStatus evaluateMoreCameras(const StepInput& input, int first_camera,
-                                 const MeasurementContext& context, StepResult* res,
-                                 std::string* why);
+  // The rig's other cameras after first_camera_: prepared and their likelihoods added.
+  StepStatus evaluateMoreCameras(const StepInput& input, const MeasurementContext& context,
+                                 StepResult* res, std::string* why);
   StepStatus evaluateStep(const MeasurementContext& context, long long patches_with_pixels,
                           StepResult* res, std::string* why);
   StepStatus weighStep(StepResult* res, std::string* why);
@@ -224,14 +223,13 @@ class Localizer {
     Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();
     const FrameParams* frame = nullptr;
     const MeasurementParams* measurement = nullptr;
-    bool own = true;  // StepInput's own camera (its depth scale is the one estimated)
-    int pixels = 0;   // its used pixels
+    int pixels = 0;  // its used pixels
   };
   StepCamera cam_;
   DepthFrame host_frame_;
   // The rig's other cameras this step (indexed like StepResult::cameras): their host frames
   // (an unprepared frame has zero width), their refinement components.
-  int first_camera_ = 0;
+  int first_camera_ = 0;  // the camera measuring first this step (0: StepInput's own)
   int cameras_used_ = 1;  // cameras in this step's update
   uint64_t camera_set_ =
       0;  // the last update's cameras (bit c: StepResult::cameras[c]; 0: none yet)
