@@ -80,7 +80,9 @@ void Localizer::setParams(const LocalizerParams& params) {
       params.device_filter != params_.device_filter || c.likelihood_shape != c0.likelihood_shape ||
       c.stage_members != c0.stage_members || c.band_patches != c0.band_patches ||
       c.view_cull_min_pairs != c0.view_cull_min_pairs ||
-      c.membership_pass_words != c0.membership_pass_words || c.place_groups != c0.place_groups) {
+      c.membership_pass_words != c0.membership_pass_words || c.place_groups != c0.place_groups ||
+      c.local_lists_min_components != c0.local_lists_min_components ||
+      c.z_order_min_components != c0.z_order_min_components) {
     throw std::invalid_argument(
         "localizer parameters: backend, device_filter, seed and the cuda_* tuning are fixed at "
         "construction");

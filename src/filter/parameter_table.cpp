@@ -466,6 +466,19 @@ void addCudaParams(ParamTable<P>* t) {
                       "The cuda backend evaluates a cloud spread over a large map (20,000 "
                       "components or more) group by group of places, each over its own view "
                       "(experimental: not yet measured on a GPU)"));
+  add(t, paramSpec<P>("cuda_local_lists_min_components",
+                      GMM_MCL_PARAM_FIELD(P, cuda.local_lists_min_components), "", g, {0, 1e9},
+                      kStartup,
+                      "From this many components visible to an update's poses together on, the "
+                      "cuda backend's bitmasks and forms of each pose cover only what that pose "
+                      "can see, and each pose skips the chunks of them outside its view (0: "
+                      "always)"));
+  add(t,
+      paramSpec<P>("cuda_z_order_min_components",
+                   GMM_MCL_PARAM_FIELD(P, cuda.z_order_min_components), "", g, {0, 1e9}, kStartup,
+                   "From this many map components on, the cuda backend holds them in the Z "
+                   "order of their means, so that each pose skips the chunks of them outside "
+                   "its view"));
 }
 
 }  // namespace

@@ -48,6 +48,24 @@ std::vector<RigidTransformF> perturbedPoses(const Eigen::Isometry3d& T_true, int
   return sim::scatterPoses(T_true, n, 0.5, 0.3, seed);
 }
 
+// `count` camera poses anywhere over 5 x 5 tiles 14 m apart (tiledMap) at the base pose's height
+// and attitude, any yaw.
+std::vector<RigidTransformF> posesOverTiles(const Eigen::Isometry3d& T_map_base,
+                                            const Eigen::Isometry3d& T_base_cam, int count,
+                                            unsigned seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> xy(-3.0, 4 * 14.0 + 3.0), yaw(-M_PI, M_PI);
+  std::vector<RigidTransformF> poses;
+  for (int i = 0; i < count; ++i) {
+    Eigen::Isometry3d T = T_map_base;
+    T.translation().x() = xy(rng);
+    T.translation().y() = xy(rng);
+    T.linear() = Eigen::AngleAxisd(yaw(rng), Eigen::Vector3d::UnitZ()) * T_map_base.linear();
+    poses.push_back(toRigidF(T * T_base_cam));
+  }
+  return poses;
+}
+
 // Compares membership of every pose; returns mismatching pairs (all must be borderline).
 void expectSameMembership(const GmmMap& map, const DepthFrame& frame,
                           const std::vector<RigidTransformF>& poses, CpuBackend* cpu,
@@ -171,14 +189,9 @@ TEST_F(CudaBackendTest, CloudSpreadOverABuildingMatchesCpu) {
   // 64 poses about the truth, then 448 anywhere in the building at the camera's height, in an
   // order that mixes the places (the results must come back to each particle's index).
   std::vector<RigidTransformF> poses = perturbedPoses(T_map_base * w.T_base_cam, 64, 3u);
-  std::mt19937_64 rng(11);
-  std::uniform_real_distribution<double> xy(-3.0, 4 * 14.0 + 3.0), yaw(-M_PI, M_PI);
-  for (int i = 0; i < 448; ++i) {
-    Eigen::Isometry3d T = T_map_base;
-    T.translation().x() = xy(rng);
-    T.translation().y() = xy(rng);
-    T.linear() = Eigen::AngleAxisd(yaw(rng), Eigen::Vector3d::UnitZ()) * T_map_base.linear();
-    poses.insert(poses.begin() + (i * 7) % (poses.size() + 1), toRigidF(T * w.T_base_cam));
+  const std::vector<RigidTransformF> far = posesOverTiles(T_map_base, w.T_base_cam, 448, 11u);
+  for (size_t i = 0; i < far.size(); ++i) {
+    poses.insert(poses.begin() + (i * 7) % (poses.size() + 1), far[i]);
   }
   expectSameLikelihood(building, frame, poses, &cpu, gpu.get(), "building, spread cloud");
   BackendOutput a, b;
@@ -189,6 +202,81 @@ TEST_F(CudaBackendTest, CloudSpreadOverABuildingMatchesCpu) {
               a.visible_components, b.visible_components, building.size());
   EXPECT_NEAR(b.visible_components, a.visible_components, 0.01 * a.visible_components + 2);
   EXPECT_LT(b.visible_components, static_cast<int>(building.size()));
+}
+
+// Each pose's own list of the components it can see (local lists), built over the view cull's
+// set of the map held in Z order, chunk by chunk (the chunks whose bounding ball lies outside
+// the pose's view skipped), holds the members that the bitmask over the whole map in its own
+// order holds: the same evaluations, member pairs and membership tables (in map indices),
+// exactly, and per-particle log-likelihoods and floor hits within the CPU-parity tolerances (the
+// members are summed in another order, and in slices per round of 1024 bits), for a cloud
+// spread over a building and for a tracking cloud, with and without the depth noise, in one pass
+// and in passes of one word. Fails if a pose's list misses a component or its forms are taken at
+// the wrong places.
+TEST_F(CudaBackendTest, LocalListsGiveTheSameSumsAsTheSharedBitmask) {
+  const auto& w = test::world();
+  const GmmMap building = tiledMap(w.map, 5, 5, 14.0);
+  const Eigen::Isometry3d T_map_base = test::referenceBasePose();
+  const DepthFrame frame = test::renderFrame(T_map_base, test::smallCamera(), test::frameParams(8));
+  std::vector<RigidTransformF> tracking = perturbedPoses(T_map_base * w.T_base_cam, 256, 21u);
+  std::vector<RigidTransformF> spread(tracking.begin(), tracking.begin() + 32);
+  const std::vector<RigidTransformF> far = posesOverTiles(T_map_base, w.T_base_cam, 480, 5u);
+  spread.insert(spread.end(), far.begin(), far.end());
+  MeasurementParams noise_off;
+  noise_off.depth_noise.a_m = noise_off.depth_noise.b_per_m = 0.f;
+  for (const MeasurementParams& mp : {MeasurementParams(), noise_off}) {
+    for (const std::vector<RigidTransformF>* poses : {&spread, &tracking}) {
+      for (int pass_words : {32, 1}) {
+        CudaTuningParams shared, local;
+        shared.local_lists_min_components = std::numeric_limits<int>::max();
+        local.local_lists_min_components = 0;
+        shared.view_cull_min_pairs = std::numeric_limits<long long>::max();  // the whole map
+        shared.z_order_min_components = std::numeric_limits<int>::max();     // in map order
+        local.view_cull_min_pairs = 0;  // the cull's set (of the map in Z order), chunk balls
+        shared.membership_pass_words = local.membership_pass_words = pass_words;
+        CudaBackend a(0, shared), b(0, local);
+        a.setMap(building);
+        b.setMap(building);
+        BackendOutput oa, ob;
+        a.evaluate(frame, *poses, mp, &oa);
+        b.evaluate(frame, *poses, mp, &ob);
+        const std::string label = std::string(poses == &spread ? "spread" : "tracking") +
+                                  (mp.depth_noise.enabled() ? ", depth noise" : ", no noise") +
+                                  ", pass words " + std::to_string(pass_words);
+        ASSERT_EQ(oa.log_likelihood.size(), poses->size()) << label;
+        ASSERT_EQ(ob.log_likelihood.size(), poses->size()) << label;
+        const double px = static_cast<double>(frame.size());
+        int differ = 0;
+        double worst = 0.0;
+        for (size_t i = 0; i < poses->size(); ++i) {
+          differ += oa.log_likelihood[i] != ob.log_likelihood[i];
+          const double scale = std::max(std::abs(oa.log_likelihood[i]), px);
+          const double rel = std::abs(oa.log_likelihood[i] - ob.log_likelihood[i]) / scale;
+          worst = std::max(worst, rel);
+          EXPECT_LT(rel, kRelTol) << label << " particle " << i << ": shared bitmask "
+                                  << oa.log_likelihood[i] << " local " << ob.log_likelihood[i];
+          EXPECT_LE(std::abs(oa.floor_hits[i] - ob.floor_hits[i]), kFloorHitTol * px + 1)
+              << label << " particle " << i;
+        }
+        EXPECT_EQ(oa.evaluations, ob.evaluations) << label;
+        EXPECT_EQ(oa.relevant_pairs, ob.relevant_pairs) << label;
+        EXPECT_GT(oa.relevant_pairs, 0) << label;
+        // The membership tables in map indices, whatever order the device holds the map in.
+        for (int k = 0; k < 4; ++k) {
+          PatchMembership ma, mb;
+          a.membership(frame, (*poses)[k * 7], mp, &ma);
+          b.membership(frame, (*poses)[k * 7], mp, &mb);
+          EXPECT_EQ(ma.begin, mb.begin) << label << " pose " << k * 7;
+          EXPECT_EQ(ma.comps, mb.comps) << label << " pose " << k * 7;
+        }
+        std::printf(
+            "[ measured ] local lists, %s: %zu poses, %d not bit-identical, worst relative "
+            "difference %.2e, %lld member pairs, visible %d of %zu\n",
+            label.c_str(), poses->size(), differ, worst, ob.relevant_pairs, ob.visible_components,
+            building.size());
+      }
+    }
+  }
 }
 
 // More components in the evaluated set than a 16-bit index holds: the likelihood kernel's member
@@ -213,6 +301,7 @@ TEST_F(CudaBackendTest, MoreThan65536ComponentsMatchCpu) {
   for (const char* stage : {"off", "on"}) {
     CudaTuningParams tuning;
     tuning.view_cull_min_pairs = std::numeric_limits<long long>::max();
+    tuning.z_order_min_components = std::numeric_limits<int>::max();  // the room stays last
     tuning.likelihood_shape = "32x4";
     tuning.stage_members = stage;
     gpu = std::make_unique<CudaBackend>(0, tuning);

@@ -148,7 +148,7 @@ TEST(ParameterTableTest, CudaTuningIsAStartupGroup) {
     EXPECT_FALSE(p.runtime) << p.name;
     EXPECT_EQ(p.name.compare(0, 5, "cuda_"), 0) << p.name;
   }
-  EXPECT_EQ(count, 6);
+  EXPECT_EQ(count, 8);
   const LocalizerParams lp;
   EXPECT_EQ(findParam(localizerParamTable(), "cuda_likelihood_shape")->get(lp).s,
             defaults.likelihood_shape);
@@ -158,6 +158,10 @@ TEST(ParameterTableTest, CudaTuningIsAStartupGroup) {
   EXPECT_EQ(defaults.stage_members, "auto");
   EXPECT_EQ(defaults.band_patches, 0);
   EXPECT_EQ(defaults.view_cull_min_pairs, 2000000);
+  EXPECT_EQ(findParam(localizerParamTable(), "cuda_local_lists_min_components")->get(lp).i,
+            defaults.local_lists_min_components);
+  EXPECT_EQ(findParam(localizerParamTable(), "cuda_z_order_min_components")->get(lp).i,
+            defaults.z_order_min_components);
   EXPECT_EQ(defaults.membership_pass_words, 32);
   EXPECT_FALSE(defaults.place_groups);  // until measured on a GPU
 }

@@ -33,6 +33,18 @@ struct CudaTuningParams {
   // over what its own views can see (as the CPU backend does), instead of all over the union of
   // the views. Off until measured on a GPU: CudaBackendTest.CloudSpreadOverABuildingMatchesCpu.
   bool place_groups = false;
+  // From this many components visible to the update's poses together on, each pose's bitmask
+  // and evaluation forms cover only the components it can see itself (a count kernel first
+  // sizes them), instead of all of them, and each pose skips the chunks of 256 of them whose
+  // bounding ball lies outside its view: a cloud spread over a building sees a hundred times
+  // more together than one pose does. The same members in the same order (the sums equal to
+  // float rounding). 0: always.
+  int local_lists_min_components = 4096;
+  // From this many components on, the device holds the map in the Z order of the components'
+  // means (0.25 m cells), so that a chunk of 256 consecutive components is a small piece of
+  // space and the membership kernel skips each chunk outside a pose's view; smaller maps keep
+  // their own order (the sums, in map order, unchanged to the bit).
+  int z_order_min_components = 20000;
 };
 
 // The options of makeBackend().

@@ -170,14 +170,19 @@ GMM_MCL_HD ViewReach viewReach(const Intrinsics& K, int patch_size_px, int cols,
   return r;
 }
 
-// The test on a component's mean in the camera frame (x, y, z) and its covariance's trace.
-GMM_MCL_HD bool sphereInView(float x, float y, float z, float trace, const Intrinsics& K,
-                             const ViewReach& r, float sigma_bound) {
-  const float rho = sigma_bound * sqrtf(trace) + r.margin_m;
+// The test on a sphere of radius rho (the margin included) about (x, y, z), camera frame.
+GMM_MCL_HD bool ballInView(float x, float y, float z, float rho, const Intrinsics& K,
+                           const ViewReach& r) {
   // Signed distances (scaled by each normal's length) to the planes fx x = u z, fy y = v z.
   return z - rho <= r.far_m && K.fx_px * x - r.u0_px * z >= -rho * r.n_u0 &&
          r.u1_px * z - K.fx_px * x >= -rho * r.n_u1 && K.fy_px * y - r.v0_px * z >= -rho * r.n_v0 &&
          r.v1_px * z - K.fy_px * y >= -rho * r.n_v1;
+}
+
+// The test on a component's mean in the camera frame (x, y, z) and its covariance's trace.
+GMM_MCL_HD bool sphereInView(float x, float y, float z, float trace, const Intrinsics& K,
+                             const ViewReach& r, float sigma_bound) {
+  return ballInView(x, y, z, sigma_bound * sqrtf(trace) + r.margin_m, K, r);
 }
 
 GMM_MCL_HD bool componentInView(const ComponentF& c, const RigidTransformF& T_cam_map,

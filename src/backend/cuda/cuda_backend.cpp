@@ -1,7 +1,10 @@
 // Host side of the CUDA backend: device set-up, the map, uploads of frames and poses, device
 // frames, timing (the per-update launches are in cuda_backend_launch.cpp).
 #include <algorithm>
+#include <cmath>
+#include <cstdint>
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -122,13 +125,67 @@ std::unique_ptr<NormalEquationsEvaluator> CudaBackend::makeNormalEquations() {
                                                      [](cuda::BackendFrameRef*) { return false; });
 }
 
+namespace {
+
+// The Z order's cells (CudaTuningParams::z_order_min_components).
+constexpr double kZOrderCell_m = 0.25;
+
+// Interleaves the low 21 bits of x with two zero bits between each.
+uint64_t spreadBits(uint64_t x) {
+  x &= 0x1fffff;
+  x = (x | x << 32) & 0x1f00000000ffffULL;
+  x = (x | x << 16) & 0x1f0000ff0000ffULL;
+  x = (x | x << 8) & 0x100f00f00f00f00fULL;
+  x = (x | x << 4) & 0x10c30c30c30c30c3ULL;
+  x = (x | x << 2) & 0x1249249249249249ULL;
+  return x;
+}
+
+// The map's component indices in the Z order of their means (ties by index).
+std::vector<int> zOrder(const std::vector<ComponentF>& packed) {
+  float lo[3] = {std::numeric_limits<float>::max(), std::numeric_limits<float>::max(),
+                 std::numeric_limits<float>::max()};
+  for (const ComponentF& c : packed) {
+    for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], c.mean_m[a]);
+  }
+  std::vector<std::pair<uint64_t, int>> keyed(packed.size());
+  for (size_t i = 0; i < packed.size(); ++i) {
+    uint64_t key = 0;
+    for (int a = 0; a < 3; ++a) {
+      const double cell = std::floor((packed[i].mean_m[a] - lo[a]) / kZOrderCell_m);
+      const uint64_t q = static_cast<uint64_t>(std::min(std::max(cell, 0.0), 2097151.0));
+      key |= spreadBits(q) << a;
+    }
+    keyed[i] = {key, static_cast<int>(i)};
+  }
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<int> order(packed.size());
+  for (size_t k = 0; k < keyed.size(); ++k) order[k] = keyed[k].second;
+  return order;
+}
+
+}  // namespace
+
 void CudaBackend::setMap(const GmmMap& map) {
   const cuda::DeviceScope scope(impl_->device);
-  const std::vector<ComponentF>& packed = map.packed();
-  const int m = static_cast<int>(packed.size());
+  Impl& d = *impl_;
+  const std::vector<ComponentF>& packed_in = map.packed();
+  const int m = static_cast<int>(packed_in.size());
+  d.device_to_map.clear();
+  d.map_to_device.clear();
+  std::vector<ComponentF> reordered;
+  if (m >= d.tuning.z_order_min_components) {
+    d.device_to_map = zOrder(packed_in);
+    d.map_to_device.resize(m);
+    reordered.resize(m);
+    for (int k = 0; k < m; ++k) {
+      d.map_to_device[d.device_to_map[k]] = k;
+      reordered[k] = packed_in[d.device_to_map[k]];
+    }
+  }
+  const std::vector<ComponentF>& packed = reordered.empty() ? packed_in : reordered;
   std::vector<EvalComponentF> ev(m);
   for (int i = 0; i < m; ++i) ev[i] = makeEvalComponentF(packed[i], kEvalScaleLog2);
-  Impl& d = *impl_;
   GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(d.stream.get()));
   d.components.reserve(std::max(m, 1));
   d.eval_components.reserve(std::max(m, 1));

@@ -66,6 +66,9 @@ struct CudaBackend::Impl {
   int device = 0;
   cuda::Stream stream;
   int num_components = 0;
+  // The device's component order (setMap: Z order for large maps) against the map's: device
+  // index k holds map component device_to_map[k]; both empty: the map's own order.
+  std::vector<int> device_to_map, map_to_device;
   cuda::DeviceBuffer<ComponentF> components;
   cuda::DeviceBuffer<EvalComponentF> eval_components;  // log2 form (likelihood kernel)
   // Per-update inputs: one pinned staging buffer, one device buffer of the same layout.
@@ -74,7 +77,10 @@ struct CudaBackend::Impl {
   // Per-batch scratch and per-particle outputs.
   cuda::DeviceBuffer<uint32_t> mask;
   cuda::DeviceBuffer<float> shift;
-  cuda::DeviceBuffer<EvalComponentF> noisy_eval;  // [batch][M] with the depth-noise model on
+  // [batch][M] with the depth-noise model on; [batch][local stride] with local lists
+  cuda::DeviceBuffer<EvalComponentF> noisy_eval;
+  cuda::DeviceBuffer<int> local_most;  // the local lists' size (launchLocalCount)
+  cuda::PinnedBuffer<int> h_local_most;
   cuda::DeviceBuffer<double> item_ll;
   cuda::DeviceBuffer<int> item_hits, item_evals, item_relevant;
   // Per-particle results (and the frame's patch starts when the GPU prepared it) in one block,
@@ -107,6 +113,8 @@ struct CudaBackend::Impl {
   cuda::DeviceBuffer<int> cull_flags, cull_index;
   cuda::DeviceBuffer<ComponentF> cull_components;
   cuda::DeviceBuffer<EvalComponentF> cull_eval;
+  cuda::DeviceBuffer<float4> cull_chunks;
+  std::vector<int> device_candidates;  // the grid's candidates in the device's order
   cuda::PinnedBuffer<int> cull_count;
   int last_visible_components = -1;  // of the last cull (-1: the whole map)
   // The map's component grid (host) and, in a large map, the cull's candidates from it: the
@@ -156,6 +164,7 @@ struct CudaBackend::Impl {
     const ComponentF* components;
     const EvalComponentF* eval;
     const int* index;
+    const float4* chunks;  // the chunk balls of the compact list (null: none, every chunk tested)
   };
   ComponentSet cullView(const cuda::MembershipConfig& cfg, const RigidTransformF* T_cam_map, int n);
   // The cull over the given candidates (host list; null: the whole map).
@@ -179,7 +188,8 @@ struct CudaBackend::Impl {
 
   // Raises the membership kernel's shared-memory limit for this grid and bitmask; throws when
   // the device cannot hold it.
-  void ensureMembershipShared(int patches, int words, int visible);
+  void ensureMembershipShared(int patches, int words, int visible, bool local = false,
+                              bool chunked = false);
 
   // Records the device frame just uploaded or prepared (offsets of its layout L).
   template <typename Layout>

@@ -141,7 +141,7 @@ CudaBackend::Impl::ComponentSet CudaBackend::Impl::cullView(const cuda::Membersh
                                                             int n) {
   if (static_cast<long long>(n) * num_components < tuning.view_cull_min_pairs) {
     last_visible_components = -1;
-    return {num_components, components.data(), eval_components.data(), nullptr};
+    return {num_components, components.data(), eval_components.data(), nullptr, nullptr};
   }
   // In a large map, only the grid's components near the poses' views are tested: the poses come
   // back to the host (48 bytes each) and the map grid gives the candidates per group of poses.
@@ -159,6 +159,14 @@ CudaBackend::Impl::ComponentSet CudaBackend::Impl::cullCandidates(
   cudaStream_t s = stream.get();
   const int* candidates = nullptr;
   int num_candidates = 0;
+  if (host_list && !map_to_device.empty()) {
+    // The grid's map indices in the device's order (the cull flags them and compacts the flags
+    // in index order: the list's own order does not matter).
+    device_candidates.resize(host_list->size());
+    for (size_t k = 0; k < host_list->size(); ++k)
+      device_candidates[k] = map_to_device[(*host_list)[k]];
+    host_list = &device_candidates;
+  }
   if (host_list) {
     num_candidates = static_cast<int>(host_list->size());
     cull_candidates.reserve(std::max(num_candidates, 1), s);
@@ -172,11 +180,13 @@ CudaBackend::Impl::ComponentSet CudaBackend::Impl::cullCandidates(
   cull_index.reserve(size_t(num_components) + 1, s);
   cull_components.reserve(num_components, s);
   cull_eval.reserve(num_components, s);
+  cull_chunks.reserve(std::max(cuda::chunkCount(num_components), 1), s);
   cull_count.reserve(1);
   // The visible count is stored after the index list.
   int* count = cull_index.data() + num_components;
-  const cuda::ViewCullBuffers b{cull_flags.data(), cull_index.data(), cull_components.data(),
-                                cull_eval.data(), count};
+  const cuda::ViewCullBuffers b{
+      cull_flags.data(), cull_index.data(), cull_components.data(), cull_eval.data(), count,
+      cull_chunks.data()};
   GMM_MCL_CUDA_CHECK(cuda::launchViewCull(n, num_components, cfg, components.data(),
                                           eval_components.data(), T_cam_map, candidates,
                                           num_candidates, b, s));
@@ -184,11 +194,13 @@ CudaBackend::Impl::ComponentSet CudaBackend::Impl::cullCandidates(
       cudaMemcpyAsync(cull_count.data(), count, sizeof(int), cudaMemcpyDeviceToHost, s));
   GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(s));  // the count sizes the launches below
   last_visible_components = cull_count.data()[0];
-  return {last_visible_components, cull_components.data(), cull_eval.data(), cull_index.data()};
+  return {last_visible_components, cull_components.data(), cull_eval.data(), cull_index.data(),
+          cull_chunks.data()};
 }
 
-void CudaBackend::Impl::ensureMembershipShared(int patches, int words, int visible) {
-  const size_t smem = cuda::membershipSharedBytes(patches, words);
+void CudaBackend::Impl::ensureMembershipShared(int patches, int words, int visible, bool local,
+                                               bool chunked) {
+  const size_t smem = cuda::membershipSharedBytes(patches, words, local, chunked);
   if (smem > info.shared_per_block_bytes) {
     throw BackendError("cuda backend: the membership bitmask needs " + std::to_string(smem) +
                        " bytes of shared memory (" + std::to_string(patches) + " patches x " +
@@ -299,14 +311,33 @@ int CudaBackend::Impl::launchSet(const DeviceFrameView& f, int n, const RigidTra
   const int patches = f.grid.count();
   cudaStream_t s = stream.get();
   const int m = set.count;
-  const int words = std::max((m + 31) / 32, 1);
+  // Where many components are visible together (a cloud spread over a building): local lists,
+  // each pose's bitmask and forms sized by the most any one pose keeps (local_stride > 0), and
+  // each pose skips the set's chunks outside its view (a tracking cloud's set is about one
+  // view: the plain kernel, without the chunk tests and their shared memory).
+  const bool spread = m > 0 && m >= tuning.local_lists_min_components;
+  const float4* chunks = spread ? set.chunks : nullptr;
+  int local_stride = 0;
+  if (spread) {
+    local_most.reserve(1, s);
+    GMM_MCL_CUDA_CHECK(
+        cuda::launchLocalCount(n, m, cfg, set.components, chunks, T_cam_map, local_most.data(), s));
+    h_local_most.reserve(1);
+    GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(h_local_most.data(), local_most.data(), sizeof(int),
+                                       cudaMemcpyDeviceToHost, s));
+    GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(s));  // the count sizes the launches below
+    local_stride = std::max((h_local_most.data()[0] + 31) / 32, 1) * 32;
+  }
+  const bool local = local_stride > 0;
+  const int words = local ? local_stride / 32 : std::max((m + 31) / 32, 1);
   const int pass_words = tuning.membership_pass_words;
   const int passes = cuda::membershipPasses(words, pass_words);
-  ensureMembershipShared(patches, passes == 1 ? words : pass_words, m);
+  ensureMembershipShared(patches, passes == 1 ? words : pass_words, m, local, chunks != nullptr);
   // Particles in batches whose masks (and per-particle evaluation forms) fit the budget.
   const bool noise = params.depth_noise.enabled();
-  const size_t bytes_per_particle =
-      sizeof(uint32_t) * size_t(patches) * words + (noise ? sizeof(EvalComponentF) * size_t(m) : 0);
+  const int forms_per_particle = local ? local_stride : (noise ? std::max(m, 1) : 0);
+  const size_t bytes_per_particle = sizeof(uint32_t) * size_t(patches) * words +
+                                    sizeof(EvalComponentF) * size_t(forms_per_particle);
   const size_t max_by_threads = size_t(0x7fffffff) / (size_t(patches) * 32);  // int indices
   const size_t budget = std::min(kMaskBudgetBytes, info.total_memory_bytes / 16);
   const int batch = static_cast<int>(std::max<size_t>(
@@ -315,7 +346,7 @@ int CudaBackend::Impl::launchSet(const DeviceFrameView& f, int n, const RigidTra
   // scratch grows only after them.
   mask.reserve(size_t(batch) * patches * words, s);
   shift.reserve(cuda::membershipShiftFloats(batch, patches, passes), s);
-  if (noise) noisy_eval.reserve(size_t(batch) * std::max(m, 1), s);
+  if (forms_per_particle > 0) noisy_eval.reserve(size_t(batch) * forms_per_particle, s);
   const cuda::LikelihoodShape shape = likelihoodShape(max_patch_pixels, tuning);
   const int items = cuda::likelihoodItemsPerParticle(shape, patches);
   item_ll.reserve(size_t(batch) * items, s);
@@ -331,9 +362,10 @@ int CudaBackend::Impl::launchSet(const DeviceFrameView& f, int n, const RigidTra
     const int count = std::min(batch, n - first);
     const int e = 3 * (first_batch + bi);
     if (bi > 0) events[e].record(s);  // the first batch's start is before the cull
-    GMM_MCL_CUDA_CHECK(cuda::launchMembership(
-        count, m, words, pass_words, cfg, set.components, set.eval, T_cam_map + first, mask.data(),
-        shift.data(), noise ? noisy_eval.data() : nullptr, s));
+    GMM_MCL_CUDA_CHECK(
+        cuda::launchMembership(count, m, words, pass_words, local_stride, cfg, set.components,
+                               chunks, set.eval, T_cam_map + first, mask.data(), shift.data(),
+                               forms_per_particle > 0 ? noisy_eval.data() : nullptr, s));
     events[e + 1].record(s);
     const cuda::LikelihoodInputs in{patches,
                                     words,
@@ -341,8 +373,8 @@ int CudaBackend::Impl::launchSet(const DeviceFrameView& f, int n, const RigidTra
                                     f.y,
                                     f.z,
                                     f.patch_begin,
-                                    noise ? noisy_eval.data() : set.eval,
-                                    noise ? m : 0,
+                                    forms_per_particle > 0 ? noisy_eval.data() : set.eval,
+                                    forms_per_particle,
                                     T_map_cam + first,
                                     mask.data(),
                                     shift.data()};
@@ -382,9 +414,9 @@ void CudaBackend::membership(const DepthFrame& frame, const RigidTransformF& T_m
   cuda::DeviceBuffer<uint32_t> mask(size_t(patches) * words);
   cuda::DeviceBuffer<float> shift(cuda::membershipShiftFloats(1, patches, passes));
   cuda::DeviceBuffer<EvalComponentF> noisy(std::max(set.count, 1));
-  GMM_MCL_CUDA_CHECK(cuda::launchMembership(1, set.count, words, pass_words, cfg, set.components,
-                                            set.eval, pose.data(), mask.data(), shift.data(),
-                                            noisy.data(), s));
+  GMM_MCL_CUDA_CHECK(cuda::launchMembership(1, set.count, words, pass_words, 0, cfg, set.components,
+                                            nullptr, set.eval, pose.data(), mask.data(),
+                                            shift.data(), noisy.data(), s));
   std::vector<uint32_t> h(size_t(patches) * words);
   std::vector<int> index(set.count);
   GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(h.data(), mask.data(), h.size() * sizeof(uint32_t),
@@ -395,14 +427,18 @@ void CudaBackend::membership(const DepthFrame& frame, const RigidTransformF& T_m
                                        cudaMemcpyDeviceToHost, s));
   }
   GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(s));
-  // Map indices, ascending per patch (the compact list is in map order).
+  // Map indices, ascending per patch (the compact list is in the device's order).
+  const bool reordered = !d.device_to_map.empty();
   for (int p = 0; p < patches; ++p) {
     for (int w = 0; w < words; ++w) {
       const uint32_t bits = h[size_t(p) * words + w];
       for (int b = 0; b < 32; ++b) {
-        if (bits & (1u << b)) out->comps.push_back(index[w * 32 + b]);
+        if (!(bits & (1u << b))) continue;
+        const int k = index[w * 32 + b];
+        out->comps.push_back(reordered ? d.device_to_map[k] : k);
       }
     }
+    if (reordered) std::sort(out->comps.begin() + out->begin[p], out->comps.end());
     out->begin[p + 1] = static_cast<int>(out->comps.size());
   }
 }

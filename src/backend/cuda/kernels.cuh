@@ -32,9 +32,16 @@ struct MembershipConfig {
   ViewReach reach;              // the view volume (view cull only; projection.h)
 };
 
+// The membership kernel tests a set's components in chunks of this many, each chunk first by
+// its bounding ball (launchViewCull's `chunks`): a pose skips the chunks outside its view.
+constexpr int kComponentChunk = 256;
+inline int chunkCount(int num_components) {
+  return (num_components + kComponentChunk - 1) / kComponentChunk;
+}
+
 // Shared memory the membership kernel needs for a grid of `patches` and `words` bitmask words
-// per patch (bytes).
-size_t membershipSharedBytes(int patches, int words);
+// per patch (bytes), with local lists and with chunk balls or without.
+size_t membershipSharedBytes(int patches, int words, bool local, bool chunked);
 // Raises the kernel's dynamic shared-memory limit to `bytes` (needed above 48 KB).
 cudaError_t setMembershipSharedLimit(size_t bytes);
 // Asks for the largest shared-memory carveout for the membership kernel (a hint).
@@ -52,13 +59,26 @@ cudaError_t preferSharedMemoryForMembership();
 // log2 evaluation form convolved with the depth noise for that pose (depth_noise.h; where that
 // fails, the noise-free form from `eval`), and the shift uses those forms' log_norm; with it off,
 // eval and eval_out are not used (may be null).
+// chunks (may be null: every chunk tested): the set's chunk balls (launchViewCull); a pose
+// tests only the components of the chunks whose ball meets its view volume, the same ones.
+// Local lists (local_stride > 0, at least words * 32): bit k of a pose's mask is the k-th of the
+// components it keeps (componentMayTouchGrid and the view volume), in the set's order, and
+// eval_out is [num_particles][local_stride], the pose's forms at those places (the noise-free
+// form from `eval` with the depth noise off). The bitmask then follows what one pose sees, not
+// the union of all poses' views (a cloud spread over a building). Every pass tests the whole set.
 int membershipPasses(int words, int pass_words);
 size_t membershipShiftFloats(int num_particles, int patches, int passes);
 cudaError_t launchMembership(int num_particles, int num_components, int words, int pass_words,
-                             const MembershipConfig& cfg, const ComponentF* components,
+                             int local_stride, const MembershipConfig& cfg,
+                             const ComponentF* components, const float4* chunks,
                              const EvalComponentF* eval, const RigidTransformF* T_cam_map,
                              uint32_t* mask_out, float* shift_out, EvalComponentF* eval_out,
                              cudaStream_t stream);
+// The largest number of the components [0, num_components) that one of the poses keeps (the
+// membership kernel's tests), into *most (device; the local lists' size).
+cudaError_t launchLocalCount(int num_particles, int num_components, const MembershipConfig& cfg,
+                             const ComponentF* components, const float4* chunks,
+                             const RigidTransformF* T_cam_map, int* most, cudaStream_t stream);
 
 // The per-update view cull: the components that componentMayTouchGrid keeps for at least one of
 // the poses, in ascending order (all others are culled by the membership kernel for every pose,
@@ -69,9 +89,10 @@ struct ViewCullBuffers {
   ComponentF* components;  // [M] compact copy
   EvalComponentF* eval;    // [M] compact copy (log2 form)
   int* count;              // [1] visible count
+  float4* chunks;          // [chunkCount(M)] the compact list's chunk balls (x, y, z, radius)
 };
-// candidates (num_candidates map indices, ascending; null: every component) limits the test to
-// the map grid's components near the poses' views.
+// candidates (num_candidates component indices, any order; null: every component) limits the test
+// to the map grid's components near the poses' views.
 cudaError_t launchViewCull(int num_particles, int num_components, const MembershipConfig& cfg,
                            const ComponentF* components, const EvalComponentF* eval,
                            const RigidTransformF* T_cam_map, const int* candidates,
