@@ -159,8 +159,11 @@ void Localizer::screenCandidates(const MeasurementContext& ctx, int count, bool 
   // likelihood's basin (a few decimetres), one of the best few often lands beside it.
   const int local =
       local_stage && per > 1 ? static_cast<int>(params_.lost.local_candidate_fraction * total) : 0;
-  // Batches of at least the largest particle count: a redraw from a shrunken set (1068
-  // particles) scores its candidates in as few launches as a full set would.
+  // Drawn in batches of at least the largest particle count (the draws of the earlier version),
+  // and each stage's draws scored in one call: the backend's per-call work (the poses' view
+  // groups, the cull of a large map, its waits) is paid once per stage, not once per batch.
+  // Measured on an H100: the first update from the 4 m cube in the map of 10 x 10 rooms took
+  // 51 ms in 16 calls and 14-17 ms in one; the building world's whole-map start 10.7 and 4.3 s.
   const int batch = std::max(filter_->size(), params_.filter.num_particles);
   // The uniform stage of a redraw against the blurred map (a wider basin), then the map again.
   const bool blur = local_stage && !blurred_map_.empty();
@@ -168,8 +171,8 @@ void Localizer::screenCandidates(const MeasurementContext& ctx, int count, bool 
   try {
     for (int done = 0; done < total - local; done += batch) {
       filter_->drawUniformCandidates(region_, std::min(batch, total - local - done));
-      filter_->scoreCandidates(ctx);
     }
+    filter_->scoreCandidates(ctx);
   } catch (...) {
     if (blur) backend_->setMap(map_);
     throw;
@@ -187,8 +190,8 @@ void Localizer::screenCandidates(const MeasurementContext& ctx, int count, bool 
     const int n = level + 1 < levels ? local / levels : local - (levels - 1) * (local / levels);
     for (int done = 0; done < n; done += batch) {
       filter_->drawCandidatesAroundCentres(sigma_m, sigma_rad, std::min(batch, n - done));
-      filter_->scoreCandidates(ctx);
     }
+    filter_->scoreCandidates(ctx);
     sigma_m /= 3.0;
     sigma_rad /= 3.0;
   }
