@@ -469,10 +469,10 @@ void addCudaParams(ParamTable<P>* t) {
   add(t, paramSpec<P>("cuda_local_lists_min_components",
                       GMM_MCL_PARAM_FIELD(P, cuda.local_lists_min_components), "", g, {0, 1e9},
                       kStartup,
-                      "From this many components visible to an update's poses together on, the "
-                      "cuda backend's bitmasks and forms of each pose cover only what that pose "
-                      "can see, and each pose skips the chunks of them outside its view (0: "
-                      "always)"));
+                      "From this many components visible to an update's poses together (after the "
+                      "view cull) on, the cuda backend's bitmasks and forms of each pose cover "
+                      "only what that pose can see, and each pose skips the chunks of them "
+                      "outside its view (0: always)"));
   add(t,
       paramSpec<P>("cuda_z_order_min_components",
                    GMM_MCL_PARAM_FIELD(P, cuda.z_order_min_components), "", g, {0, 1e9}, kStartup,

@@ -38,7 +38,7 @@ struct CudaTuningParams {
   // sizes them), instead of all of them, and each pose skips the chunks of 256 of them whose
   // bounding ball lies outside its view: a cloud spread over a building sees a hundred times
   // more together than one pose does. The same members in the same order (the sums equal to
-  // float rounding). 0: always.
+  // float rounding). On the view cull's set only (view_cull_min_pairs). 0: always.
   int local_lists_min_components = 4096;
   // From this many components on, the device holds the map in the Z order of the components'
   // means (0.25 m cells), so that a chunk of 256 consecutive components is a small piece of

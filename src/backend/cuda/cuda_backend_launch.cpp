@@ -314,8 +314,10 @@ int CudaBackend::Impl::launchSet(const DeviceFrameView& f, int n, const RigidTra
   // Where many components are visible together (a cloud spread over a building): local lists,
   // each pose's bitmask and forms sized by the most any one pose keeps (local_stride > 0), and
   // each pose skips the set's chunks outside its view (a tracking cloud's set is about one
-  // view: the plain kernel, without the chunk tests and their shared memory).
-  const bool spread = m > 0 && m >= tuning.local_lists_min_components;
+  // view: the plain kernel, without the chunk tests and their shared memory). Only on the view
+  // cull's set, which has the chunk balls; the whole map (too few pairs for the cull) keeps the
+  // plain kernel.
+  const bool spread = set.chunks != nullptr && m > 0 && m >= tuning.local_lists_min_components;
   const float4* chunks = spread ? set.chunks : nullptr;
   int local_stride = 0;
   if (spread) {
