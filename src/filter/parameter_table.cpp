@@ -465,7 +465,7 @@ void addCudaParams(ParamTable<P>* t) {
                       kStartup,
                       "The cuda backend evaluates a cloud spread over a large map (20,000 "
                       "components or more) group by group of places, each over its own view "
-                      "(experimental: not yet measured on a GPU)"));
+                      "(measured slower on an H100: docs/building_scale.md)"));
   add(t, paramSpec<P>("cuda_local_lists_min_components",
                       GMM_MCL_PARAM_FIELD(P, cuda.local_lists_min_components), "", g, {0, 1e9},
                       kStartup,

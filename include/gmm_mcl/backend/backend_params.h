@@ -31,7 +31,8 @@ struct CudaTuningParams {
   // A cloud spread over several places of a map of 20,000 components or more (a start from a
   // uniform cloud, a lost detector's redraw) evaluated group by group of poses by place, each
   // over what its own views can see (as the CPU backend does), instead of all over the union of
-  // the views. Off until measured on a GPU: CudaBackendTest.CloudSpreadOverABuildingMatchesCpu.
+  // the views. Off: measured slower on an H100 (docs/building_scale.md); its parity with the CPU
+  // backend is CudaBackendTest.CloudSpreadOverABuildingMatchesCpu.
   bool place_groups = false;
   // From this many components visible to the update's poses together on, each pose's bitmask
   // and evaluation forms cover only the components it can see itself (a count kernel first
