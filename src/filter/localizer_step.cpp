@@ -66,6 +66,7 @@ void Localizer::takeStepInputs(const StepInput& in, StepResult* res) {
     screen_pending_ = true;
     have_refined_ = false;
     have_odometry_ = false;
+    have_gyro_yaw_ = false;
     have_stamp_ = false;
     motion_model_.reset();
     step_dt_s_ = 0.0;
@@ -111,9 +112,12 @@ void Localizer::predictStep(const StepInput& in, StepResult* res) {
   if (in.has_odometry && have_odometry_) {
     res->motion = MotionSource::kOdometry;
   } else if (params_.constant_velocity.enabled) {
-    // No odometry (or its first message: no delta yet): the filter's own recent motion.
+    // No odometry (or its first message: no delta yet): the filter's own recent motion, its
+    // yaw change from the gyro where the input has one.
+    const bool gyro = in.has_gyro_yaw && have_gyro_yaw_ && std::isfinite(in.gyro_yaw_rad);
+    const double gyro_delta = gyro ? in.gyro_yaw_rad - last_gyro_yaw_rad_ : 0.0;
     delta = motion_model_.predict(step_dt_s_, params_.filter.sigma_translation_m,
-                                  params_.filter.sigma_yaw_rad);
+                                  params_.filter.sigma_yaw_rad, gyro ? &gyro_delta : nullptr);
     res->motion = MotionSource::kConstantVelocity;
   } else {
     res->motion = MotionSource::kStatic;
@@ -122,6 +126,8 @@ void Localizer::predictStep(const StepInput& in, StepResult* res) {
     last_odom_ = in.T_odom_base;
     have_odometry_ = true;
   }
+  have_gyro_yaw_ = in.has_gyro_yaw && std::isfinite(in.gyro_yaw_rad);
+  last_gyro_yaw_rad_ = in.gyro_yaw_rad;
   filter_->predict(delta);
   if (have_refined_) {  // the last refined pose moved like a particle, without noise
     const double c = std::cos(last_refined_.yaw_rad), sn = std::sin(last_refined_.yaw_rad);

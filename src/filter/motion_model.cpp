@@ -29,12 +29,15 @@ std::string ConstantVelocityParams::validate() const {
     err << "cv_sigma_yaw_rate_rad_s must be finite and >= 0; ";
   if (!(max_gap_s > 0.0)) err << "cv_max_gap_s must be positive; ";
   if (!(max_speed_m_s > 0.0)) err << "cv_max_speed_m_s must be positive; ";
+  if (!(gyro_sigma_yaw_rate_rad_s >= 0.0) || !std::isfinite(gyro_sigma_yaw_rate_rad_s))
+    err << "cv_gyro_sigma_yaw_rate_rad_s must be finite and >= 0; ";
   return err.str();
 }
 
 void ConstantVelocityModel::forgetVelocity() {
   have_velocity_ = false;
   velocity_.setZero();
+  world_velocity_.setZero();
 }
 
 void ConstantVelocityModel::reset() {
@@ -43,15 +46,25 @@ void ConstantVelocityModel::reset() {
 }
 
 PlanarDelta ConstantVelocityModel::predict(double dt_s, double sigma_translation_m,
-                                           double sigma_yaw_rad) {
+                                           double sigma_yaw_rad, const double* gyro_yaw_delta_rad) {
   if (!std::isfinite(dt_s) || dt_s < 0.0) dt_s = 0.0;
   if (dt_s > params_.max_gap_s) forgetVelocity();
   PlanarDelta d;
   d.translation_m = velocity_.head<3>() * dt_s;
+  const bool gyro = params_.use_gyro && gyro_yaw_delta_rad && std::isfinite(*gyro_yaw_delta_rad);
+  if (gyro && params_.world_velocity) {  // into the last estimate's body frame
+    const double c = std::cos(last_pose_.yaw_rad), s = std::sin(last_pose_.yaw_rad);
+    const Eigen::Vector3d& w = world_velocity_;
+    d.translation_m = Eigen::Vector3d(c * w.x() + s * w.y(), -s * w.x() + c * w.y(), w.z()) * dt_s;
+  }
   d.yaw_rad = velocity_[3] * dt_s;
   const double growth = have_velocity_ ? 1.0 : 2.0;
   d.sigma_translation_m = sigma_translation_m + growth * params_.sigma_speed_m_s * dt_s;
   d.sigma_yaw_rad = sigma_yaw_rad + growth * params_.sigma_yaw_rate_rad_s * dt_s;
+  if (gyro) {
+    d.yaw_rad = *gyro_yaw_delta_rad;
+    d.sigma_yaw_rad = sigma_yaw_rad + params_.gyro_sigma_yaw_rate_rad_s * dt_s;
+  }
   return d;
 }
 
@@ -80,6 +93,7 @@ void ConstantVelocityModel::observe(double stamp_s, const Particle& pose, double
   // prediction only by the smoothing weight.
   const double gain = params_.velocity_smoothing * std::min(1.0, std::max(0.0, confidence));
   velocity_ += gain * (sample - velocity_);
+  world_velocity_ += gain * (Eigen::Vector3d(dx, dy, pose.z_m - prev.z_m) / dt - world_velocity_);
   have_velocity_ = true;
 }
 

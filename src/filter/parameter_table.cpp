@@ -166,6 +166,21 @@ void addMotionParams(ParamTable<P>* t) {
                       "m/s", g, {1e-3, 100}, kRuntime,
                       "Constant-velocity model: a faster velocity sample is a jump of the estimate "
                       "and restarts the velocity from zero"));
+  add(t, paramSpec<P>("cv_gyro", GMM_MCL_PARAM_FIELD(P, constant_velocity.use_gyro), "", g, {},
+                      kRuntime,
+                      "Steps without odometry take their yaw change from the IMU gyro's heading "
+                      "where the input has one (the nodelet: imu angular_velocity) instead of the "
+                      "constant-velocity yaw rate"));
+  add(t, paramSpec<P>("cv_world_velocity", GMM_MCL_PARAM_FIELD(P, constant_velocity.world_velocity),
+                      "", g, {}, kRuntime,
+                      "Constant-velocity model, a step turned by the gyro: the translation "
+                      "velocity held in the map frame (a drone, a hand-held camera) instead of "
+                      "the body frame (a car)"));
+  add(t, paramSpec<P>("cv_gyro_sigma_yaw_rate_rad_s",
+                      GMM_MCL_PARAM_FIELD(P, constant_velocity.gyro_sigma_yaw_rate_rad_s), "rad/s",
+                      g, {0, 10}, kRuntime,
+                      "Yaw noise of a gyro-predicted step: sigma_yaw_rad + this x the time since "
+                      "the last step"));
 }
 
 // Weighting.

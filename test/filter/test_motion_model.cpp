@@ -77,6 +77,50 @@ TEST(MotionModelTest, NoiseGrowsWithTheTimeSinceTheLastStep) {
   EXPECT_EQ(d0.translation_m.norm(), 0.0);
 }
 
+TEST(MotionModelTest, TheGyroGivesTheYawChangeWithItsOwnNoise) {
+  ConstantVelocityParams p;
+  p.sigma_yaw_rate_rad_s = 0.5;
+  p.gyro_sigma_yaw_rate_rad_s = 0.02;
+  p.world_velocity = false;  // below: the body-frame translation of the model, unchanged
+  ConstantVelocityModel model(p);
+  for (int k = 0; k < 5; ++k) model.observe(k * kDt, turningPose(k, 0.3, 0.4, 0.0));
+  ASSERT_TRUE(model.hasVelocity());
+  const double gyro = -0.25;  // turning the other way since the last step
+  const PlanarDelta d = model.predict(0.1, 0.02, 0.01, &gyro);
+  EXPECT_EQ(d.yaw_rad, -0.25);
+  EXPECT_NEAR(d.sigma_yaw_rad, 0.01 + 0.02 * 0.1, 1e-12);
+  const PlanarDelta cv = model.predict(0.1, 0.02, 0.01);  // the translation is the model's
+  EXPECT_EQ(d.translation_m, cv.translation_m);
+  EXPECT_NEAR(cv.yaw_rad, 0.1 * model.velocity()[3], 1e-12);
+  // Off, or not a number: the model's own yaw rate.
+  const double nan = std::nan("");
+  EXPECT_EQ(model.predict(0.1, 0.02, 0.01, &nan).yaw_rad, cv.yaw_rad);
+  p.use_gyro = false;
+  model.setParams(p);
+  EXPECT_EQ(model.predict(0.1, 0.02, 0.01, &gyro).yaw_rad, cv.yaw_rad);
+}
+
+// A drone flying straight along the map's x axis at 0.5 m/s while it yaws at 1 rad/s: with the
+// gyro's turn, the map-frame velocity predicts the flight (in the last estimate's body frame);
+// the body-frame velocity would swing with the yaw.
+TEST(MotionModelTest, AGyroTurnedStepMovesWithTheMapFrameVelocity) {
+  ConstantVelocityParams p;
+  p.velocity_smoothing = 1.0;
+  ConstantVelocityModel model(p);
+  double yaw = 0.0;
+  for (int k = 0; k < 10; ++k) {
+    yaw = 1.0 * k * kDt;
+    model.observe(k * kDt, Particle{0.5 * k * kDt, 1.0, 0.5, yaw});
+  }
+  const double gyro = 1.0 * 0.1;
+  const PlanarDelta d = model.predict(0.1, 0.02, 0.01, &gyro);
+  // The body-frame delta back into the map frame at the last estimate's yaw.
+  const double c = std::cos(yaw), s = std::sin(yaw);
+  EXPECT_NEAR(c * d.translation_m.x() - s * d.translation_m.y(), 0.05, 1e-9);
+  EXPECT_NEAR(s * d.translation_m.x() + c * d.translation_m.y(), 0.0, 1e-9);
+  EXPECT_EQ(d.yaw_rad, gyro);
+}
+
 TEST(MotionModelTest, ForgetsTheVelocityOnTimeJumpsGapsAndJumps) {
   ConstantVelocityParams p;
   p.max_gap_s = 0.5;

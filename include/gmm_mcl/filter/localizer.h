@@ -53,6 +53,12 @@ struct StepInput {
   bool has_attitude = false;
   double roll_rad = 0.0;
   double pitch_rad = 0.0;
+  // The IMU gyro's heading at the stamp: its turn rate about the vertical integrated over time,
+  // from any origin (only differences between steps are used). A step without odometry takes its
+  // yaw change from the difference to the previous step's (cv_gyro), where the
+  // constant-velocity model's yaw rate lags a fast turn.
+  bool has_gyro_yaw = false;
+  double gyro_yaw_rad = 0.0;
   const DepthImage* depth = nullptr;  // nullptr: predict only
   Intrinsics intrinsics;
   // The camera optical frame in the base frame at this frame's stamp (a gimbal, a moving
@@ -242,6 +248,8 @@ class Localizer {
   PoseEstimate last_estimate_;
   bool have_odometry_ = false;
   Eigen::Isometry3d last_odom_ = Eigen::Isometry3d::Identity();
+  bool have_gyro_yaw_ = false;  // the previous step's StepInput::gyro_yaw_rad
+  double last_gyro_yaw_rad_ = 0.0;
   bool have_stamp_ = false;
   double last_stamp_s_ = 0.0;
   double step_dt_s_ = 0.0;  // time since the previous step (0 at the first, after a jump back)

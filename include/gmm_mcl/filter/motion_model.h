@@ -1,6 +1,7 @@
-// The motion model of a step without odometry (docs/no_odometry.md): a constant velocity
-// (body-frame x, y, z speeds and a yaw rate) estimated from the filter's own converged estimates,
-// extrapolated over the time since the last step, with process noise that grows with that time.
+// The motion model of a step without odometry (docs/no_odometry.md): a constant velocity (x, y,
+// z speeds in the map or the body frame and a yaw rate, or the gyro's turn) estimated from the
+// filter's own converged estimates, extrapolated over the time since the last step, with process
+// noise that grows with that time.
 #pragma once
 
 #include <Eigen/Core>
@@ -35,12 +36,25 @@ struct ConstantVelocityParams {
   // A velocity sample faster than this is a jump of the estimate (a recovery, a wrong mode left):
   // the velocity restarts from zero.
   double max_speed_m_s = 3.0;
+  // A step that carries the IMU gyro's heading (StepInput::has_gyro_yaw) takes its yaw change
+  // from it instead of the yaw rate above: the rate of a fast turn itself, which a constant
+  // velocity lags. Its noise: sigma_yaw_rad + gyro_sigma_yaw_rate_rad_s x the time since the
+  // last step (a gyro's bias after calibration and its white noise, with margin).
+  bool use_gyro = true;
+  double gyro_sigma_yaw_rate_rad_s = 0.02;
+  // On a step that turns by the gyro's heading, the translation velocity held in the
+  // gravity-aligned map frame instead of the body frame: a drone or a hand-held camera moves the
+  // same way whichever way it faces, where a body-frame velocity swings with every turn of the
+  // head (a car's turns with its heading). Without the gyro the body frame, whose turn is the
+  // learned yaw rate's (docs/no_odometry.md: the map frame there lost a synthetic 10 Hz track).
+  bool world_velocity = true;
 
   std::string validate() const;
 };
 
-// The velocity lives in the body frame of the last estimate (forward, left, up and the yaw
-// rate), so that a turning vehicle's motion turns with it, as an odometry delta does.
+// The velocity is kept both in the body frame of the last estimate (forward, left, up and the
+// yaw rate: a turning vehicle's motion turns with it, as an odometry delta does) and in the map
+// frame (x, y, z); world_velocity says which predicts the translation of a gyro-turned step.
 class ConstantVelocityModel {
  public:
   explicit ConstantVelocityModel(const ConstantVelocityParams& params = ConstantVelocityParams())
@@ -48,8 +62,12 @@ class ConstantVelocityModel {
   void setParams(const ConstantVelocityParams& params) { params_ = params; }
 
   // The motion over dt_s with its process noise (sigmas from the base per-update noise). A gap
-  // longer than max_gap_s (or a negative or non-finite one) forgets the velocity first.
-  PlanarDelta predict(double dt_s, double sigma_translation_m, double sigma_yaw_rad);
+  // longer than max_gap_s (or a negative or non-finite one) forgets the velocity first. With
+  // gyro_yaw_delta_rad (the heading the IMU's gyro turned over dt_s; null: none) and use_gyro,
+  // the yaw change is that, with the gyro's noise, and the translation the map-frame velocity's
+  // (world_velocity).
+  PlanarDelta predict(double dt_s, double sigma_translation_m, double sigma_yaw_rad,
+                      const double* gyro_yaw_delta_rad = nullptr);
   // An estimate of the base at stamp_s: a velocity sample against the previous one, smoothed
   // with velocity_smoothing x confidence (in (0, 1]: how far the estimate can be trusted).
   void observe(double stamp_s, const Particle& pose, double confidence = 1.0);
@@ -70,6 +88,7 @@ class ConstantVelocityModel {
   Particle last_pose_;
   bool have_velocity_ = false;
   Eigen::Vector4d velocity_ = Eigen::Vector4d::Zero();
+  Eigen::Vector3d world_velocity_ = Eigen::Vector3d::Zero();  // map frame (world_velocity)
 };
 
 }  // namespace gmm_mcl
