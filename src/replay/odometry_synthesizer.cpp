@@ -5,7 +5,7 @@
 namespace gmm_mcl {
 
 OdometrySynthesizer::OdometrySynthesizer(const ProtocolNoise& noise, uint64_t seed)
-    : noise_(noise), rng_(seed * 7919 + 17) {}
+    : noise_(noise), rng_(seed * 7919 + 17), gyro_rng_(seed * 104729 + 31) {}
 
 Eigen::Isometry3d OdometrySynthesizer::next(const Eigen::Isometry3d& T_world_base, double frames) {
   if (!started_) {
@@ -39,6 +39,23 @@ void OdometrySynthesizer::attitude(const Eigen::Isometry3d& T_world_base, double
   rpyFromRotation(T_world_base.linear(), roll_rad, pitch_rad, &yaw);
   *roll_rad += noise_.attitude_sigma_rad * gauss_(rng_);
   *pitch_rad += noise_.attitude_sigma_rad * gauss_(rng_);
+}
+
+double OdometrySynthesizer::gyroYaw(const Eigen::Isometry3d& T_world_base, double dt_s) {
+  double roll, pitch, yaw;
+  rpyFromRotation(T_world_base.linear(), &roll, &pitch, &yaw);
+  if (!gyro_started_) {
+    gyro_bias_rad_s_ = noise_.gyro_bias_sigma_rad_s * gyro_gauss_(gyro_rng_);
+    gyro_yaw_rad_ = 0.0;
+    gyro_started_ = true;
+  } else {
+    const double dt = std::max(dt_s, 0.0);
+    gyro_yaw_rad_ +=
+        wrapAngle(yaw - gyro_last_true_yaw_rad_) + gyro_bias_rad_s_ * dt +
+        noise_.gyro_noise_density_rad_s_sqrt_hz * std::sqrt(dt) * gyro_gauss_(gyro_rng_);
+  }
+  gyro_last_true_yaw_rad_ = yaw;
+  return gyro_yaw_rad_;
 }
 
 }  // namespace gmm_mcl

@@ -126,6 +126,10 @@ TrialResult runTrial(const Sequence& seq, const DepthProvider& depth, const GmmM
     odometry.attitude(truth[f], &roll, &pitch);
     in.has_attitude = params.attitude;
     if (params.attitude) in.roll_rad = roll, in.pitch_rad = pitch;
+    const double gyro_yaw =
+        odometry.gyroYaw(truth[f], k > 0 ? in.stamp_s - seq.stampS(f - step) : 0.0);
+    in.has_gyro_yaw = params.gyro;
+    if (params.gyro) in.gyro_yaw_rad = gyro_yaw;
     in.depth = &depth(f);
     in.intrinsics = seq.intrinsics();
     const Particle true_pose = poseToParticle(truth[f]);

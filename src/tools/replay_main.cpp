@@ -36,7 +36,7 @@ const char* kUsage =
     "                      [--lost-margin-nats NATS] [--lost-grace-frames FRAMES]\n"
     "                      [--lost-candidates-per-particle K]\n"
     "                      [--hold-frames N (30)] [--tail-frames N (100)]\n"
-    "                      [--odometry truth|none] [--imu truth|none] [--frame-step K]\n"
+    "                      [--odometry truth|none] [--imu truth|attitude|none] [--frame-step K]\n"
     "                      [--nearest-particle] [--out DIR] [--quiet]\n"
     "       folder options: [--intrinsics fr1|fr2|fr3|icl|kinect|fx,fy,cx,cy|FILE]\n"
     "                      [--depth-scale UNITS_PER_M] [--tolerance S] [--gravity z-up|\n"
@@ -58,10 +58,12 @@ const char* kUsage =
     "--convert writes the data set in another folder format (with intrinsics.txt and\n"
     "gravity-direction.txt); --convert-stride keeps only the pixels on that stride's grid (the\n"
     "same input for a filter of that stride, a fraction of the bytes; TUM only).\n"
-    "--odometry none withholds the odometry (the filter's constant-velocity model predicts),\n"
-    "--imu none the attitude (roll and pitch held from the refined estimates); --frame-step K\n"
-    "replays every K-th frame (2: 15 Hz, 3: 10 Hz from 30 Hz; --frames counts the sequence's\n"
-    "frames; the hold and tail windows shrink by K unless given): docs/no_odometry.md.\n"
+    "--odometry none withholds the odometry (the filter's constant-velocity model predicts, its\n"
+    "yaw change from the synthesised IMU gyro's heading), --imu attitude the gyro (the model's\n"
+    "own yaw rate), --imu none the attitude too (roll and pitch held from the refined\n"
+    "estimates); --frame-step K replays every K-th frame (2: 15 Hz, 3: 10 Hz from 30 Hz;\n"
+    "--frames counts the sequence's frames; the hold and tail windows shrink by K unless\n"
+    "given): docs/no_odometry.md.\n"
     "--nearest-particle adds each frame's distance from the truth to the nearest particle (yaw\n"
     "within 0.2 rad) to the CSV (nearest_particle_m): whether the set still holds the truth.\n"
     "Filter parameters: every one as --name-with-dashes (the list under --help).\n";
@@ -161,7 +163,8 @@ Options parseOptions(int argc, char** argv, cli::CommandLine* cl_out) {
   if (o.fixture.size() == 1 || o.fixture.size() > 2) cl.fail("--make-fixture: expected FORMAT DIR");
   if (o.convert.size() == 1 || o.convert.size() > 2) cl.fail("--convert: expected FORMAT DIR");
   if (o.odometry != "truth" && o.odometry != "none") cl.fail("--odometry: truth or none");
-  if (o.imu != "truth" && o.imu != "none") cl.fail("--imu: truth or none");
+  if (o.imu != "truth" && o.imu != "attitude" && o.imu != "none")
+    cl.fail("--imu: truth, attitude or none");
   if (o.frame_step < 1) cl.fail("--frame-step: an integer >= 1");
   return o;
 }
@@ -203,6 +206,7 @@ ReplayParams replayParams(const Options& o) {
   rp.frame_step = k;
   rp.odometry = o.odometry != "none";
   rp.attitude = o.imu != "none";
+  rp.gyro = o.imu == "truth";
   rp.whole_map_start = o.init == "map";
   rp.nearest_particle = o.nearest_particle;
   rp.localizer = o.lp;
@@ -218,7 +222,7 @@ void printSettings(const Sequence& seq, const GmmMap& map, const ReplayParams& r
   std::printf(
       "gmm_mcl replay: %s (%s), %d frames %dx%d (fx %.1f fy %.1f cx %.1f cy %.1f), "
       "gravity: %s; map %s (%zu components), %d particles (min %d), start %s, "
-      "depth noise %.4g + %.4g (z - %.2g)^2 m, "
+      "odometry %s, IMU %s, depth noise %.4g + %.4g (z - %.2g)^2 m, "
       "stride %d, %s weighting (T %.3g, Neff floor %.2f), %s backend with the particle "
       "set %s, %d trials from seed %llu\n",
       o.dataset.c_str(), seq.format(), seq.size(), K.width_px, K.height_px, K.fx_px, K.fy_px,
@@ -226,7 +230,8 @@ void printSettings(const Sequence& seq, const GmmMap& map, const ReplayParams& r
       rp.localizer.filter.num_particles,
       rp.localizer.filter.min_particles > 0 ? rp.localizer.filter.min_particles
                                             : rp.localizer.filter.num_particles,
-      o.init == "map" ? "whole map" : "cube", measurement.depth_noise.a_m,
+      o.init == "map" ? "whole map" : "cube", o.odometry.c_str(),
+      o.imu == "truth" ? "attitude and gyro" : o.imu.c_str(), measurement.depth_noise.a_m,
       measurement.depth_noise.b_per_m, measurement.depth_noise.z0_m,
       rp.localizer.frame.pixel_stride, weightingModeName(rp.localizer.filter.weighting),
       rp.localizer.filter.temperature, rp.localizer.filter.neff_floor_fraction, o.backend.c_str(),

@@ -15,6 +15,13 @@ struct ProtocolNoise {
   double odom_sigma_m = 0.005;        // per frame, per axis
   double odom_sigma_yaw_rad = 0.002;  // per frame
   double attitude_sigma_rad = 0.5 * M_PI / 180.0;
+  // The IMU gyro's heading (StepInput::gyro_yaw_rad): the true yaw change plus a constant bias
+  // per trial, N(0, gyro_bias_sigma_rad_s), and white noise of this density. A MEMS gyro after
+  // its start-up calibration has a residual bias of about 0.1 deg/s (0.0017 rad/s) and a noise
+  // density of 0.014 deg/s/sqrt(Hz) (0.00024 rad/s/sqrt(Hz), Bosch BMI088 datasheet): these
+  // are three and twelve times that.
+  double gyro_bias_sigma_rad_s = 0.005;
+  double gyro_noise_density_rad_s_sqrt_hz = 0.003;
 };
 
 class OdometrySynthesizer {
@@ -28,6 +35,10 @@ class OdometrySynthesizer {
   Eigen::Isometry3d next(const Eigen::Isometry3d& T_world_base, double frames = 1.0);
   // Noisy roll and pitch (REP-103) of a true pose.
   void attitude(const Eigen::Isometry3d& T_world_base, double* roll_rad, double* pitch_rad);
+  // The gyro's heading at the next true pose, dt_s after the previous call's (0 at the first
+  // call). Its own random numbers: the odometry and attitude sequences of a seed are the same
+  // whether or not it is called.
+  double gyroYaw(const Eigen::Isometry3d& T_world_base, double dt_s);
   // Forget the previous pose: the next call starts a new odometry frame.
   void restart() { started_ = false; }
 
@@ -38,6 +49,10 @@ class OdometrySynthesizer {
   bool started_ = false;
   Eigen::Isometry3d last_truth_ = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d odom_ = Eigen::Isometry3d::Identity();
+  std::mt19937_64 gyro_rng_;  // with its own distribution (a normal_distribution caches draws)
+  std::normal_distribution<double> gyro_gauss_{0.0, 1.0};
+  bool gyro_started_ = false;
+  double gyro_bias_rad_s_ = 0.0, gyro_yaw_rad_ = 0.0, gyro_last_true_yaw_rad_ = 0.0;
 };
 
 }  // namespace gmm_mcl

@@ -25,9 +25,11 @@ struct ReplayParams {
   // full yaw circle) instead of the cube around the true start.
   bool whole_map_start = false;
   // Inputs withheld (docs/no_odometry.md): no odometry (the localizer's constant-velocity model
-  // predicts), no attitude (roll and pitch held from the refined estimates).
+  // predicts), no attitude (roll and pitch held from the refined estimates), no gyro heading
+  // (a step without odometry turns at the constant-velocity model's yaw rate).
   bool odometry = true;
   bool attitude = true;
+  bool gyro = true;
   // Every frame_step-th frame of the sequence (2: 15 Hz from 30 Hz); the synthesised odometry's
   // noise grows with the interval (variance x frame_step).
   int frame_step = 1;
