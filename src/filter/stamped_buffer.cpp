@@ -112,4 +112,41 @@ long long StampedPoseBuffer::added() const {
   return added_;
 }
 
+GyroHeading::GyroHeading(double max_age_s, double max_gap_s)
+    : max_gap_s_(max_gap_s), track_(max_age_s, max_gap_s) {}
+
+void GyroHeading::add(double stamp_s, const Eigen::Vector3d& omega_imu_rad_s, double roll_rad,
+                      double pitch_rad) {
+  const double rate = (rotationFromRpy(roll_rad, pitch_rad, 0.0) * omega_imu_rad_s).z();
+  if (!std::isfinite(rate) || !std::isfinite(stamp_s)) return;
+  const double dt = stamp_s - last_stamp_s_;
+  if (have_ && dt > 0.0 && dt <= max_gap_s_) {
+    heading_rad_ += 0.5 * (last_rate_rad_s_ + rate) * dt;
+  } else if (!have_ || dt != 0.0) {  // the first sample, a gap or a sample out of order
+    if (have_) ++segment_;
+    heading_rad_ = 0.0;
+  }
+  have_ = true;
+  last_stamp_s_ = stamp_s;
+  last_rate_rad_s_ = rate;
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = Eigen::Vector3d(heading_rad_, static_cast<double>(segment_), 0.0);
+  track_.add(stamp_s, T);
+}
+
+bool GyroHeading::at(double t_s, double tolerance_s, double* heading_rad, long long* segment,
+                     std::string* why) const {
+  Eigen::Isometry3d T;
+  if (!track_.at(t_s, tolerance_s, &T, why)) return false;
+  *heading_rad = T.translation().x();
+  *segment = std::llround(T.translation().y());
+  return true;
+}
+
+void GyroHeading::eraseAfter(double t_s) {
+  track_.eraseAfter(t_s);
+  have_ = false;
+  ++segment_;
+}
+
 }  // namespace gmm_mcl

@@ -107,6 +107,17 @@ bool attitudeFromImu(const sensor_msgs::Imu& msg, double* roll_rad, double* pitc
   return true;
 }
 
+bool angularVelocityFromImu(const sensor_msgs::Imu& msg, Eigen::Vector3d* omega_rad_s) {
+  if (msg.angular_velocity_covariance[0] == -1.0) return false;  // REP 145: none
+  const auto& w = msg.angular_velocity;
+  const Eigen::Vector3d v(w.x, w.y, w.z);
+  // Exactly zero on every axis: a message that carries only an orientation and left the rates
+  // unset (a real gyro's noise is never exactly zero).
+  if (!v.allFinite() || (v.x() == 0.0 && v.y() == 0.0 && v.z() == 0.0)) return false;
+  *omega_rad_s = v;
+  return true;
+}
+
 namespace {
 // An unset (all zero) quaternion is the identity; any other is normalised.
 geometry_msgs::Quaternion normalised(const geometry_msgs::Quaternion& q) {

@@ -10,6 +10,10 @@ bool StepInputs::addImu(const sensor_msgs::Imu& imu) {
   double roll, pitch;
   if (!ros_conv::attitudeFromImu(imu, &roll, &pitch)) return false;
   imu_.addAttitude(imu.header.stamp.toSec(), roll, pitch);
+  Eigen::Vector3d omega;
+  if (ros_conv::angularVelocityFromImu(imu, &omega)) {
+    gyro_.add(imu.header.stamp.toSec(), omega, roll, pitch);
+  }
   return true;
 }
 
@@ -101,12 +105,22 @@ bool StepInputs::gather(const std_msgs::Header& header, StepInput* in, Gaps* gap
         imu_.attitudeAt(in->stamp_s, opts_.imu_timeout_s, &in->roll_rad, &in->pitch_rad, &gap);
     gaps->imu = !in->has_attitude;
     if (gaps->imu) gaps->warnings += "IMU attitude: " + gap + " (roll/pitch from odometry); ";
+    // The gyro's heading, for a step without odometry; compared only within one segment of
+    // gap-free samples (the first frame of a segment carries none).
+    double heading;
+    long long segment = -1;
+    const bool found = gyro_.at(in->stamp_s, opts_.imu_timeout_s, &heading, &segment);
+    in->has_gyro_yaw = found && segment == last_gyro_segment_;
+    in->gyro_yaw_rad = found ? heading : 0.0;
+    last_gyro_segment_ = found ? segment : -1;
   }
   return true;
 }
 
 void StepInputs::timeJumpedBack(const ros::Time& stamp) {
   imu_.eraseAfter(stamp.toSec());
+  gyro_.eraseAfter(stamp.toSec());
+  last_gyro_segment_ = -1;
   odom_.eraseAfter(stamp.toSec());
   clear_tf_ = true;
 }

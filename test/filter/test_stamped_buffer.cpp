@@ -106,5 +106,37 @@ TEST(StampedPoseBufferTest, WaitUntilReachesWakesOnAdd) {
   producer.join();
 }
 
+// The gyro's heading: the vertical component of the angular velocity, integrated; a gap starts a
+// new segment.
+TEST(GyroHeadingTest, IntegratesTheTurnAboutTheVerticalAndSplitsAtGaps) {
+  GyroHeading gyro(2.0, 0.1);
+  // Level, turning at 0.5 rad/s, 100 Hz, from t = 10 s.
+  for (int k = 0; k <= 50; ++k) gyro.add(10.0 + 0.01 * k, Eigen::Vector3d(0, 0, 0.5), 0.0, 0.0);
+  double h0, h1;
+  long long s0, s1;
+  ASSERT_TRUE(gyro.at(10.1, 0.05, &h0, &s0));
+  ASSERT_TRUE(gyro.at(10.333, 0.05, &h1, &s1));  // interpolated between samples
+  EXPECT_EQ(s0, s1);
+  EXPECT_NEAR(h1 - h0, 0.5 * 0.233, 1e-9);
+  // Rolled by 90 deg: the IMU's y axis points up, so its y rate is the turn about the vertical.
+  GyroHeading rolled(2.0, 0.1);
+  for (int k = 0; k <= 10; ++k) {
+    rolled.add(0.01 * k, Eigen::Vector3d(0.3, -0.4, 0.2), 0.5 * M_PI, 0.0);
+  }
+  ASSERT_TRUE(rolled.at(0.1, 0.05, &h1, &s1));
+  ASSERT_TRUE(rolled.at(0.0, 0.05, &h0, &s0));
+  EXPECT_NEAR(h1 - h0, -0.4 * 0.1, 1e-9);
+  // A gap of 0.5 s: a new segment, whose headings are not comparable with the old one's.
+  for (int k = 0; k <= 10; ++k) gyro.add(11.0 + 0.01 * k, Eigen::Vector3d(0, 0, 0.5), 0.0, 0.0);
+  ASSERT_TRUE(gyro.at(11.05, 0.05, &h1, &s1));
+  EXPECT_NE(s1, s0);
+  // Time going back: the later samples dropped, a new segment again.
+  gyro.eraseAfter(10.2);
+  gyro.add(10.21, Eigen::Vector3d(0, 0, 0.5), 0.0, 0.0);
+  long long s2;
+  ASSERT_TRUE(gyro.at(10.21, 0.005, &h1, &s2));
+  EXPECT_NE(s2, s1);
+}
+
 }  // namespace
 }  // namespace gmm_mcl

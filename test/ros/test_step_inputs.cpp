@@ -137,5 +137,43 @@ TEST_F(StepInputsTest, ASourceThatStopsIsAGapAfterTheWait) {
   EXPECT_EQ(inputs_.waitsBegun(), 1);
 }
 
+// The IMU's angular velocity becomes the gyro's heading at each frame's stamp: the first frame of
+// a run of samples carries none (nothing to compare with), the next the turn since it. An IMU
+// message whose rates are unset (all zero, or covariance -1) gives no heading.
+TEST_F(StepInputsTest, TheImuRatesGiveTheGyroHeadingAtEachFrame) {
+  opts_.input_wait_s = 0.0;
+  inputs_.setOptions(opts_);
+  for (int k = 0; k <= 100; ++k) {
+    sensor_msgs::Imu m = imuAt(1.0 + 0.005 * k, 0.0);
+    m.angular_velocity.z = 1.2;
+    ASSERT_TRUE(inputs_.addImu(m));
+  }
+  StepInput a, b;
+  StepInputs::Gaps gaps;
+  std::string why;
+  ASSERT_TRUE(inputs_.gather(frameHeader(1.1), &a, &gaps, &why)) << why;
+  ASSERT_TRUE(inputs_.gather(frameHeader(1.2), &b, &gaps, &why)) << why;
+  EXPECT_FALSE(a.has_gyro_yaw);
+  ASSERT_TRUE(b.has_gyro_yaw);
+  EXPECT_NEAR(b.gyro_yaw_rad - a.gyro_yaw_rad, 1.2 * 0.1, 1e-9);
+  // Orientation only (rates left at zero), then rates marked absent: no heading.
+  for (const bool absent : {false, true}) {
+    StepInputs plain(&tf_);
+    plain.setOptions(opts_);
+    for (int k = 0; k <= 100; ++k) {
+      sensor_msgs::Imu m = imuAt(1.0 + 0.005 * k, 0.0);
+      if (absent) {
+        m.angular_velocity.z = 1.2;
+        m.angular_velocity_covariance[0] = -1.0;
+      }
+      ASSERT_TRUE(plain.addImu(m));
+    }
+    ASSERT_TRUE(plain.gather(frameHeader(1.1), &a, &gaps, &why)) << why;
+    ASSERT_TRUE(plain.gather(frameHeader(1.2), &b, &gaps, &why)) << why;
+    EXPECT_TRUE(b.has_attitude);
+    EXPECT_FALSE(b.has_gyro_yaw) << (absent ? "covariance -1" : "rates all zero");
+  }
+}
+
 }  // namespace
 }  // namespace gmm_mcl

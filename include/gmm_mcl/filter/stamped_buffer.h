@@ -51,4 +51,31 @@ class StampedPoseBuffer {
   long long added_ = 0;
 };
 
+// The heading an IMU's gyro turned (StepInput::gyro_yaw_rad): the angular velocity rotated into
+// the gravity-aligned frame by the IMU's roll and pitch, its vertical component (the body's turn
+// rate about the vertical, the same for every frame fixed to the body) integrated over the
+// samples' stamps by the trapezoidal rule, and looked up at a frame's stamp. A gap between
+// samples longer than max_gap_s, or a sample older than the last, starts a new segment: a lookup
+// tells which segment it lies in, and headings of different segments are not comparable.
+// Thread-safe lookups; add() from one thread at a time (a subscription's callback).
+class GyroHeading {
+ public:
+  explicit GyroHeading(double max_age_s = 2.0, double max_gap_s = 0.1);
+  void add(double stamp_s, const Eigen::Vector3d& omega_imu_rad_s, double roll_rad,
+           double pitch_rad);
+  // The heading at t (interpolated between samples, else the nearest within tolerance_s) and
+  // its segment. False, with why, when neither.
+  bool at(double t_s, double tolerance_s, double* heading_rad, long long* segment,
+          std::string* why = nullptr) const;
+  void eraseAfter(double t_s);  // time went back: the later samples dropped, a new segment
+  long long added() const { return track_.added(); }
+
+ private:
+  double max_gap_s_;
+  StampedPoseBuffer track_;  // heading in translation x, segment in translation y
+  bool have_ = false;
+  double last_stamp_s_ = 0.0, last_rate_rad_s_ = 0.0, heading_rad_ = 0.0;
+  long long segment_ = 0;
+};
+
 }  // namespace gmm_mcl

@@ -67,6 +67,10 @@ bool depthImageFromCloud(const sensor_msgs::PointCloud2& msg, DepthImage* out, I
 // Roll and pitch (REP-103) of an IMU orientation; false when the quaternion is unset
 // (all zero, or orientation_covariance[0] == -1) or not finite.
 bool attitudeFromImu(const sensor_msgs::Imu& msg, double* roll_rad, double* pitch_rad);
+// The IMU's angular velocity (its own frame, rad/s). False when the message has none: the
+// covariance's first element -1 (REP 145), a non-finite value, or all three exactly zero (an
+// orientation-only message that left them unset).
+bool angularVelocityFromImu(const sensor_msgs::Imu& msg, Eigen::Vector3d* omega_rad_s);
 
 // Pose and transform conversions (tf2_eigen); an unset (all zero) quaternion is the identity.
 Eigen::Isometry3d isometryFromPose(const geometry_msgs::Pose& msg);

@@ -24,7 +24,8 @@ class StepInputs {
   explicit StepInputs(tf2_ros::Buffer* tf) : tf_(tf) {}
   void setOptions(const RosOptions& opts) { opts_ = opts; }
 
-  // Thread-safe. False: an IMU message without orientation (ignored).
+  // Thread-safe. False: an IMU message without orientation (ignored). Its angular velocity,
+  // where it has one, is integrated into the gyro's heading (StepInput::gyro_yaw_rad).
   bool addImu(const sensor_msgs::Imu& imu);
   void addOdometry(const nav_msgs::Odometry& odom);
   long long imuReceived() const { return imu_.added(); }
@@ -70,6 +71,8 @@ class StepInputs {
   tf2_ros::Buffer* tf_;
   RosOptions opts_;
   StampedPoseBuffer imu_{2.0}, odom_{10.0};
+  GyroHeading gyro_{2.0, 0.1};        // the IMU's angular velocity, integrated
+  long long last_gyro_segment_ = -1;  // of the last frame gathered
   struct Extrinsics {
     std::string frame;  // the camera frame they belong to ("": none yet)
     Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();
