@@ -119,6 +119,7 @@ void GyroHeading::add(double stamp_s, const Eigen::Vector3d& omega_imu_rad_s, do
                       double pitch_rad) {
   const double rate = (rotationFromRpy(roll_rad, pitch_rad, 0.0) * omega_imu_rad_s).z();
   if (!std::isfinite(rate) || !std::isfinite(stamp_s)) return;
+  std::lock_guard<std::mutex> lock(mutex_);
   const double dt = stamp_s - last_stamp_s_;
   if (have_ && dt > 0.0 && dt <= max_gap_s_) {
     heading_rad_ += 0.5 * (last_rate_rad_s_ + rate) * dt;
@@ -144,6 +145,7 @@ bool GyroHeading::at(double t_s, double tolerance_s, double* heading_rad, long l
 }
 
 void GyroHeading::eraseAfter(double t_s) {
+  std::lock_guard<std::mutex> lock(mutex_);
   track_.eraseAfter(t_s);
   have_ = false;
   ++segment_;

@@ -57,7 +57,8 @@ class StampedPoseBuffer {
 // samples' stamps by the trapezoidal rule, and looked up at a frame's stamp. A gap between
 // samples longer than max_gap_s, or a sample older than the last, starts a new segment: a lookup
 // tells which segment it lies in, and headings of different segments are not comparable.
-// Thread-safe lookups; add() from one thread at a time (a subscription's callback).
+// Thread-safe: samples from a subscription's callback, lookups and a time jump from the frames'
+// thread.
 class GyroHeading {
  public:
   explicit GyroHeading(double max_age_s = 2.0, double max_gap_s = 0.1);
@@ -73,6 +74,7 @@ class GyroHeading {
  private:
   double max_gap_s_;
   StampedPoseBuffer track_;  // heading in translation x, segment in translation y
+  std::mutex mutex_;         // the integration's state below
   bool have_ = false;
   double last_stamp_s_ = 0.0, last_rate_rad_s_ = 0.0, heading_rad_ = 0.0;
   long long segment_ = 0;
