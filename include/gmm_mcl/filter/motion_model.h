@@ -46,7 +46,8 @@ struct ConstantVelocityParams {
   // gravity-aligned map frame instead of the body frame: a drone or a hand-held camera moves the
   // same way whichever way it faces, where a body-frame velocity swings with every turn of the
   // head (a car's turns with its heading). Without the gyro the body frame, whose turn is the
-  // learned yaw rate's (docs/no_odometry.md: the map frame there lost a synthetic 10 Hz track).
+  // learned yaw rate's (docs/no_odometry.md: the map frame there tracked a synthetic loop worse
+  // and, with few particles, ran away).
   bool world_velocity = true;
 
   std::string validate() const;
