@@ -397,6 +397,11 @@ void addRefinementParams(ParamTable<P>* t) {
                       "", g, {}, kRuntime,
                       "Refinement also estimates the camera's depth scale (a factor on its "
                       "depths, filtered over frames, applied to the refined frames' points)"));
+  add(t, paramSpec<P>("refine_depth_scale_noise_correction",
+                      GMM_MCL_PARAM_FIELD(P, refinement.depth_scale_noise_correction), "", g, {},
+                      kRuntime,
+                      "Depth scale: take the depth noise's bias out of the estimate (off for a "
+                      "camera without noise, a simulator)"));
   add(t, paramSpec<P>(
              "refine_depth_scale_prior_sigma",
              GMM_MCL_PARAM_FIELD(P, refinement.depth_scale_prior_sigma), "", g, {1e-5, 1}, kRuntime,
@@ -407,7 +412,8 @@ void addRefinementParams(ParamTable<P>* t) {
   add(t,
       paramSpec<P>("refine_depth_scale_rate", GMM_MCL_PARAM_FIELD(P, refinement.depth_scale_rate),
                    "", g, {1e-4, 1}, kRuntime,
-                   "Depth scale: the estimate follows each refined frame's by this fraction"));
+                   "Depth scale: the estimate is the refined frames' information-weighted mean, "
+                   "the past frames' weight shrinking by this fraction per frame"));
   add(t, paramSpec<P>("refine_depth_scale_initial",
                       GMM_MCL_PARAM_FIELD(P, refinement.depth_scale_initial), "", g, {0.5, 1.5},
                       kStartup,

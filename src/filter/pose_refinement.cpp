@@ -5,9 +5,11 @@
 #include <chrono>
 #include <cmath>
 #include <memory>
+#include <random>
 #include <sstream>
 #include <stdexcept>
 
+#include "gmm_mcl/measurement/depth_noise.h"
 #include "gmm_mcl/measurement/likelihood.h"
 #include "gmm_mcl/measurement/normal_equations.h"
 
@@ -17,14 +19,25 @@ namespace {
 // Steps after which the membership and the noise-convolved forms are recomputed.
 constexpr double kRelineariseM = 0.01;
 constexpr double kRelineariseRad = 0.01;
-// Iterations stop only when the depth scale also moves less than this (1 mm at 10 m).
-constexpr double kScaleTolerance = 1e-4;
 
 // A 6-DoF pose: the particle state plus the roll and pitch the refinement may adjust.
 struct Pose6 {
   Particle p;
   double roll = 0.0, pitch = 0.0;
   double scale = 1.0;  // the depth scale (estimated with RefinementParams::estimate_depth_scale)
+
+  // Moved by a step in (x, y, z, roll, pitch, yaw).
+  template <typename V>
+  Pose6 moved(const V& d) const {
+    Pose6 out = *this;
+    out.p.x_m += d[0];
+    out.p.y_m += d[1];
+    out.p.z_m += d[2];
+    out.roll += d[3];
+    out.pitch += d[4];
+    out.p.yaw_rad = wrapAngle(out.p.yaw_rad + d[5]);
+    return out;
+  }
 };
 
 // The frame's log-likelihood at a pose and the Gauss-Newton normal equations of the EM objective
@@ -57,11 +70,24 @@ class Objective {
       sums_->setPointsFromBackendFrame(T_base_cam);
       return;
     }
+    setPoints(false);
+  }
+
+  // The frame's points (on the host) to the evaluator; with extra_noise, each depth z with a
+  // further error drawn from the depth-noise model's N(0, sigma(z)^2) (a fixed seed: the same
+  // frame gives the same result), which moves the point along its ray.
+  void setPoints(bool extra_noise) {
     // Base-frame points; the map point of a pose is R(roll, pitch, yaw) p_base + t.
-    const DepthFrame& f = *frame.points;
+    const DepthFrame& f = *frame_.points;
     std::vector<double> x(f.size()), y(f.size()), z(f.size());
+    std::mt19937_64 rng(1);
+    std::normal_distribution<double> gauss(0.0, 1.0);
     for (size_t i = 0; i < f.size(); ++i) {
-      const Eigen::Vector3d p = T_base_cam * Eigen::Vector3d(f.x_m[i], f.y_m[i], f.z_m[i]);
+      const double k =
+          extra_noise ? 1.0 + depthNoiseSigma(params_.depth_noise, f.z_m[i]) * gauss(rng) / f.z_m[i]
+                      : 1.0;
+      const Eigen::Vector3d p =
+          T_base_cam_ * Eigen::Vector3d(k * f.x_m[i], k * f.y_m[i], k * f.z_m[i]);
       x[i] = p.x();
       y[i] = p.y();
       z[i] = p.z();
@@ -229,22 +255,22 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
   const double sigma_att = refinement.attitude_prior_sigma_rad;
   const bool six_dof = sigma_att > 0.0;
   const double prior = six_dof ? 0.5 / (sigma_att * sigma_att) : 0.0;
-  // The depth scale: a Gaussian prior at the frame's current estimate, within its bounds.
+  // The depth scale: held at the frame's current estimate while the pose is refined; then one
+  // step of its own with a Gaussian prior at that estimate, within its bounds.
   const double scale0 = frame.depth_scale;
   const double prior_s =
       with_scale ? 0.5 / (refinement.depth_scale_prior_sigma * refinement.depth_scale_prior_sigma)
                  : 0.0;
   const double scale_lo = 1.0 - refinement.depth_scale_max_error;
   const double scale_hi = 1.0 + refinement.depth_scale_max_error;
-  auto logPosterior = [&](const Pose6& p, double loglik) {
-    return loglik - prior * (std::pow(p.roll - roll_rad, 2) + std::pow(p.pitch - pitch_rad, 2)) -
-           prior_s * std::pow(p.scale - scale0, 2);
+  auto logPosterior = [&](const Pose6& p, const Linearisation& l) {
+    return l.loglik - prior * (std::pow(p.roll - roll_rad, 2) + std::pow(p.pitch - pitch_rad, 2));
   };
   Pose6 pose{start, roll_rad, pitch_rad, scale0};
   r.depth_scale = scale0;
   lineariseAll(pose);
   Linearisation cur = evaluateAll(pose);
-  double cur_post = logPosterior(pose, cur.loglik);
+  double cur_post = logPosterior(pose, cur);
   r.loglik_start = cur.loglik / px;
   double lambda = 1e-3;  // Levenberg-Marquardt damping, relative to the diagonal
   for (int it = 0; it < refinement.max_iterations; ++it) {
@@ -266,35 +292,22 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
       fix(3);
       fix(4);
     }
-    if (with_scale) {
-      A(6, 6) += prior_s;
-      g(6) += prior_s * (pose.scale - scale0);
-    } else {
-      fix(6);
-    }
+    fix(6);
     for (int d = 0; d < 7; ++d) A(d, d) += lambda * std::max(A(d, d), 1e-9);
     const Eigen::LDLT<Eigen::Matrix<double, 7, 7>> ldlt(A);
     if (ldlt.info() != Eigen::Success) break;
     Eigen::Matrix<double, 7, 1> delta = -ldlt.solve(g);
     if (!delta.allFinite()) break;
-    Pose6 next = pose;
-    next.p.x_m += delta[0];
-    next.p.y_m += delta[1];
-    next.p.z_m += delta[2];
-    next.roll += delta[3];
-    next.pitch += delta[4];
-    next.p.yaw_rad = wrapAngle(next.p.yaw_rad + delta[5]);
-    next.scale = std::min(scale_hi, std::max(scale_lo, next.scale + delta[6]));
-    delta[6] = next.scale - pose.scale;
+    const Pose6 next = pose.moved(delta);
     Linearisation cand = evaluateAll(next);
-    double cand_post = logPosterior(next, cand.loglik);
+    double cand_post = logPosterior(next, cand);
     if (cand_post > cur_post) {
       // A step of more than a centimetre or degree: membership and noise at the new pose.
       if (delta.head<3>().norm() > kRelineariseM ||
           delta.segment<3>(3).cwiseAbs().maxCoeff() > kRelineariseRad) {
         lineariseAll(next);
         cand = evaluateAll(next);
-        cand_post = logPosterior(next, cand.loglik);
+        cand_post = logPosterior(next, cand);
       }
       pose = next;
       cur = cand;
@@ -302,8 +315,7 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
       r.refined = true;
       lambda = std::max(1e-6, 0.3 * lambda);
       if (delta.head<3>().norm() < refinement.tolerance_m &&
-          delta.segment<3>(3).cwiseAbs().maxCoeff() < refinement.tolerance_rad &&
-          std::abs(delta[6]) < kScaleTolerance) {
+          delta.segment<3>(3).cwiseAbs().maxCoeff() < refinement.tolerance_rad) {
         break;
       }
     } else {
@@ -322,6 +334,82 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
     msg << "refined pose " << dist << " m / " << dyaw << " rad from the particle mean: rejected";
     r.why = msg.str();
     r.refined = false;
+  }
+  if (with_scale && r.refined) {
+    // The frame's depth-scale estimate: at the refined pose, one Newton step in the scale with
+    // the pose marginalised out of the normal equations (the pose moving with it to first
+    // order), with the prior. The pixels' depth noise biases that step short (the points' noise
+    // lies along the very direction the scale moves them: docs/measurement_model.md, "Depth
+    // scale"); the bias is taken out by simulation-extrapolation: the same step on the frame
+    // with the model's depth noise added once more, extrapolated linearly to no noise.
+    // Its information: 1 / (A^-1)_ss of the data's normal equations with the attitude prior
+    // (the scale's own prior left out).
+    Eigen::Matrix<double, 7, 7> A = cur.H;
+    if (six_dof) {
+      A(3, 3) += prior;
+      A(4, 4) += prior;
+    } else {
+      for (int d = 3; d < 5; ++d) {
+        A.row(d).setZero();
+        A.col(d).setZero();
+        A(d, d) = 1.0;
+      }
+    }
+    const Eigen::Matrix<double, 6, 6> App = A.topLeftCorner<6, 6>();
+    const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(App);
+    if (ldlt.info() == Eigen::Success) {
+      const Eigen::Matrix<double, 6, 1> hps = A.block<6, 1>(0, 6);
+      // H is the Gauss-Newton matrix of sum |y|^2, half the Hessian of -loglik: x2.
+      const double S = A(6, 6) - hps.dot(ldlt.solve(hps));
+      r.depth_scale_information = std::max(0.0, 2.0 * S);
+      // The pose's gradient at p (with the attitude prior) and the scale's with the pose
+      // marginalised, both halves of the gradients of the objective minimised.
+      auto poseGradient = [&](const Pose6& p, const Linearisation& l) {
+        Eigen::Matrix<double, 6, 1> gp = l.g.head<6>();
+        if (six_dof) {
+          gp(3) += prior * (p.roll - roll_rad);
+          gp(4) += prior * (p.pitch - pitch_rad);
+        } else {
+          gp(3) = gp(4) = 0.0;
+        }
+        return gp;
+      };
+      // Simulation-extrapolation of the marginal gradient at p: 2 x the frame's minus the
+      // frame's with the noise doubled, plus the prior's.
+      auto corrected = [&](const Pose6& p) {
+        objective.setPoints(false);
+        const Linearisation obs = evaluateAll(p);
+        const double m_obs = obs.g(6) - hps.dot(ldlt.solve(poseGradient(p, obs)));
+        double m = m_obs;
+        if (refinement.depth_scale_noise_correction) {
+          objective.setPoints(true);
+          const Linearisation aug = evaluateAll(p);
+          m = 2.0 * m_obs - (aug.g(6) - hps.dot(ldlt.solve(poseGradient(p, aug))));
+        }
+        return std::make_pair(m + prior_s * (p.scale - scale0), poseGradient(p, obs));
+      };
+      if (S > 0.0) {
+        // A Newton step with the Gauss-Newton curvature S, then a secant step with the
+        // curvature measured along it (the Gauss-Newton one overstates it: the step falls short).
+        const auto c0 = corrected(pose);
+        const double d1 = -c0.first / (S + prior_s);
+        const Eigen::Matrix<double, 6, 1> dp = -ldlt.solve(c0.second + hps * d1);
+        Pose6 p1 = pose.moved(dp);
+        p1.scale = scale0 + d1;
+        const double c1 = corrected(p1).first;
+        double step = d1;
+        const double slope = (c1 - c0.first) / d1;
+        if (std::isfinite(slope) && slope > 0.0) {
+          // At most four times the Newton step.
+          step = d1 - c1 / slope;
+          if (step / d1 > 4.0) step = 4.0 * d1;
+          if (step / d1 < 0.0) step = d1;
+        }
+        if (std::isfinite(step)) {
+          pose.scale = std::min(scale_hi, std::max(scale_lo, scale0 + step));
+        }
+      }
+    }
   }
   if (r.refined) {
     r.pose = pose.p;

@@ -10,6 +10,7 @@
 
 #include "gmm_mcl/filter/localizer.h"
 #include "gmm_mcl/filter/pose_refinement.h"
+#include "gmm_mcl/measurement/depth_noise.h"
 #include "test_utils/synthetic_fixtures.h"
 
 namespace gmm_mcl {
@@ -106,61 +107,95 @@ TEST_F(PoseRefinementTest, RejectsACorrectionBeyondItsBound) {
   EXPECT_NE(bad.validate().find("max_iterations"), std::string::npos);
 }
 
-// A camera whose depths read 0.4% long (a RealSense-class scale error): the refinement that also
-// estimates the depth scale finds it (1 / 1.004) within 0.1% from one frame, and lands nearer
-// the true pose than the refinement that takes the depths as they are; with an exact camera the
-// estimate stays at 1 within 0.1% and the pose is as good as without it.
-TEST_F(PoseRefinementTest, EstimatesTheDepthScale) {
-  DepthFrame long_frame = frame;
-  for (size_t i = 0; i < long_frame.size(); ++i) {
-    long_frame.x_m[i] *= 1.004f;
-    long_frame.y_m[i] *= 1.004f;
-    long_frame.z_m[i] *= 1.004f;
+// The frame's depths times `scale`, each with the measurement model's depth noise N(0,
+// sigma(z)^2) (a depth camera's, which the depth-scale estimate is corrected for).
+DepthFrame noisyFrame(const DepthFrame& f, double scale, const MeasurementParams& mp,
+                      uint64_t seed) {
+  DepthFrame out = f;
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  for (size_t i = 0; i < out.size(); ++i) {
+    const double z = f.z_m[i];
+    const double k = scale * (1.0 + depthNoiseSigma(mp.depth_noise, z) * n01(rng) / z);
+    out.x_m[i] = static_cast<float>(k * f.x_m[i]);
+    out.y_m[i] = static_cast<float>(k * f.y_m[i]);
+    out.z_m[i] = static_cast<float>(k * z);
   }
+  return out;
+}
+
+// Refines `frame` from `start` with the depth scale held at `scale` (the localizer's estimate).
+RefinementResult refineAtScale(const DepthFrame& frame, double scale, const Particle& start,
+                               double roll, double pitch, const RefinementParams& rp) {
+  RefinementFrame rf = RefinementFrame::of(frame);
+  rf.depth_scale = scale;
+  return refinePose(test::world().map.packed(), rf, start, roll, pitch, test::world().T_base_cam,
+                    MeasurementParams(), rp);
+}
+
+// A camera whose depths read 0.4% long (a RealSense-class scale error), with a depth camera's
+// noise: the pose is refined with the scale given (the localizer's estimate), and the frame's
+// estimate moves from it toward the truth (1 / 1.004); fed back frame after frame it settles
+// within 0.1% of the truth, where the refined pose is as good as an exact camera's. With an
+// exact camera the estimate stays within 0.1% of 1.
+TEST_F(PoseRefinementTest, EstimatesTheDepthScale) {
   const MeasurementParams mp;
   RefinementParams off, on;
   on.estimate_depth_scale = true;
+  const double truth_scale = 1.0 / 1.004;
   std::mt19937_64 rng(5);
   std::normal_distribution<double> n01(0.0, 1.0);
-  double worst_scale = 0.0, worst_exact_scale = 0.0, sum_off = 0.0, sum_on = 0.0;
-  double sum_exact_off = 0.0, sum_exact_on = 0.0;
-  const int starts = 6;
+  double worst_first = 0.0, worst_settled = 0.0, worst_exact = 0.0;
+  double sum_off = 0.0, sum_settled = 0.0, sum_exact = 0.0;
+  const int starts = 4, frames = 8;
   for (int k = 0; k < starts; ++k) {
     const Particle start = test::perturbed(truth, n01, rng);
-    const RefinementResult a =
-        refinePose(w.map.packed(), long_frame, start, roll, pitch, w.T_base_cam, mp, off);
-    const RefinementResult b =
-        refinePose(w.map.packed(), long_frame, start, roll, pitch, w.T_base_cam, mp, on);
-    const RefinementResult c =
-        refinePose(w.map.packed(), frame, start, roll, pitch, w.T_base_cam, mp, off);
-    const RefinementResult d =
-        refinePose(w.map.packed(), frame, start, roll, pitch, w.T_base_cam, mp, on);
-    ASSERT_TRUE(a.refined && b.refined && c.refined && d.refined) << k;
+    // One frame with the scale at 1: the pose as without the estimate, the scale moved.
+    const DepthFrame first = noisyFrame(frame, 1.004, mp, 100 + k);
+    const RefinementResult a = refineAtScale(first, 1.0, start, roll, pitch, off);
+    const RefinementResult b = refineAtScale(first, 1.0, start, roll, pitch, on);
+    ASSERT_TRUE(a.refined && b.refined) << k << ": " << a.why << b.why;
     EXPECT_EQ(a.depth_scale, 1.0);
-    worst_scale = std::max(worst_scale, std::abs(b.depth_scale * 1.004 - 1.0));
-    worst_exact_scale = std::max(worst_exact_scale, std::abs(d.depth_scale - 1.0));
+    EXPECT_EQ(b.pose.x_m, a.pose.x_m);
+    EXPECT_GT(b.depth_scale_information, 0.0);
+    worst_first = std::max(worst_first, std::abs(b.depth_scale / truth_scale - 1.0));
     sum_off += distance(a.pose, truth);
-    sum_on += distance(b.pose, truth);
-    sum_exact_off += distance(c.pose, truth);
-    sum_exact_on += distance(d.pose, truth);
+    // Frame after frame (each with its own noise), the estimate fed back.
+    double scale = 1.0, exact_scale = 1.0;
+    RefinementResult last, last_exact;
+    for (int f = 0; f < frames; ++f) {
+      last =
+          refineAtScale(noisyFrame(frame, 1.004, mp, 1000 * k + f), scale, start, roll, pitch, on);
+      last_exact = refineAtScale(noisyFrame(frame, 1.0, mp, 1000 * k + f), exact_scale, start, roll,
+                                 pitch, on);
+      ASSERT_TRUE(last.refined && last_exact.refined) << last.why << last_exact.why;
+      scale = last.depth_scale;
+      exact_scale = last_exact.depth_scale;
+    }
+    worst_settled = std::max(worst_settled, std::abs(scale / truth_scale - 1.0));
+    worst_exact = std::max(worst_exact, std::abs(exact_scale - 1.0));
+    sum_settled += distance(last.pose, truth);
+    sum_exact += distance(last_exact.pose, truth);
   }
   std::printf(
-      "[ measured ] depths 0.4%% long: scale estimated within %.3f%% of the truth, mean pose "
-      "error %.2f mm with it, %.2f mm without; exact camera: scale within %.3f%% of 1, %.2f mm "
-      "with, %.2f mm without\n",
-      100.0 * worst_scale, 1000.0 * sum_on / starts, 1000.0 * sum_off / starts,
-      100.0 * worst_exact_scale, 1000.0 * sum_exact_on / starts, 1000.0 * sum_exact_off / starts);
-  EXPECT_LT(worst_scale, 0.001);
-  EXPECT_LT(worst_exact_scale, 0.001);
-  EXPECT_LT(sum_on, sum_off);
-  EXPECT_LT(sum_exact_on, 1.3 * sum_exact_off + 0.001 * starts);
+      "[ measured ] depths 0.4%% long: one frame moves the scale from 1 to within %.3f%% of the "
+      "truth, %d frames to within %.3f%%; pose error %.2f mm then, %.2f mm without the "
+      "estimate; exact camera: scale within %.3f%% of 1, pose error %.2f mm\n",
+      100.0 * worst_first, frames, 100.0 * worst_settled, 1000.0 * sum_settled / starts,
+      1000.0 * sum_off / starts, 100.0 * worst_exact, 1000.0 * sum_exact / starts);
+  EXPECT_LT(worst_first, 0.002);
+  EXPECT_LT(worst_settled, 0.001);
+  EXPECT_LT(worst_exact, 0.001);
+  EXPECT_LT(sum_settled, 0.5 * sum_off);
+  EXPECT_LT(sum_settled, 1.3 * sum_exact + 0.001 * starts);
   RefinementParams bad;
   bad.depth_scale_rate = 0.0;
   EXPECT_NE(bad.validate().find("depth_scale_rate"), std::string::npos);
 }
 
-// The localizer's estimate over frames of a camera whose depths read 0.4% long: starting at 1,
-// it follows the refined frames' to within 0.1% of 1 / 1.004 and reports it in every step.
+// The localizer's estimate over frames of a camera whose depths read 0.4% long (with a depth
+// camera's noise, drawn anew per frame): starting at 1, it follows the refined frames' to
+// within 0.1% of 1 / 1.004 and reports it in every step.
 TEST(DepthScaleTest, LocalizerEstimateFollowsTheFrames) {
   const auto& w = test::world();
   const Intrinsics K = test::smallCamera();
@@ -175,17 +210,8 @@ TEST(DepthScaleTest, LocalizerEstimateFollowsTheFrames) {
   Localizer loc(p, w.map);
   loc.resetToPose(poseToParticle(T_map_base), Eigen::Vector4d(0.02, 0.02, 0.02, 0.02));
   const DepthImage exact = test::renderImage(T_map_base, K, 9.0, DepthEncoding::kFloat32Metres);
-  std::vector<float> z(exact.width_px * exact.height_px);
-  for (int v = 0; v < exact.height_px; ++v) {
-    for (int u = 0; u < exact.width_px; ++u) {
-      const float m = exact.depthMetres(u, v);
-      z[v * exact.width_px + u] = std::isfinite(m) && m > 0.f ? 1.004f * m : m;
-    }
-  }
-  const DepthImage long_img = DepthImage::fromMetres(exact.width_px, exact.height_px, z);
   StepInput in;
   in.intrinsics = K;
-  in.depth = &long_img;
   double roll = 0.0, pitch = 0.0, yaw = 0.0;
   rpyFromRotation(T_map_base.linear(), &roll, &pitch, &yaw);
   in.has_attitude = true;
@@ -193,16 +219,45 @@ TEST(DepthScaleTest, LocalizerEstimateFollowsTheFrames) {
   in.pitch_rad = pitch;
   StepResult r;
   int refined = 0;
-  for (int k = 0; k < 30; ++k) {
+  std::mt19937_64 rng(9);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  const int frames = 30;
+  DepthImage long_img;
+  for (int k = 0; k < frames; ++k) {
+    std::vector<float> z(exact.width_px * exact.height_px);
+    for (int v = 0; v < exact.height_px; ++v) {
+      for (int u = 0; u < exact.width_px; ++u) {
+        const float m = exact.depthMetres(u, v);
+        z[v * exact.width_px + u] =
+            std::isfinite(m) && m > 0.f
+                ? static_cast<float>(1.004 *
+                                     (m + depthNoiseSigma(p.measurement.depth_noise, m) * n01(rng)))
+                : m;
+      }
+    }
+    long_img = DepthImage::fromMetres(exact.width_px, exact.height_px, z);
+    in.depth = &long_img;
     in.stamp_s = 1.0 + k / 30.0;
     r = loc.step(in);
     refined += r.refinement.refined ? 1 : 0;
   }
-  std::printf("[ measured ] depth scale after 30 frames (%d refined): %.5f (truth %.5f)\n", refined,
-              r.depth_scale, 1.0 / 1.004);
+  std::printf("[ measured ] depth scale after %d frames (%d refined): %.5f (truth %.5f)\n", frames,
+              refined, r.depth_scale, 1.0 / 1.004);
   EXPECT_GE(refined, 20);
   EXPECT_NEAR(r.depth_scale * 1.004, 1.0, 0.001);
+  EXPECT_FALSE(r.depth_scale_at_bound);
   EXPECT_LT(distance(r.refinement.pose, poseToParticle(T_map_base)), 0.005);
+  // The same camera with the bound at 0.2%: the estimate is held there, and the step says so.
+  p.refinement.depth_scale_max_error = 0.002;
+  loc.setParams(p);
+  for (int k = 0; k < 10; ++k) {
+    in.stamp_s = 2.0 + k / 30.0;
+    r = loc.step(in);
+  }
+  std::printf("[ measured ] with the bound at 0.2%%: %.5f, at the bound: %d\n", r.depth_scale,
+              r.depth_scale_at_bound ? 1 : 0);
+  EXPECT_TRUE(r.depth_scale_at_bound);
+  EXPECT_NEAR(r.depth_scale, 0.998, 1e-9);
 }
 
 }  // namespace

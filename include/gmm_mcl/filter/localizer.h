@@ -104,8 +104,11 @@ struct StepResult {
   // The estimate refined by local maximisation of the likelihood (pose_refinement.h), when the
   // filter has converged and refinement is on; refinement.refined says whether it is usable.
   RefinementResult refinement;
-  // The camera's depth-scale estimate after this step (refine_depth_scale; 1 when off).
+  // The camera's depth-scale estimate after this step (refine_depth_scale; 1 when off), and
+  // whether it sits at its bound, 1 +- refine_depth_scale_max_error (within 1% of that range):
+  // the camera's depths are further off than the bound allows, or the map does not fit.
   double depth_scale = 1.0;
+  bool depth_scale_at_bound = false;
   double neff = 0.0;  // effective sample size after the update (before resampling)
   int particles = 0;  // particle count of this step
   int pixels = 0;     // used pixels (over all cameras used)
@@ -259,6 +262,9 @@ class Localizer {
   bool have_refined_ = false;  // last_refined_: the last frame's refined pose, moved by odometry
   Particle last_refined_;
   double depth_scale_ = 1.0;  // the camera's depth-scale estimate (refine_depth_scale)
+  // The refined frames' depth-scale information, summed with the estimate's forgetting (0: none
+  // yet).
+  double depth_scale_information_ = 0.0;
   // The components the refinement can meet this frame (map indices, packed copies).
   std::vector<int> refine_index_;
   std::vector<ComponentF> refine_components_;

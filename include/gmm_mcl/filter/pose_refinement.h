@@ -39,14 +39,21 @@ struct RefinementParams {
   double tolerance_rad = 5e-4;
   // Depth-scale self-calibration (docs/measurement_model.md, "Depth scale"): the refinement also
   // estimates the factor f by which the camera's depths (and so its points, along their rays)
-  // are to be multiplied, with a Gaussian prior of this standard deviation at the frame's current
-  // estimate (RefinementFrame::depth_scale), f kept within 1 +- depth_scale_max_error. Pixel
-  // sums on the host (a device evaluator without supportsDepthScale() is not used then).
+  // are to be multiplied. The pose is refined with the frame's current estimate
+  // (RefinementFrame::depth_scale); then f takes one Newton step from it with the pose
+  // marginalised and a Gaussian prior of this standard deviation, corrected for the depth
+  // noise's bias, kept within 1 +- depth_scale_max_error. Pixel sums on the host (a device
+  // evaluator without supportsDepthScale() is not used then).
   bool estimate_depth_scale = false;
+  // Take the depth noise's bias out of the estimate (simulation-extrapolation with the
+  // measurement model's depth noise); off for a camera without noise (a simulator).
+  bool depth_scale_noise_correction = true;
   double depth_scale_prior_sigma = 0.005;
   double depth_scale_max_error = 0.05;
-  // The localizer's estimate follows each refined frame's by this fraction of the difference.
-  double depth_scale_rate = 0.05;
+  // The localizer's estimate: the refined frames' estimates averaged with their information as
+  // weights, the past frames' weight shrinking by this fraction per frame (about 1 / rate
+  // frames remembered).
+  double depth_scale_rate = 0.02;
   // Its value at start (the nodelet saves the estimate here with the pose, ~save_pose_rate).
   double depth_scale_initial = 1.0;
 
@@ -59,7 +66,14 @@ struct RefinementResult {
   Particle pose;          // the refined pose (the start when not refined)
   double roll_rad = 0.0;  // and its roll and pitch (the attitude input when not refined)
   double pitch_rad = 0.0;
-  double depth_scale = 1.0;  // the depth scale of the refined pose (the frame's when not estimated)
+  // The frame's depth-scale estimate (one step from RefinementFrame::depth_scale toward the
+  // frame's own; the frame's when not estimated or not refined). The pose is refined with
+  // RefinementFrame::depth_scale.
+  double depth_scale = 1.0;
+  // What the frame's pixels tell of the depth scale with the pose free (the inverse variance of
+  // f after the pose is marginalised out of the normal equations, without f's prior): small for
+  // a frame whose scale trades against a translation (a frontal wall). 0 when not estimated.
+  double depth_scale_information = 0.0;
   int iterations = 0;
   double loglik_start = 0.0;  // nats per pixel at the start and the refined pose
   double loglik_refined = 0.0;
