@@ -138,6 +138,7 @@ void recordFrame(const StepResult& r, bool gated, bool sent_tf, double now_s,
   h->last_step_message = r.message;
   h->sigma_xy_m = std::sqrt(std::max(r.estimate.covariance(0, 0), r.estimate.covariance(1, 1)));
   h->depth_scale = r.depth_scale;
+  h->depth_scale_at_bound = r.depth_scale_at_bound;
   h->sigma_yaw_rad = std::sqrt(r.estimate.covariance(5, 5));
   h->below_lost_reference =
       lost.margin_nats > 0 && r.status == StepStatus::kOk &&
@@ -251,6 +252,13 @@ Diagnosis diagnose(const NodeHealth& h) {
     m.str("");
     m.precision(3);
     m << "not converged: sigma x/y " << h.sigma_xy_m << " m, yaw " << h.sigma_yaw_rad << " rad";
+    find(S::WARN, m.str());
+  }
+  if (h.have_step && h.depth_scale_at_bound) {
+    m.str("");
+    m << "depth scale " << h.depth_scale
+      << " held at its bound (refine_depth_scale_max_error): the camera's depths are further "
+         "off, or the map does not fit the scene";
     find(S::WARN, m.str());
   }
   if (!h.backend_warning.empty()) find(S::WARN, h.backend_warning);

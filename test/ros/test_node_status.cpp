@@ -116,6 +116,27 @@ TEST(NodeStatusTest, LargeCovarianceWarns) {
   EXPECT_NE(d.message.find("not converged: sigma x/y 2 m"), std::string::npos) << d.message;
 }
 
+// A depth-scale estimate held at its bound: warned with the value and the parameter to look at;
+// back inside, OK again.
+TEST(NodeStatusTest, DepthScaleAtItsBoundWarns) {
+  NodeHealth h = tracking(10.0);
+  StepResult bound = converged();
+  bound.depth_scale = 0.95;
+  bound.depth_scale_at_bound = true;
+  FilterStatus s;
+  recordFrame(bound, false, true, 10.0, LostDetectionParams(), "cpu", "", 1.0, "", &h, &s);
+  const Diagnosis d = diagnose(h);
+  EXPECT_EQ(d.level, S::WARN);
+  EXPECT_NE(d.message.find("depth scale 0.95 held at its bound (refine_depth_scale_max_error)"),
+            std::string::npos)
+      << d.message;
+  EXPECT_EQ(value(d, "depth scale"), "0.95");
+  StepResult inside = converged();
+  inside.depth_scale = 0.97;
+  recordFrame(inside, false, true, 10.1, LostDetectionParams(), "cpu", "", 1.0, "", &h, &s);
+  EXPECT_EQ(diagnose(h).level, S::OK) << diagnose(h).message;
+}
+
 // The best particle below the lost detector's line, and a lost event: warned.
 TEST(NodeStatusTest, LostDetectorWarns) {
   NodeHealth h = tracking(10.0);

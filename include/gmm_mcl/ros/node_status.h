@@ -109,6 +109,7 @@ struct NodeHealth {
   std::string last_step_message;
   double sigma_xy_m = 0.0, sigma_yaw_rad = 0.0;  // of the last estimate (largest of x and y)
   double depth_scale = 1.0;                      // the camera's depth-scale estimate
+  bool depth_scale_at_bound = false;             // StepResult::depth_scale_at_bound
   bool below_lost_reference =
       false;  // the last frame's best score was below the lost detector's line
   long long frames_since_lost = -1;  // -1: never lost
