@@ -165,7 +165,8 @@ void writeFrameCsv(const TrialResult& r, const std::string& path) {
          "neff,loglik_best_per_px,loglik_mean_per_px,floor_hit_fraction,relevant_per_patch,"
          "beta_fraction,reinitialised,lost_redrawn,status,pixels,frame_prep_ms,membership_ms,"
          "likelihood_ms,resample_ms,refined,refined_error_m,refined_error_yaw_deg,refine_ms,"
-         "particles,total_ms,depth_scale,nearest_particle_m\n";
+         "particles,total_ms,depth_scale,nearest_particle_m,loglik_refined_per_px,"
+         "reference_loglik_per_px\n";
   out.precision(7);
   for (const ReplayFrame& f : r.frames) {
     const StepResult& s = f.step;
@@ -195,7 +196,9 @@ void writeFrameCsv(const TrialResult& r, const std::string& path) {
     out << ',' << s.timings.refine_ms << ',' << s.particles << ',' << s.timings.total_ms << ','
         << s.depth_scale << ',';
     if (std::isfinite(f.nearest_particle_m)) out << f.nearest_particle_m;
-    out << '\n';
+    out << ',';
+    if (s.refinement.refined) out << s.refinement.loglik_refined;
+    out << ',' << s.reference_loglik_per_pixel << '\n';
   }
 }
 

@@ -47,20 +47,33 @@ const char* kUsage =
     "summarised on stderr): the accuracy that the map and the ground truth allow together.\n"
     "--attitude-noise: with --frames --refine, the refinement's attitude prior at the true roll\n"
     "and pitch plus this much Gaussian noise (the DESIGN.md protocol's IMU: 0.5).\n"
-    "Frame and measurement parameters: every one as --name-with-dashes (list under --help).\n";
+    "--refine-depth-scale true: the refinement also estimates the camera's depth scale, the\n"
+    "pose refined with --refine-depth-scale-initial (default 1); per frame and summarised.\n"
+    "Frame, measurement and refinement parameters: every one as --name-with-dashes (list under\n"
+    "--help).\n";
+
+// The frame as the refinement takes it: its depths times the depth scale that
+// --refine-depth-scale-initial gives (the estimate a running filter would hold).
+RefinementFrame scaledFrame(const DepthFrame& frame, const RefinementParams& rp) {
+  RefinementFrame f = RefinementFrame::of(frame);
+  f.depth_scale = rp.depth_scale_initial;
+  return f;
+}
 
 // Every step-th frame of first..last at its ground truth: the frame's log-likelihood there and,
 // with refine, where the likelihood's maximum near it lies. CSV on stdout, summary on stderr.
 int scoreRange(const Sequence& seq, const GmmMap& map, const Eigen::Isometry3d& T_base_cam,
-               const FrameParams& fp, const MeasurementParams& measurement, int first, int last,
-               int step, bool refine, double attitude_noise_rad) {
+               const FrameParams& fp, const MeasurementParams& measurement,
+               const RefinementParams& rp, int first, int last, int step, bool refine,
+               double attitude_noise_rad) {
   const std::vector<Eigen::Isometry3d> truth = alignedBaseTrajectory(seq, last + 1);
-  const RefinementParams rp;
   std::printf("frame,pixels,loglik_per_px_truth,floor_hit_fraction%s\n",
               refine ? ",refined,loglik_per_px_refined,offset_m,offset_x_m,offset_y_m,offset_z_m,"
-                       "offset_yaw_deg,offset_roll_deg,offset_pitch_deg,iterations"
+                       "offset_yaw_deg,offset_roll_deg,offset_pitch_deg,iterations,depth_scale,"
+                       "depth_scale_information"
                      : "");
-  std::vector<double> lls, offsets;
+  std::vector<double> lls, offsets, scales;
+  double scale_info = 0.0, scale_weighted = 0.0;
   double sum_sq = 0.0, sum_sq_yaw = 0.0;
   Eigen::Vector3d mean_offset = Eigen::Vector3d::Zero();
   int refined = 0;
@@ -91,16 +104,19 @@ int scoreRange(const Sequence& seq, const GmmMap& map, const Eigen::Isometry3d& 
         roll_in += g(rng);
         pitch_in += g(rng);
       }
-      const RefinementResult r =
-          refinePose(map.packed(), frame, p, roll_in, pitch_in, T_base_cam, measurement, rp);
+      const RefinementResult r = refinePose(map.packed(), scaledFrame(frame, rp), p, roll_in,
+                                            pitch_in, T_base_cam, measurement, rp);
       const Eigen::Vector3d d(r.pose.x_m - p.x_m, r.pose.y_m - p.y_m, r.pose.z_m - p.z_m);
       const double dyaw = wrapAngle(r.pose.yaw_rad - p.yaw_rad);
-      std::printf(",%d,%.5f,%.5f,%.5f,%.5f,%.5f,%.4f,%.4f,%.4f,%d", r.refined ? 1 : 0,
+      std::printf(",%d,%.5f,%.5f,%.5f,%.5f,%.5f,%.4f,%.4f,%.4f,%d,%.5f,%.4g", r.refined ? 1 : 0,
                   r.loglik_refined, d.norm(), d.x(), d.y(), d.z(), dyaw * 180.0 / M_PI,
                   (r.roll_rad - roll) * 180.0 / M_PI, (r.pitch_rad - pitch) * 180.0 / M_PI,
-                  r.iterations);
+                  r.iterations, r.depth_scale, r.depth_scale_information);
       if (r.refined) {
         ++refined;
+        scales.push_back(r.depth_scale);
+        scale_info += r.depth_scale_information;
+        scale_weighted += r.depth_scale_information * r.depth_scale;
         offsets.push_back(d.norm());
         sum_sq += d.squaredNorm();
         sum_sq_yaw += dyaw * dyaw;
@@ -123,6 +139,16 @@ int scoreRange(const Sequence& seq, const GmmMap& map, const Eigen::Isometry3d& 
                  refined, 100.0 * std::sqrt(sum_sq / refined), 100.0 * upperMedian(offsets),
                  std::sqrt(sum_sq_yaw / refined) * 180.0 / M_PI, 100.0 * mean_offset.x(),
                  100.0 * mean_offset.y(), 100.0 * mean_offset.z());
+    if (rp.estimate_depth_scale) {
+      double mean = 0.0;
+      for (double f : scales) mean += f;
+      mean /= scales.size();
+      std::fprintf(stderr,
+                   "depth scale at the maximum: mean %.5f, median %.5f, weighted by each frame's "
+                   "information %.5f (+- %.5f)\n",
+                   mean, upperMedian(scales), scale_info > 0 ? scale_weighted / scale_info : 0.0,
+                   scale_info > 0 ? 1.0 / std::sqrt(scale_info) : 0.0);
+    }
   }
   return 0;
 }
@@ -152,7 +178,7 @@ Options parseOptions(int argc, char** argv) {
             {"attitude-noise", &attitude_noise_deg}, {"frames", &frames_text},
             {"pose", &pose_text}, {"refine", &o.refine}});
   // clang-format on
-  cl.addLocalizerParams(&o.lp, {}, {"frame", "measurement"});
+  cl.addLocalizerParams(&o.lp, {"refine"}, {"frame", "measurement", "refinement"});
   cl.alias("stride", "pixel-stride");
   cl.addDepthNoise(&o.lp.measurement.depth_noise);
   cl.parse(argc, argv);
@@ -184,15 +210,17 @@ Options parseOptions(int argc, char** argv) {
 // --refine: where the likelihood's maximum near the pose lies, against the ground truth.
 void printRefinement(const GmmMap& map, const DepthFrame& frame, const Particle& p, double roll,
                      double pitch, const Eigen::Isometry3d& T_base_cam,
-                     const MeasurementParams& measurement, const Eigen::Isometry3d& truth) {
+                     const MeasurementParams& measurement, const RefinementParams& rp,
+                     const Eigen::Isometry3d& truth) {
   const RefinementResult r =
-      refinePose(map.packed(), frame, p, roll, pitch, T_base_cam, measurement, RefinementParams());
+      refinePose(map.packed(), scaledFrame(frame, rp), p, roll, pitch, T_base_cam, measurement, rp);
   const Particle truth_p = poseToParticle(truth);
   std::printf(
       "refined: %s, x %.4f y %.4f z %.4f yaw %.5f roll %.5f pitch %.5f, %.4f nats/px "
-      "(from %.4f), %d iterations; %.2f mm and %.3f deg from the ground truth\n",
+      "(from %.4f), %d iterations, depth scale %.5f; %.2f mm and %.3f deg from the ground "
+      "truth\n",
       r.refined ? "yes" : r.why.c_str(), r.pose.x_m, r.pose.y_m, r.pose.z_m, r.pose.yaw_rad,
-      r.roll_rad, r.pitch_rad, r.loglik_refined, r.loglik_start, r.iterations,
+      r.roll_rad, r.pitch_rad, r.loglik_refined, r.loglik_start, r.iterations, r.depth_scale,
       1000.0 *
           std::sqrt(std::pow(r.pose.x_m - truth_p.x_m, 2) + std::pow(r.pose.y_m - truth_p.y_m, 2) +
                     std::pow(r.pose.z_m - truth_p.z_m, 2)),
@@ -261,7 +289,9 @@ void scoreFrame(const Sequence& seq, const GmmMap& map, const Eigen::Isometry3d&
       mapSelfLogDensity(map, measurement.floor_log_density, measurement.depth_noise),
       measurement.depth_noise.a_m, measurement.depth_noise.b_per_m, measurement.depth_noise.z0_m,
       mapSelfLogDensity(map, measurement.floor_log_density));
-  if (o.refine) printRefinement(map, frame, p, roll, pitch, T_base_cam, measurement, truth);
+  if (o.refine) {
+    printRefinement(map, frame, p, roll, pitch, T_base_cam, measurement, o.lp.refinement, truth);
+  }
   if (!o.per_pixel_path.empty()) writePerPixel(frame, per_pixel, o.per_pixel_path);
 }
 
@@ -270,7 +300,7 @@ int run(int argc, char** argv) {
   const MeasurementParams& measurement = o.lp.measurement;
   const FrameParams& fp = o.lp.frame;
   return cli::reportErrors("gmm_mcl_score", [&] {
-    const std::string err = measurement.validate() + fp.validate();
+    const std::string err = measurement.validate() + fp.validate() + o.lp.refinement.validate();
     if (!err.empty()) throw std::invalid_argument(err);
     if (o.dataset.empty()) {
       const char* env = std::getenv("GMM_MCL_DATASETS");
@@ -288,8 +318,8 @@ int run(int argc, char** argv) {
         rotateMap(loadMap(o.map_path), seq->R_aligned_world(), o.map_path + " (gravity-aligned)");
     const Eigen::Isometry3d T_base_cam = opticalToBase();
     if (o.range_first >= 0) {
-      return scoreRange(*seq, map, T_base_cam, fp, measurement, o.range_first, o.range_last,
-                        o.range_step, o.refine, o.attitude_noise_rad);
+      return scoreRange(*seq, map, T_base_cam, fp, measurement, o.lp.refinement, o.range_first,
+                        o.range_last, o.range_step, o.refine, o.attitude_noise_rad);
     }
     scoreFrame(*seq, map, T_base_cam, o);
     return 0;
