@@ -336,12 +336,12 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
     r.refined = false;
   }
   if (with_scale && r.refined) {
-    // The frame's depth-scale estimate: at the refined pose, one Newton step in the scale with
-    // the pose marginalised out of the normal equations (the pose moving with it to first
-    // order), with the prior. The pixels' depth noise biases that step short (the points' noise
-    // lies along the very direction the scale moves them: docs/measurement_model.md, "Depth
-    // scale"); the bias is taken out by simulation-extrapolation: the same step on the frame
-    // with the model's depth noise added once more, extrapolated linearly to no noise.
+    // The frame's depth-scale estimate: at the refined pose, a Newton and a secant step in the
+    // scale with the pose marginalised out of the normal equations (the pose moving with it to
+    // first order), with the prior. The pixels' depth noise biases the steps short (the points'
+    // noise lies along the very direction the scale moves them: docs/measurement_model.md, "Depth
+    // scale"); the bias is taken out by simulation-extrapolation: the same gradient on the
+    // frame with the model's depth noise added once more, extrapolated linearly to no noise.
     // Its information: 1 / (A^-1)_ss of the data's normal equations with the attitude prior
     // (the scale's own prior left out).
     Eigen::Matrix<double, 7, 7> A = cur.H;

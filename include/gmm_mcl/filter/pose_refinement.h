@@ -40,7 +40,7 @@ struct RefinementParams {
   // Depth-scale self-calibration (docs/measurement_model.md, "Depth scale"): the refinement also
   // estimates the factor f by which the camera's depths (and so its points, along their rays)
   // are to be multiplied. The pose is refined with the frame's current estimate
-  // (RefinementFrame::depth_scale); then f takes one Newton step from it with the pose
+  // (RefinementFrame::depth_scale); then f takes a Newton and a secant step from it with the pose
   // marginalised and a Gaussian prior of this standard deviation, corrected for the depth
   // noise's bias, kept within 1 +- depth_scale_max_error. Pixel sums on the host (a device
   // evaluator without supportsDepthScale() is not used then).
@@ -66,9 +66,9 @@ struct RefinementResult {
   Particle pose;          // the refined pose (the start when not refined)
   double roll_rad = 0.0;  // and its roll and pitch (the attitude input when not refined)
   double pitch_rad = 0.0;
-  // The frame's depth-scale estimate (one step from RefinementFrame::depth_scale toward the
-  // frame's own; the frame's when not estimated or not refined). The pose is refined with
-  // RefinementFrame::depth_scale.
+  // The frame's depth-scale estimate (a Newton and a secant step from
+  // RefinementFrame::depth_scale toward the frame's own; the frame's when not estimated or not
+  // refined). The pose is refined with RefinementFrame::depth_scale.
   double depth_scale = 1.0;
   // What the frame's pixels tell of the depth scale with the pose free (the inverse variance of
   // f after the pose is marginalised out of the normal equations, without f's prior): small for
