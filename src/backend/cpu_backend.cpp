@@ -29,6 +29,9 @@ void CpuBackend::evaluate(const DepthFrame& frame, const std::vector<RigidTransf
   T_cam_map_.resize(n);
   for (int i = 0; i < n; ++i) T_cam_map_[i] = invertRigid(T_map_cam[i]);
   const ViewReach reach = viewReach(frame, params);
+  // The frame's depths bound the members (membership.h's MemberDepthPrune).
+  patchDepthRanges(frame, &patch_min_z_, &patch_max_z_);
+  MemberDepthPrune prune = memberDepthPrune(patch_min_z_, patch_max_z_, nullptr, params);
   groupPosesByPlace(T_map_cam, viewGroupCell(reach), &group_order_, &group_begin_);
   const int groups = static_cast<int>(group_begin_.size()) - 1;
   visible_any_.assign(components_.size(), 0);
@@ -47,11 +50,15 @@ void CpuBackend::evaluate(const DepthFrame& frame, const std::vector<RigidTransf
     const int m_view = static_cast<int>(visible_.size());
     view_components_.resize(m_view);
     view_eval_.resize(m_view);
+    view_log_norm_.resize(m_view);
     for (int k = 0; k < m_view; ++k) {
       view_components_[k] = components_[visible_[k]];
       view_eval_[k] = eval_[visible_[k]];
+      view_log_norm_[k] = eval_[visible_[k]].log_norm;
       visible_any_[visible_[k]] = 1;
     }
+    prune.log_norm = view_log_norm_.data();
+    componentSoA(view_components_, &view_soa_);
     cull_s += omp_get_wtime() - t0;
 #pragma omp parallel num_threads(count > 1 ? threads : 1)
     {
@@ -63,9 +70,10 @@ void CpuBackend::evaluate(const DepthFrame& frame, const std::vector<RigidTransf
         const double t1 = omp_get_wtime();
         const RigidTransformF& T_cam_map = T_cam_map_[i];
         computeMembership(view_components_, T_cam_map, frame.intrinsics, frame.grid, params,
-                          &s.projected, &s.valid, &s.membership, &reach);
-        const EvalComponentF* eval = noisyEvalComponents(view_components_, view_eval_, s.valid,
-                                                         T_cam_map, params.depth_noise, &s.noisy);
+                          &s.projected, &s.valid, &s.membership, &reach, &prune, view_soa_.data());
+        const EvalComponentF* eval =
+            noisyEvalComponents(view_components_, view_eval_, s.valid, T_cam_map,
+                                params.depth_noise, &s.noisy, &view_soa_);
         const double t2 = omp_get_wtime();
         const FrameLikelihood fl =
             frameLogLikelihood(eval, frame, T_map_cam[i], s.membership, params.floor_log_density);

@@ -96,19 +96,119 @@ void makeEvalComponents(const std::vector<ComponentF>& components,
   }
 }
 
-const EvalComponentF* noisyEvalComponents(const std::vector<ComponentF>& components,
-                                          const std::vector<EvalComponentF>& base,
-                                          const std::vector<char>& valid,
-                                          const RigidTransformF& T_cam_map,
-                                          const DepthNoiseModel& noise,
-                                          std::vector<EvalComponentF>* out) {
-  if (!noise.enabled()) return base.data();
-  out->resize(components.size());
-  for (size_t i = 0; i < components.size(); ++i) {
-    if (!valid[i] ||
-        !makeNoisyEvalComponent(components[i], T_cam_map, noise, kEvalScaleNats, &(*out)[i])) {
-      (*out)[i] = base[i];
+namespace {
+
+// makeNoisyEvalComponent (depth_noise.h) for the components of `soa` (componentSoA, `stride`
+// lanes) at once, in blocks of kComponentSoALanes that the compiler vectorises whole (no
+// remainder loop: a component's form does not depend on its position in the list): the same
+// steps, with sqrtVec and logPositive (fast_math.h) for sqrtf and logf. Writes the form's 11
+// numbers as rows [11][stride] of `form` (c0 c1 c2 base u00 u01 u02 u11 u12 u22 log_norm) and
+// ok[i] = 0 where makeNoisyEvalComponent returns false.
+__attribute__((noinline)) void noisyFormsAll(const float* __restrict soa, int stride,
+                                             const RigidTransformF& T, const DepthNoiseModel& noise,
+                                             float scale, float* __restrict form,
+                                             int* __restrict ok) {
+  const int m = stride;
+  const float* __restrict mx = soa, * __restrict my = soa + m, * __restrict mz = soa + 2 * m;
+  const float* __restrict s0 = soa + 3 * m, * __restrict s1 = soa + 4 * m;
+  const float* __restrict s2 = soa + 5 * m, * __restrict s3 = soa + 6 * m;
+  const float* __restrict s4 = soa + 7 * m, * __restrict s5 = soa + 8 * m;
+  const float* __restrict lw = soa + 9 * m;
+  float* __restrict o[11];
+  for (int r = 0; r < 11; ++r) o[r] = form + static_cast<size_t>(r) * m;
+  float R[9], t[3];
+  for (int k = 0; k < 9; ++k) R[k] = T.R[k];
+  for (int k = 0; k < 3; ++k) t[k] = T.t[k];
+  const float na = noise.a_m, nb = noise.b_per_m, z0 = noise.z0_m;
+  const float h = sqrtf(0.5f * scale);
+  for (int block = 0; block < m; block += kComponentSoALanes) {
+#pragma omp simd
+    for (int i = block; i < block + kComponentSoALanes; ++i) {
+      const float px = mx[i], py = my[i], pz = mz[i];
+      const float m0 = R[0] * px + R[1] * py + R[2] * pz + t[0];
+      const float m1 = R[3] * px + R[4] * py + R[5] * pz + t[1];
+      const float m2 = R[6] * px + R[7] * py + R[8] * pz + t[2];
+      const float range = sqrtVec(m0 * m0 + m1 * m1 + m2 * m2);
+      const float d = m2 - z0;
+      const float s = (na + nb * d * d) * range / m2;
+      const float k = s / range;
+      const float rx = k * (R[0] * m0 + R[3] * m1 + R[6] * m2);
+      const float ry = k * (R[1] * m0 + R[4] * m1 + R[7] * m2);
+      const float rz = k * (R[2] * m0 + R[5] * m1 + R[8] * m2);
+      const float sxx = s0[i] + rx * rx, sxy = s1[i] + rx * ry, sxz = s2[i] + rx * rz;
+      const float syy = s3[i] + ry * ry, syz = s4[i] + ry * rz, szz = s5[i] + rz * rz;
+      const float v22 = sqrtVec(maxZero(szz));
+      const float v12 = syz / v22, v02 = sxz / v22;
+      const float d11 = syy - v12 * v12;
+      const float v11 = sqrtVec(maxZero(d11));
+      const float v01 = (sxy - v02 * v12) / v11;
+      const float d00 = sxx - v01 * v01 - v02 * v02;
+      const float v00 = sqrtVec(maxZero(d00));
+      const float w00 = 1.f / v00, w11 = 1.f / v11, w22 = 1.f / v22;
+      const float w12 = -v12 * w22 * w11;
+      const float w01 = -v01 * w11 * w00;
+      const float w02 = -(v01 * w12 + v02 * w22) * w00;
+      const float u00 = h * w00, u01 = h * w01, u02 = h * w02;
+      const float u11 = h * w11, u12 = h * w12, u22 = h * w22;
+      o[0][i] = -(u00 * px + u01 * py + u02 * pz);
+      o[1][i] = -(u11 * py + u12 * pz);
+      o[2][i] = -(u22 * pz);
+      // (maxf keeps the log's argument positive where the factorisation failed: not used there.)
+      const float log_norm = lw[i] - logPositive(maxf(v00 * v11 * v22, 1e-30f));
+      o[3][i] = scale * log_norm;
+      o[4][i] = u00;
+      o[5][i] = u01;
+      o[6][i] = u02;
+      o[7][i] = u11;
+      o[8][i] = u12;
+      o[9][i] = u22;
+      o[10][i] = log_norm;
+      // (Bitwise &: no control flow.) NaN compares false: not ok.
+      ok[i] = (m2 > 0.f) & (szz > 0.f) & (d11 > 0.f) & (d00 > 0.f) & (log_norm == log_norm);
     }
+  }
+}
+
+}  // namespace
+
+const EvalComponentF* noisyEvalComponents(
+    const std::vector<ComponentF>& components, const std::vector<EvalComponentF>& base,
+    const std::vector<char>& valid, const RigidTransformF& T_cam_map, const DepthNoiseModel& noise,
+    std::vector<EvalComponentF>* out, const std::vector<float>* soa) {
+  if (!noise.enabled()) return base.data();
+  const int m = static_cast<int>(components.size());
+  const int stride = componentSoAStride(m);
+  static thread_local std::vector<float> own_soa, form;
+  static thread_local std::vector<int> ok;
+  if (!soa) {
+    componentSoA(components, &own_soa);
+    soa = &own_soa;
+  }
+  form.resize(11 * static_cast<size_t>(stride));
+  ok.resize(stride);
+  noisyFormsAll(soa->data(), stride, T_cam_map, noise, kEvalScaleNats, form.data(), ok.data());
+  out->resize(m);
+  const float* f = form.data();
+  const int ms = stride;
+  for (int i = 0; i < m; ++i) {
+    if (!valid[i]) continue;  // no member: never read
+    EvalComponentF& e = (*out)[i];
+    if (!ok[i]) {
+      e = base[i];
+      continue;
+    }
+    e.c[0] = f[i];
+    e.c[1] = f[ms + i];
+    e.c[2] = f[2 * ms + i];
+    e.base = f[3 * ms + i];
+    e.u00 = f[4 * ms + i];
+    e.u01 = f[5 * ms + i];
+    e.u02 = f[6 * ms + i];
+    e.u11 = f[7 * ms + i];
+    e.u12 = f[8 * ms + i];
+    e.u22 = f[9 * ms + i];
+    e.log_norm = f[10 * ms + i];
+    e.pad = 0.f;
   }
   return out->data();
 }
@@ -216,9 +316,16 @@ FrameLikelihood poseLogLikelihood(const std::vector<ComponentF>& components,
                                   const DepthFrame& frame, const RigidTransformF& T_map_cam,
                                   const MeasurementParams& params, LikelihoodScratch* scratch) {
   const RigidTransformF T_cam_map = invertRigid(T_map_cam);
-  computeMembership(components, T_cam_map, frame.intrinsics, frame.grid, params,
-                    &scratch->projected, &scratch->valid, &scratch->membership);
   makeEvalComponents(components, &scratch->eval);
+  // The backends' members: those within the pose's view volume, pruned by the frame's depths.
+  static thread_local std::vector<float> min_z, max_z, log_norm;
+  patchDepthRanges(frame, &min_z, &max_z);
+  log_norm.resize(components.size());
+  for (size_t i = 0; i < components.size(); ++i) log_norm[i] = scratch->eval[i].log_norm;
+  const MemberDepthPrune prune = memberDepthPrune(min_z, max_z, log_norm.data(), params);
+  const ViewReach reach = viewReach(frame, params);
+  computeMembership(components, T_cam_map, frame.intrinsics, frame.grid, params,
+                    &scratch->projected, &scratch->valid, &scratch->membership, &reach, &prune);
   const EvalComponentF* eval = noisyEvalComponents(components, scratch->eval, scratch->valid,
                                                    T_cam_map, params.depth_noise, &scratch->noisy);
   return frameLogLikelihood(eval, frame, T_map_cam, scratch->membership, params.floor_log_density);

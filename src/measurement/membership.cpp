@@ -54,13 +54,13 @@ static inline ProjectConstants projectConstants(const RigidTransformF& T, const 
 // in_view[i] = componentInView for the m components of the structure of arrays in (mean x, y, z,
 // covariance 0..5: [9][m]) seen from T, one loop the compiler vectorises (projection.h's
 // sphereInView arithmetic, up to FMA contraction).
-__attribute__((noinline)) void inViewAll(const float* __restrict in, int m,
+__attribute__((noinline)) void inViewAll(const float* __restrict in, int m, int stride,
                                          const RigidTransformF& T, const Intrinsics& K,
                                          const ViewReach& r, float sigma_bound,
                                          int* __restrict in_view) {
-  const float* __restrict mx = in, * __restrict my = in + m, * __restrict mz = in + 2 * m;
-  const float* __restrict s0 = in + 3 * m, * __restrict s3 = in + 6 * m;
-  const float* __restrict s5 = in + 8 * m;
+  const float* __restrict mx = in, * __restrict my = in + stride, * __restrict mz = in + 2 * stride;
+  const float* __restrict s0 = in + 3 * stride, * __restrict s3 = in + 6 * stride;
+  const float* __restrict s5 = in + 8 * stride;
   float R[9], t[3];
   for (int k = 0; k < 9; ++k) R[k] = T.R[k];
   for (int k = 0; k < 3; ++k) t[k] = T.t[k];
@@ -77,6 +77,43 @@ __attribute__((noinline)) void inViewAll(const float* __restrict in, int m,
   }
 }
 
+// For MemberDepthPrune: depth[i] the camera depth of component i's mean and dz2_max[i] the
+// largest squared depth gap at which its term can reach exp(floor - kDepthPruneNats),
+// 2 (a^T Sigma a + sigma(z)^2) (log_norm - floor + kDepthPruneNats) (negative: nowhere), for the
+// m components of the structure of arrays in (as inViewAll's) seen from T. Vectorised.
+__attribute__((noinline)) void depthReachAll(const float* __restrict in, int m, int stride,
+                                             const RigidTransformF& T,
+                                             const MemberDepthPrune& prune, float* __restrict depth,
+                                             float* __restrict dz2_max) {
+  const float* __restrict mx = in, * __restrict my = in + stride, * __restrict mz = in + 2 * stride;
+  const float* __restrict s0 = in + 3 * stride, * __restrict s1 = in + 4 * stride;
+  const float* __restrict s2 = in + 5 * stride, * __restrict s3 = in + 6 * stride;
+  const float* __restrict s4 = in + 7 * stride, * __restrict s5 = in + 8 * stride;
+  const float* __restrict log_norm = prune.log_norm;
+  const float a0 = T.R[6], a1 = T.R[7], a2 = T.R[8], tz = T.t[2];
+  const bool noisy = prune.noise.enabled();
+  const float na = noisy ? prune.noise.a_m : 0.f, nb = noisy ? prune.noise.b_per_m : 0.f;
+  const float z0 = prune.noise.z0_m;
+  const float budget0 = kDepthPruneNats - prune.floor_log_density;
+#pragma omp simd
+  for (int i = 0; i < m; ++i) {
+    const float z = a0 * mx[i] + a1 * my[i] + a2 * mz[i] + tz;
+    const float var = a0 * (a0 * s0[i] + 2.f * (a1 * s1[i] + a2 * s2[i])) +
+                      a1 * (a1 * s3[i] + 2.f * a2 * s4[i]) + a2 * a2 * s5[i];
+    const float dz = z - z0;
+    const float sigma = na + nb * dz * dz;
+    depth[i] = z;
+    dz2_max[i] = 2.f * (var + sigma * sigma) * (log_norm[i] + budget0);
+  }
+}
+
+// Whether the depth gap between a component at depth z and the range [lo, hi] is within
+// sqrt(dz2_max) (MemberDepthPrune; false for a patch without points).
+inline bool depthReaches(float lo, float hi, float z, float dz2_max) {
+  const float gap = maxf(0.f, maxf(lo - z, z - hi));
+  return gap * gap <= dz2_max;
+}
+
 // projectComponent for m components at once over structure-of-arrays inputs (mean x, y, z and
 // the 6 covariance entries), one branch-free loop that the compiler vectorises (8 components
 // per AVX2 instruction). The expressions are projectComponent's, in the same order, but the
@@ -88,15 +125,15 @@ __attribute__((noinline)) void inViewAll(const float* __restrict in, int m,
 // finite), and margin[i] bounds how far a patch centre's quadratic form may be from 1 before its
 // ellipse test needs projectComponent (1e-4 times a bound on the form's terms over the box).
 // ok[i] = 0 where the mean is nearer than min_depth_m (the other outputs are then meaningless).
-__attribute__((noinline)) void projectAll(const float* __restrict in, int m,
+__attribute__((noinline)) void projectAll(const float* __restrict in, int m, int stride,
                                           const RigidTransformF& T, const Intrinsics& K,
                                           const PatchGrid& grid, float min_depth_m,
                                           float sigma_bound, float inflate_px,
                                           const ProjectedSoA& o) {
-  const float* __restrict mx = in, * __restrict my = in + m, * __restrict mz = in + 2 * m;
-  const float* __restrict s0 = in + 3 * m, * __restrict s1 = in + 4 * m;
-  const float* __restrict s2 = in + 5 * m, * __restrict s3 = in + 6 * m;
-  const float* __restrict s4 = in + 7 * m, * __restrict s5 = in + 8 * m;
+  const float* __restrict mx = in, * __restrict my = in + stride, * __restrict mz = in + 2 * stride;
+  const float* __restrict s0 = in + 3 * stride, * __restrict s1 = in + 4 * stride;
+  const float* __restrict s2 = in + 5 * stride, * __restrict s3 = in + 6 * stride;
+  const float* __restrict s4 = in + 7 * stride, * __restrict s5 = in + 8 * stride;
   float* __restrict ou = o.u, * __restrict ov = o.v, * __restrict ocuu = o.cuu;
   float* __restrict ocuv = o.cuv, * __restrict ocvv = o.cvv, * __restrict oquu = o.quu;
   float* __restrict oquv = o.quv, * __restrict oqvv = o.qvv, * __restrict ohw = o.hw;
@@ -204,9 +241,12 @@ __attribute__((noinline)) void projectAll(const float* __restrict in, int m,
 // count[patch] by the same. Returns true when some centre's form is within `margin` of 1 (or
 // not a number): then the outcome may depend on the last bits of the projection. margin < 0:
 // no check.
+// With kPrune, a centre also needs depthReaches(zlo[patch], zhi[patch], z, dz2_max).
+template <bool kPrune>
 inline bool testBox(const PatchGrid& grid, int col0, int col1, int row0, int row1, float pu,
                     float pv, float quu, float quv, float qvv, float margin, int* __restrict hp,
-                    size_t* hits_io, int* __restrict count) {
+                    size_t* hits_io, int* __restrict count, const float* zlo = nullptr,
+                    const float* zhi = nullptr, float z = 0.f, float dz2_max = 0.f) {
   const float ps = static_cast<float>(grid.patch_size_px);
   const float q2uv = 2.f * quv;
   size_t hits = *hits_io;
@@ -227,8 +267,9 @@ inline bool testBox(const PatchGrid& grid, int col0, int col1, int row0, int row
 #else  // no FMA: ellipseContains' order without fusing
       const float s = (du * (quu * du) + q2uv * du * dv) + dv * dvv;
 #endif
-      const int in_ellipse = s <= 1.f ? 1 : 0;
+      int in_ellipse = s <= 1.f ? 1 : 0;
       near |= !(std::fabs(s - 1.f) > margin);
+      if (kPrune) in_ellipse &= depthReaches(zlo[patch], zhi[patch], z, dz2_max) ? 1 : 0;
       hp[hits] = patch;
       count[patch] += in_ellipse;
       hits += static_cast<size_t>(in_ellipse);
@@ -244,9 +285,12 @@ inline bool testBox(const PatchGrid& grid, int col0, int col1, int row0, int row
 // (the ellipse is convex; a mask that is not one run, only conceivable through rounding, takes
 // the per-bit path): one store of 8 patch indices at hp[hits] and one masked add to count
 // (hp needs 8 entries of slack past the box's cells, count 8 past the last patch).
+// With kPrune, a centre also needs depthReaches (testBox).
+template <bool kPrune>
 inline bool testBoxVec(const PatchGrid& grid, int col0, int col1, int row0, int row1, float pu,
                        float pv, float quu, float quv, float qvv, float margin, int* __restrict hp,
-                       size_t* hits_io, int* __restrict count) {
+                       size_t* hits_io, int* __restrict count, const float* zlo = nullptr,
+                       const float* zhi = nullptr, float z = 0.f, float dz2_max = 0.f) {
   const float ps = static_cast<float>(grid.patch_size_px);
   const __m256 lane = _mm256_setr_ps(0.f, 1.f, 2.f, 3.f, 4.f, 5.f, 6.f, 7.f);
   const __m256i lane_i = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
@@ -270,9 +314,18 @@ inline bool testBoxVec(const PatchGrid& grid, int col0, int col1, int row0, int 
       const __m256 du = _mm256_sub_ps(u, _mm256_set1_ps(pu));
       const __m256 t = _mm256_mul_ps(_mm256_mul_ps(vq2uv, du), vdv);
       const __m256 s = _mm256_fmadd_ps(vdv, vdvv, _mm256_fmadd_ps(du, _mm256_mul_ps(vquu, du), t));
-      const __m256 in = _mm256_and_ps(_mm256_cmp_ps(s, one, _CMP_LE_OQ), live);
+      __m256 in = _mm256_and_ps(_mm256_cmp_ps(s, one, _CMP_LE_OQ), live);
       const __m256 dist = _mm256_and_ps(_mm256_sub_ps(s, one), abs_mask);
       near = _mm256_or_ps(near, _mm256_and_ps(_mm256_cmp_ps(dist, vmargin, _CMP_NGT_UQ), live));
+      if (kPrune) {  // depthReaches on 8 patches (zlo, zhi have 8 entries of slack)
+        const __m256 vz = _mm256_set1_ps(z);
+        const __m256 gap =
+            _mm256_max_ps(_mm256_setzero_ps(),
+                          _mm256_max_ps(_mm256_sub_ps(_mm256_loadu_ps(zlo + row_base + c), vz),
+                                        _mm256_sub_ps(vz, _mm256_loadu_ps(zhi + row_base + c))));
+        in = _mm256_and_ps(
+            in, _mm256_cmp_ps(_mm256_mul_ps(gap, gap), _mm256_set1_ps(dz2_max), _CMP_LE_OQ));
+      }
       unsigned bits = static_cast<unsigned>(_mm256_movemask_ps(in));
       if (bits == 0) continue;
       const int first = __builtin_ctz(bits);
@@ -337,7 +390,8 @@ std::string MeasurementParams::validate() const {
 void computeMembership(const std::vector<ComponentF>& components, const RigidTransformF& T_cam_map,
                        const Intrinsics& K, const PatchGrid& grid, const MeasurementParams& params,
                        std::vector<ProjectedComponent>* projected, std::vector<char>* valid,
-                       PatchMembership* out, const ViewReach* reach) {
+                       PatchMembership* out, const ViewReach* reach, const MemberDepthPrune* prune,
+                       const float* component_soa) {
   const int m = static_cast<int>(components.size());
   const int num_patches = grid.count();
   const float inflate = patchInflation(grid.patch_size_px);
@@ -354,28 +408,45 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
   static thread_local std::vector<int> run_begin;  // [m + 1]: component i's run in hit_patch
   static thread_local std::vector<int> cursor;
   const size_t ms = static_cast<size_t>(m);
-  soa_in.resize(9 * ms);
   soa_f.resize(12 * ms);
   soa_i.resize(6 * ms);
   run_begin.resize(ms + 1);
-  float* in = soa_in.data();
-  copyMeans(components, in, ms);
-  for (int i = 0; i < m; ++i) {
-    for (int k = 0; k < 6; ++k) in[(3 + k) * ms + i] = components[i].cov_m2[k];
+  // The components as a structure of arrays: the caller's (componentSoA, kept across poses) or
+  // built here.
+  const float* in = component_soa;
+  int stride = componentSoAStride(m);
+  if (!in) {
+    stride = m;
+    soa_in.resize(9 * ms);
+    float* own = soa_in.data();
+    copyMeans(components, own, ms);
+    for (int i = 0; i < m; ++i) {
+      for (int k = 0; k < 6; ++k) own[(3 + k) * ms + i] = components[i].cov_m2[k];
+    }
+    in = own;
   }
   float* f = soa_f.data();
   int* n = soa_i.data();
   const ProjectedSoA P = {f,          f + ms,     f + 2 * ms, f + 3 * ms, f + 4 * ms,  f + 5 * ms,
                           f + 6 * ms, f + 7 * ms, f + 8 * ms, f + 9 * ms, f + 10 * ms, f + 11 * ms,
                           n,          n + ms,     n + 2 * ms, n + 3 * ms, n + 4 * ms,  n + 5 * ms};
-  projectAll(in, m, T_cam_map, K, grid, params.min_component_depth_m, params.sigma_bound, inflate,
-             P);
+  projectAll(in, m, stride, T_cam_map, K, grid, params.min_component_depth_m, params.sigma_bound,
+             inflate, P);
   // The pose's view volume, when given: a component outside it is no member (cullToView).
   static thread_local std::vector<int> in_view;
   if (reach) {
     in_view.resize(ms);
-    inViewAll(in, m, T_cam_map, K, *reach, params.sigma_bound, in_view.data());
+    inViewAll(in, m, stride, T_cam_map, K, *reach, params.sigma_bound, in_view.data());
   }
+  static thread_local std::vector<float> depth_reach;  // depth, dz2_max: [2][m]
+  const float* zlo = prune ? prune->patch_min_z : nullptr;
+  const float* zhi = prune ? prune->patch_max_z : nullptr;
+  if (prune) {
+    depth_reach.resize(2 * ms);
+    depthReachAll(in, m, stride, T_cam_map, *prune, depth_reach.data(), depth_reach.data() + ms);
+  }
+  const float* comp_z = depth_reach.data();
+  const float* comp_dz2 = depth_reach.data() + ms;
   // Pass 1: per component (ascending), the patches whose centre lies in its inflated ellipse,
   // from the vectorised projection; where that could decide differently from projectComponent
   // (P.exact, or a centre within P.margin of the ellipse), the component is redone with
@@ -397,11 +468,19 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
       const size_t cells = static_cast<size_t>(row1 - row0 + 1) * (col1 - col0 + 1) + 8;
       if (hit_patch.size() < hits + cells) hit_patch.resize(2 * (hits + cells));
 #if defined(__AVX2__) && defined(__FMA__)
-      redo = testBoxVec(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i], P.quv[i], P.qvv[i],
-                        P.margin[i], hit_patch.data(), &hits, count);
+      redo = prune ? testBoxVec<true>(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i],
+                                      P.quv[i], P.qvv[i], P.margin[i], hit_patch.data(), &hits,
+                                      count, zlo, zhi, comp_z[i], comp_dz2[i])
+                   : testBoxVec<false>(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i],
+                                       P.quv[i], P.qvv[i], P.margin[i], hit_patch.data(), &hits,
+                                       count);
 #else
-      redo = testBox(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i], P.quv[i], P.qvv[i],
-                     P.margin[i], hit_patch.data(), &hits, count);
+      redo = prune
+                 ? testBox<true>(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i], P.quv[i],
+                                 P.qvv[i], P.margin[i], hit_patch.data(), &hits, count, zlo, zhi,
+                                 comp_z[i], comp_dz2[i])
+                 : testBox<false>(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i], P.quv[i],
+                                  P.qvv[i], P.margin[i], hit_patch.data(), &hits, count);
 #endif
       if (redo) {  // undo this component's hits
         for (size_t k = first; k < hits; ++k) --count[hit_patch[k]];
@@ -423,8 +502,9 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
       if (e_col0 > e_col1 || e_row0 > e_row1) continue;
       const size_t cells = static_cast<size_t>(e_row1 - e_row0 + 1) * (e_col1 - e_col0 + 1);
       if (hit_patch.size() < hits + cells) hit_patch.resize(2 * (hits + cells));
-      testBox(grid, e_col0, e_col1, e_row0, e_row1, p.u_px, p.v_px, p.q_uu, p.q_uv, p.q_vv, -1.f,
-              hit_patch.data(), &hits, count);
+      // (Without the depth prune: a superset of the members, the same sums.)
+      testBox<false>(grid, e_col0, e_col1, e_row0, e_row1, p.u_px, p.v_px, p.q_uu, p.q_uv, p.q_vv,
+                     -1.f, hit_patch.data(), &hits, count);
       if (hits == first) continue;
     } else {
       if (hits == first) continue;
@@ -455,6 +535,42 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
   for (int i = 0; i < m; ++i) {
     const int end = rb[i + 1];
     for (int k = rb[i]; k < end; ++k) dst[cur[hp[k]]++] = i;
+  }
+}
+
+int componentSoAStride(int m) {
+  return (m + kComponentSoALanes - 1) / kComponentSoALanes * kComponentSoALanes;
+}
+
+void componentSoA(const std::vector<ComponentF>& components, std::vector<float>* soa) {
+  const int m = static_cast<int>(components.size());
+  const size_t stride = static_cast<size_t>(componentSoAStride(m));
+  soa->resize(kComponentSoARows * stride);
+  float* out = soa->data();
+  // Padding lanes: a unit sphere 1 m in front of the map origin (finite, never read back).
+  static const ComponentF kPad = {
+      {0.f, 0.f, 1.f}, {1.f, 0.f, 0.f, 1.f, 0.f, 1.f}, {1.f, 0.f, 0.f, 1.f, 0.f, 1.f}, 0.f, 0.f};
+  for (size_t i = 0; i < stride; ++i) {
+    const ComponentF& c = i < components.size() ? components[i] : kPad;
+    for (int a = 0; a < 3; ++a) out[a * stride + i] = c.mean_m[a];
+    for (int k = 0; k < 6; ++k) out[(3 + k) * stride + i] = c.cov_m2[k];
+    out[9 * stride + i] = c.log_weight;
+  }
+}
+
+void patchDepthRanges(const DepthFrame& frame, std::vector<float>* min_z,
+                      std::vector<float>* max_z) {
+  const int n = frame.grid.count();
+  min_z->assign(static_cast<size_t>(n) + 8, 3e18f);
+  max_z->assign(static_cast<size_t>(n) + 8, -3e18f);
+  for (int p = 0; p < n; ++p) {
+    float lo = 3e18f, hi = -3e18f;
+    for (int i = frame.patch_begin[p]; i < frame.patch_begin[p + 1]; ++i) {
+      lo = std::min(lo, frame.z_m[i]);
+      hi = std::max(hi, frame.z_m[i]);
+    }
+    (*min_z)[p] = lo;
+    (*max_z)[p] = hi;
   }
 }
 

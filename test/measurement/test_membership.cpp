@@ -148,8 +148,8 @@ TEST(MembershipTest, ViewCullKeepsEveryContributingComponent) {
 
 // The CPU backend evaluates on the culled list (the map grid's candidates near the views, then
 // the cull within the frame's depth): the same log-likelihoods as the whole map through
-// poseLogLikelihood within float rounding, the same floor hits, with the depth-noise model on
-// and off.
+// poseLogLikelihood (each pose's own view volume and depth prune) within float rounding, the
+// same floor hits, with the depth-noise model on and off.
 constexpr double kCulledRelativeTolerance = 1e-8;  // 1.5e-9 seen
 TEST(MembershipTest, BackendOnCulledListEqualsWholeMap) {
   const auto& w = test::world();
@@ -180,6 +180,102 @@ TEST(MembershipTest, BackendOnCulledListEqualsWholeMap) {
           << i;
       EXPECT_EQ(out.floor_hits[i], ref.floor_hits) << i;
     }
+  }
+}
+
+// Sum over the frame's pixels of ln(exp(floor) + sum over the patch's members in `table` of
+// lambda N), in double from the evaluation forms (what a table selects, without the float
+// kernel's rounding).
+double tableLogLikelihood(const EvalComponentF* eval, const DepthFrame& frame,
+                          const RigidTransformF& T_map_cam, const PatchMembership& table,
+                          double floor) {
+  double sum = 0.0;
+  for (int p = 0; p < frame.grid.count(); ++p) {
+    for (int i = frame.patch_begin[p]; i < frame.patch_begin[p + 1]; ++i) {
+      const float* R = T_map_cam.R;
+      const double x = frame.x_m[i], y = frame.y_m[i], z = frame.z_m[i];
+      const double wx = R[0] * x + R[1] * y + R[2] * z + T_map_cam.t[0];
+      const double wy = R[3] * x + R[4] * y + R[5] * z + T_map_cam.t[1];
+      const double wz = R[6] * x + R[7] * y + R[8] * z + T_map_cam.t[2];
+      std::vector<double> terms{floor};
+      for (int k = table.begin[p]; k < table.begin[p + 1]; ++k) {
+        const EvalComponentF& e = eval[table.comps[k]];
+        const double y0 = e.u00 * wx + e.u01 * wy + e.u02 * wz + e.c[0];
+        const double y1 = e.u11 * wy + e.u12 * wz + e.c[1];
+        const double y2 = e.u22 * wz + e.c[2];
+        terms.push_back(e.base - (y0 * y0 + y1 * y1 + y2 * y2));
+      }
+      const double top = *std::max_element(terms.begin(), terms.end());
+      double s = 0.0;
+      for (double t : terms) s += std::exp(t - top);
+      sum += top + std::log(s);
+    }
+  }
+  return sum;
+}
+
+// The depth prune (MemberDepthPrune): a (patch, component) pair whose term lies below
+// exp(floor - 26) at every pixel of the patch by its depth alone leaves the table. The pruned
+// table is a subset of the full one and markedly smaller, and the frame's log-likelihood through
+// it (in double, from the same forms) moves by less than the pruned terms' bound: at most
+// e^-26 of a pixel's density per pruned member. With the depth noise on (which widens every
+// component along the ray: a bound without it drops contributing members) and off.
+TEST(MembershipTest, DepthPruneKeepsTheSums) {
+  const auto& w = test::world();
+  const DepthFrame frame =
+      test::renderFrame(test::referenceBasePose(), test::vgaCamera(), test::frameParams(4));
+  std::vector<float> min_z, max_z;
+  patchDepthRanges(frame, &min_z, &max_z);
+  ASSERT_EQ(min_z.size(), static_cast<size_t>(frame.grid.count()) + 8);
+  std::vector<EvalComponentF> base;
+  makeEvalComponents(w.map.packed(), &base);
+  std::vector<float> log_norm;
+  for (const EvalComponentF& e : base) log_norm.push_back(e.log_norm);
+  MeasurementParams noise_off;
+  noise_off.depth_noise.a_m = noise_off.depth_noise.b_per_m = 0.f;
+  const ViewReach reach = viewReach(frame, MeasurementParams());
+  for (const MeasurementParams& mp : {noise_off, MeasurementParams()}) {
+    const MemberDepthPrune prune = memberDepthPrune(min_z, max_z, log_norm.data(), mp);
+    long long full_pairs = 0, pruned_pairs = 0;
+    double worst = 0.0, worst_allowed = 0.0;
+    for (const RigidTransformF& T_cam_map : spreadCameraPoses(12, false, 5)) {
+      std::vector<ProjectedComponent> projected;
+      std::vector<char> valid_full, valid_pruned;
+      PatchMembership full, pruned;
+      computeMembership(w.map.packed(), T_cam_map, frame.intrinsics, frame.grid, mp, &projected,
+                        &valid_full, &full, &reach);
+      computeMembership(w.map.packed(), T_cam_map, frame.intrinsics, frame.grid, mp, &projected,
+                        &valid_pruned, &pruned, &reach, &prune);
+      double allowed = 0.0;  // sum over pixels of (pruned members) e^-26
+      for (int p = 0; p < frame.grid.count(); ++p) {
+        const auto fb = full.comps.begin() + full.begin[p];
+        const auto fe = full.comps.begin() + full.begin[p + 1];
+        for (int k = pruned.begin[p]; k < pruned.begin[p + 1]; ++k) {
+          ASSERT_TRUE(std::binary_search(fb, fe, pruned.comps[k])) << p;
+        }
+        const int pixels = frame.patch_begin[p + 1] - frame.patch_begin[p];
+        if (pixels > 0) {
+          full_pairs += full.countFor(p);
+          pruned_pairs += pruned.countFor(p);
+          allowed += pixels * (full.countFor(p) - pruned.countFor(p)) * std::exp(-26.0);
+        }
+      }
+      std::vector<EvalComponentF> noisy;
+      const RigidTransformF T_map_cam = invertRigid(T_cam_map);
+      const EvalComponentF* eval =
+          noisyEvalComponents(w.map.packed(), base, valid_full, T_cam_map, mp.depth_noise, &noisy);
+      const double a = tableLogLikelihood(eval, frame, T_map_cam, full, mp.floor_log_density);
+      const double b = tableLogLikelihood(eval, frame, T_map_cam, pruned, mp.floor_log_density);
+      EXPECT_LE(std::abs(a - b), allowed);
+      worst = std::max(worst, std::abs(a - b));
+      worst_allowed = std::max(worst_allowed, allowed);
+    }
+    std::printf(
+        "[ measured ] depth noise %s: pairs on patches with pixels %lld pruned to %lld (%.0f%%); "
+        "log-likelihood moved by at most %.2e nats (bound %.2e)\n",
+        mp.depth_noise.enabled() ? "on" : "off", full_pairs, pruned_pairs,
+        100.0 * pruned_pairs / full_pairs, worst, worst_allowed);
+    EXPECT_LT(pruned_pairs, 0.9 * full_pairs);
   }
 }
 

@@ -37,6 +37,9 @@ class CpuBackend : public LikelihoodBackend {
   std::vector<char> visible_any_;
   std::vector<ComponentF> view_components_;
   std::vector<EvalComponentF> view_eval_;
+  std::vector<float> view_soa_;                   // componentSoA(view_components_)
+  std::vector<float> view_log_norm_;              // view_eval_'s log_norm (the depth prune)
+  std::vector<float> patch_min_z_, patch_max_z_;  // the frame's patch depth ranges
 };
 
 }  // namespace gmm_mcl

@@ -34,15 +34,17 @@ void makeEvalComponents(const std::vector<ComponentF>& components,
                         std::vector<EvalComponentF>* out);
 
 // The evaluation form (nats) of every component that `valid` marks (computeMembership's member
-// flags) convolved with the depth noise seen from T_cam_map (depth_noise.h); the others are
-// copied from `base`. `out` is resized. Returns the evaluation form the kernel should use: `out`
-// when the noise model is on, else `base` (nothing computed).
-const EvalComponentF* noisyEvalComponents(const std::vector<ComponentF>& components,
-                                          const std::vector<EvalComponentF>& base,
-                                          const std::vector<char>& valid,
-                                          const RigidTransformF& T_cam_map,
-                                          const DepthNoiseModel& noise,
-                                          std::vector<EvalComponentF>* out);
+// flags) convolved with the depth noise seen from T_cam_map (depth_noise.h's
+// makeNoisyEvalComponent, computed for all components at once in a vectorised loop: as close to
+// the convolved density); a marked one whose factorisation fails gets `base`'s form, and the
+// entries of unmarked ones are left as they were (no table lists them). `out` is resized.
+// Returns the evaluation form the kernel should use: `out` when the noise model is on, else
+// `base` (nothing computed). `soa`: componentSoA(components), when the caller keeps it across
+// poses (else built here).
+const EvalComponentF* noisyEvalComponents(
+    const std::vector<ComponentF>& components, const std::vector<EvalComponentF>& base,
+    const std::vector<char>& valid, const RigidTransformF& T_cam_map, const DepthNoiseModel& noise,
+    std::vector<EvalComponentF>* out, const std::vector<float>* soa = nullptr);
 
 // The CPU kernel. Per patch, the log-sum-exp is shifted by
 // S = max(floor, max over the patch's members of log_norm) (>= every member's log-density, so one
@@ -61,7 +63,8 @@ FrameLikelihood frameLogLikelihood(const std::vector<ComponentF>& components,
                                    const PatchMembership& membership, float floor_log_density,
                                    std::vector<float>* values);
 
-// Membership plus approximate likelihood for one pose: what a backend computes per particle.
+// Membership plus approximate likelihood for one pose: what a backend computes per particle (the
+// members pruned by the frame's depths, membership.h's MemberDepthPrune).
 FrameLikelihood poseLogLikelihood(const std::vector<ComponentF>& components,
                                   const DepthFrame& frame, const RigidTransformF& T_map_cam,
                                   const MeasurementParams& params, LikelihoodScratch* scratch);

@@ -22,15 +22,66 @@ struct PatchMembership {
 // Half the diagonal of a square patch, the inflation of every ellipse (px).
 inline float patchInflation(int patch_size_px) { return 0.70710678f * patch_size_px; }
 
+// The frame's depths in the membership (the CPU backend's likelihood members). A component whose
+// term is below exp(floor - kDepthPruneNats) at every pixel of a patch is no member of it: with
+// a the camera's optical axis, d = p - mu and Sigma' the component's covariance with the depth
+// noise, d^T Sigma'^-1 d >= (a^T d)^2 / (a^T Sigma' a) (Cauchy-Schwarz), and a^T d is at least
+// the gap dz between the component's depth and the patch's depth range [min_z, max_z]; so
+// ln(lambda N) <= log_norm - dz^2 / (2 a^T Sigma' a), log_norm being at most the noise-free one.
+// Each such term moves its pixel's log-likelihood by less than e^-26 (5e-12) nats: the sums equal
+// those without the prune within float rounding (test_membership), with about a third fewer
+// evaluations on the benchmark (docs/benchmark.md).
+struct MemberDepthPrune {
+  const float* patch_min_z = nullptr;  // per patch (+ 8 slack): the least camera depth of its
+  const float* patch_max_z = nullptr;  // points and the greatest (min > max: no points)
+  const float* log_norm = nullptr;     // per component: its noise-free log_norm
+  float floor_log_density = 0.f;
+  DepthNoiseModel noise;  // as in the likelihood (a_m = b_per_m = 0: none)
+};
+constexpr float kDepthPruneNats = 26.f;
+
+// The prune of `params` (its floor and depth noise) over the given ranges and log_norms.
+inline MemberDepthPrune memberDepthPrune(const std::vector<float>& patch_min_z,
+                                         const std::vector<float>& patch_max_z,
+                                         const float* log_norm, const MeasurementParams& params) {
+  MemberDepthPrune prune;
+  prune.patch_min_z = patch_min_z.data();
+  prune.patch_max_z = patch_max_z.data();
+  prune.log_norm = log_norm;
+  prune.floor_log_density = params.floor_log_density;
+  prune.noise = params.depth_noise;
+  return prune;
+}
+
+// Each patch's depth range for MemberDepthPrune: min_z and max_z get grid.count() + 8 entries, a
+// patch without points min_z = 3e18 > max_z = -3e18.
+void patchDepthRanges(const DepthFrame& frame, std::vector<float>* min_z,
+                      std::vector<float>* max_z);
+
+// The components as a structure of arrays [10][stride] (computeMembership and
+// noisyEvalComponents read it; a backend builds it once per update and component list): mean x,
+// y, z, covariance xx xy xz yy yz zz, log_weight; stride = componentSoAStride(m), m rounded up
+// to a multiple of kComponentSoALanes (padding lanes hold a placeholder component), so that the
+// vectorised loops over it have no remainder and a component's results do not depend on its
+// position in the list.
+constexpr int kComponentSoARows = 10;
+constexpr int kComponentSoALanes = 16;
+int componentSoAStride(int m);
+void componentSoA(const std::vector<ComponentF>& components, std::vector<float>* soa);
+
 // Projects every component for one camera pose and fills the membership table.
 // `projected` and `valid` are scratch (resized here); T_cam_map maps map points into the camera.
 // With `reach`, a component outside the pose's view volume (projection.h's componentInView) is
 // no member, as in the CUDA membership kernel: the likelihood's members (the backends); without
 // it, every component whose ellipse reaches a patch centre (the brute-force reference's table).
+// With `prune`, a pair that MemberDepthPrune rules out is no member either. `component_soa`:
+// componentSoA(components) when the caller keeps it (else built here).
 void computeMembership(const std::vector<ComponentF>& components, const RigidTransformF& T_cam_map,
                        const Intrinsics& K, const PatchGrid& grid, const MeasurementParams& params,
                        std::vector<ProjectedComponent>* projected, std::vector<char>* valid,
-                       PatchMembership* out, const ViewReach* reach = nullptr);
+                       PatchMembership* out, const ViewReach* reach = nullptr,
+                       const MemberDepthPrune* prune = nullptr,
+                       const float* component_soa = nullptr);
 
 // The per-update view cull: the components (ascending map indices) that componentMayTouchGrid
 // keeps for at least one of the num_poses camera poses T_cam_map and whose sphere meets that
