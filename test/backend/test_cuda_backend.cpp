@@ -134,14 +134,18 @@ void expectSameLikelihood(const GmmMap& map, const DepthFrame& frame,
     worst_hits = std::max(worst_hits, dh);
     EXPECT_LE(dh, kFloorHitTol * px + 1) << label << " particle " << i;
   }
-  const double eval_rel = std::abs(double(a.evaluations - b.evaluations)) / double(a.evaluations);
+  // The CPU backend's members are the CUDA membership's less the pairs that the frame's depths
+  // rule out (membership.h's MemberDepthPrune, not in the CUDA kernels): fewer evaluations, the
+  // same sums within kRelTol.
+  const double pruned = double(b.evaluations - a.evaluations) / double(b.evaluations);
   std::printf(
       "[ measured ] %s likelihood: %zu particles, %.0f px, worst relative difference "
       "%.2e (tolerance %.0e), worst floor-hit difference %d px, evaluations cpu %lld "
       "cuda %lld, L(true pose) cpu %.3f cuda %.3f\n",
       label, poses.size(), px, worst, kRelTol, worst_hits, a.evaluations, b.evaluations,
       a.log_likelihood[0], b.log_likelihood[0]);
-  EXPECT_LT(eval_rel, 1e-3);
+  EXPECT_GE(pruned, 0.0);
+  EXPECT_LT(pruned, 0.9);
   EXPECT_EQ(a.patches_with_pixels, b.patches_with_pixels);
   (void)map;
 }

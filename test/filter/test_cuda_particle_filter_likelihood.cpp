@@ -95,8 +95,10 @@ TEST(CudaParticleFilterTest, LikelihoodOfDeviceParticlesMatchesTheHostPath) {
         "%.2e (%d particles, %zu pixels), evaluations %lld vs %lld\n",
         worst, n, view.frame.size(), ds.evaluations, hs.evaluations);
     EXPECT_LT(worst, kLikelihoodRelTol);
-    EXPECT_NEAR(static_cast<double>(ds.evaluations), static_cast<double>(hs.evaluations),
-                1e-3 * hs.evaluations);
+    // The host (CPU backend) drops the pairs the frame's depths rule out (MemberDepthPrune),
+    // which the CUDA kernels keep.
+    EXPECT_LE(hs.evaluations, ds.evaluations);
+    EXPECT_GT(hs.evaluations, ds.evaluations / 10);
     // And the scores of the weight update on them.
     ParticleFilter host_w(p);
     host_w.setParticles(particles, std::vector<double>(n, 1.0));
