@@ -502,9 +502,13 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
       if (e_col0 > e_col1 || e_row0 > e_row1) continue;
       const size_t cells = static_cast<size_t>(e_row1 - e_row0 + 1) * (e_col1 - e_col0 + 1);
       if (hit_patch.size() < hits + cells) hit_patch.resize(2 * (hits + cells));
-      // (Without the depth prune: a superset of the members, the same sums.)
-      testBox<false>(grid, e_col0, e_col1, e_row0, e_row1, p.u_px, p.v_px, p.q_uu, p.q_uv, p.q_vv,
-                     -1.f, hit_patch.data(), &hits, count);
+      if (prune) {
+        testBox<true>(grid, e_col0, e_col1, e_row0, e_row1, p.u_px, p.v_px, p.q_uu, p.q_uv, p.q_vv,
+                      -1.f, hit_patch.data(), &hits, count, zlo, zhi, comp_z[i], comp_dz2[i]);
+      } else {
+        testBox<false>(grid, e_col0, e_col1, e_row0, e_row1, p.u_px, p.v_px, p.q_uu, p.q_uv, p.q_vv,
+                       -1.f, hit_patch.data(), &hits, count);
+      }
       if (hits == first) continue;
     } else {
       if (hits == first) continue;
