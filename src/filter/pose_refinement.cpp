@@ -76,7 +76,11 @@ class Objective {
   // The frame's points (on the host) to the evaluator; with extra_noise, each depth z with a
   // further error drawn from the depth-noise model's N(0, sigma(z)^2) (a fixed seed: the same
   // frame gives the same result), which moves the point along its ray.
+  // Nothing to do when the evaluator holds those points already.
   void setPoints(bool extra_noise) {
+    const int state = extra_noise ? 1 : 0;
+    if (points_state_ == state) return;
+    points_state_ = state;
     // Base-frame points; the map point of a pose is R(roll, pitch, yaw) p_base + t.
     const DepthFrame& f = *frame_.points;
     std::vector<double> x(f.size()), y(f.size()), z(f.size());
@@ -150,7 +154,8 @@ class Objective {
   }
 
  private:
-  bool scaled_;  // the depth scale applies to this frame's points
+  bool scaled_;            // the depth scale applies to this frame's points
+  int points_state_ = -1;  // setPoints' last extra_noise (0, 1), -1 before it
   const std::vector<ComponentF>& components_;
   const RefinementFrame& frame_;
   Eigen::Isometry3d T_base_cam_;
