@@ -474,10 +474,12 @@ void Localizer::refineEstimate(const StepInput& in, StepResult* res) {
   // prepared there), else on the host with the points prepared there now.
   NormalEquationsEvaluator* sums = backend_->normalEquations();
   RefinementFrame rf;
-  // The depth scale estimated is StepInput's own camera's.
+  // The depth scale estimated is StepInput's own camera's. Its noise correction draws noise on
+  // the frame's points on the host (the sums still run on the backend's evaluator).
   const bool with_scale = params_.refinement.estimate_depth_scale && first_camera_ == 0;
   if (!host_frame_ready_ && sums != nullptr && sums->hasBackendFrame() &&
-      (!with_scale || sums->supportsDepthScale())) {
+      (!with_scale ||
+       (sums->supportsDepthScale() && !params_.refinement.depth_scale_noise_correction))) {
     rf.intrinsics = cam_.intrinsics;
     rf.grid =
         PatchGrid::forImage(cam_.depth->width_px, cam_.depth->height_px, cam_.frame->patch_size_px);

@@ -66,8 +66,9 @@ class Objective {
         sums_(sums),
         estimate_scale_(estimate_scale) {
     makeEvalComponents(components_, &base_eval_);
-    if (frame.points == nullptr) {  // on the evaluator's device already
+    if (frame.points == nullptr) {  // on the evaluator's device already, as they come
       sums_->setPointsFromBackendFrame(T_base_cam);
+      points_state_ = 0;
       return;
     }
     setPoints(false);
@@ -80,6 +81,9 @@ class Objective {
   void setPoints(bool extra_noise) {
     const int state = extra_noise ? 1 : 0;
     if (points_state_ == state) return;
+    if (frame_.points == nullptr) {
+      throw std::logic_error("refinement: extra depth noise needs the frame's points on the host");
+    }
     points_state_ = state;
     // Base-frame points; the map point of a pose is R(roll, pitch, yaw) p_base + t.
     const DepthFrame& f = *frame_.points;
@@ -226,6 +230,12 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
     }
     sums = nullptr;
   }
+  // Its noise correction draws depth noise on the frame's points, which must be on the host.
+  if (with_scale && refinement.depth_scale_noise_correction && frame.points == nullptr) {
+    throw std::invalid_argument(
+        "refinePose: the depth scale's noise correction needs the frame's points on the host");
+  }
+  r.sums_on_backend = sums != nullptr;
   HostNormalEquations host_sums;
   Objective objective(components, frame, T_base_cam, params, sums ? sums : &host_sums, with_scale);
   // The rig's other frames: their own objectives, summed.

@@ -131,6 +131,44 @@ TEST(CudaLocalizerTest, ACameraRigOnTheDeviceFilterResolvesTheCorridor) {
   EXPECT_LT(rig.final_sigma_x_m, 0.15);
 }
 
+// The depth scale estimated on the CUDA backend (depths 0.4% long, as DepthScaleTest on the CPU):
+// every refinement's pixel sums on the GPU, on host points with the noise correction (the
+// default: the same estimate as the CPU's, 0.99641) and on the frame prepared on the GPU without
+// it.
+TEST(CudaLocalizerTest, EstimatesTheDepthScaleWithTheSumsOnTheGpu) {
+  const Particle truth = poseToParticle(test::referenceBasePose());
+  for (bool correction : {true, false}) {
+    SCOPED_TRACE(correction ? "noise correction" : "no noise correction");
+    LocalizerParams p = cudaParams(200, true);
+    p.frame.pixel_stride = 8;
+    p.refinement.estimate_depth_scale = true;
+    p.refinement.depth_scale_rate = 0.2;
+    p.refinement.depth_scale_noise_correction = correction;
+    Localizer loc(p, test::world().map);
+    ASSERT_EQ(loc.backend().name(), "cuda") << loc.backendWarning();
+    loc.resetToPose(truth, Eigen::Vector4d(0.02, 0.02, 0.02, 0.02));
+    std::mt19937_64 rng(9);
+    const test::LongDepthRun run = test::stepLongDepths(&loc, p, 30, 1.004, 1.0, &rng);
+    std::printf(
+        "[ measured ] CUDA, %s: depth scale after 30 frames (%d refined, %d with the sums on "
+        "the GPU): %.5f (truth %.5f), refined pose %.2f mm off\n",
+        correction ? "noise correction" : "no noise correction", run.refined,
+        run.refined_on_backend, run.last.depth_scale, 1.0 / 1.004,
+        1000.0 * test::distance(run.last.refinement.pose, truth));
+    EXPECT_GE(run.refined, 20);
+    EXPECT_EQ(run.refined_on_backend, run.refined);
+    if (correction) {
+      EXPECT_NEAR(run.last.depth_scale * 1.004, 1.0, 0.001);
+      EXPECT_LT(test::distance(run.last.refinement.pose, truth), 0.005);
+    } else {
+      // The depth noise biases the estimate short (docs/measurement_model.md, "Depth scale"),
+      // by about 0.1% here, and the pose with it.
+      EXPECT_LT(run.last.depth_scale * 1.004, 1.0);
+      EXPECT_GT(run.last.depth_scale * 1.004, 0.997);
+    }
+  }
+}
+
 TEST(CudaLocalizerTest, DeviceFilterIsReproducible) {
   const int n = 40;
   Localizer a(cudaParams(2000, true, 9), test::world().map);

@@ -16,10 +16,7 @@
 namespace gmm_mcl {
 namespace {
 
-double distance(const Particle& a, const Particle& b) {
-  return std::sqrt(std::pow(a.x_m - b.x_m, 2) + std::pow(a.y_m - b.y_m, 2) +
-                   std::pow(a.z_m - b.z_m, 2));
-}
+using test::distance;
 
 // The reference pose seen by the 7-Scenes camera at stride 8, and that pose's attitude.
 class PoseRefinementTest : public ::testing::Test {
@@ -198,8 +195,6 @@ TEST_F(PoseRefinementTest, EstimatesTheDepthScale) {
 // within 0.1% of 1 / 1.004 and reports it in every step.
 TEST(DepthScaleTest, LocalizerEstimateFollowsTheFrames) {
   const auto& w = test::world();
-  const Intrinsics K = test::smallCamera();
-  const Eigen::Isometry3d T_map_base = test::referenceBasePose();
   LocalizerParams p;
   p.filter.num_particles = 200;
   p.frame.pixel_stride = 8;
@@ -208,56 +203,26 @@ TEST(DepthScaleTest, LocalizerEstimateFollowsTheFrames) {
   p.refinement.estimate_depth_scale = true;
   p.refinement.depth_scale_rate = 0.2;
   Localizer loc(p, w.map);
-  loc.resetToPose(poseToParticle(T_map_base), Eigen::Vector4d(0.02, 0.02, 0.02, 0.02));
-  const DepthImage exact = test::renderImage(T_map_base, K, 9.0, DepthEncoding::kFloat32Metres);
-  StepInput in;
-  in.intrinsics = K;
-  double roll = 0.0, pitch = 0.0, yaw = 0.0;
-  rpyFromRotation(T_map_base.linear(), &roll, &pitch, &yaw);
-  in.has_attitude = true;
-  in.roll_rad = roll;
-  in.pitch_rad = pitch;
-  StepResult r;
-  int refined = 0;
+  const Particle truth = poseToParticle(test::referenceBasePose());
+  loc.resetToPose(truth, Eigen::Vector4d(0.02, 0.02, 0.02, 0.02));
   std::mt19937_64 rng(9);
-  std::normal_distribution<double> n01(0.0, 1.0);
   const int frames = 30;
-  DepthImage long_img;
-  for (int k = 0; k < frames; ++k) {
-    std::vector<float> z(exact.width_px * exact.height_px);
-    for (int v = 0; v < exact.height_px; ++v) {
-      for (int u = 0; u < exact.width_px; ++u) {
-        const float m = exact.depthMetres(u, v);
-        z[v * exact.width_px + u] =
-            std::isfinite(m) && m > 0.f
-                ? static_cast<float>(1.004 *
-                                     (m + depthNoiseSigma(p.measurement.depth_noise, m) * n01(rng)))
-                : m;
-      }
-    }
-    long_img = DepthImage::fromMetres(exact.width_px, exact.height_px, z);
-    in.depth = &long_img;
-    in.stamp_s = 1.0 + k / 30.0;
-    r = loc.step(in);
-    refined += r.refinement.refined ? 1 : 0;
-  }
+  test::LongDepthRun run = test::stepLongDepths(&loc, p, frames, 1.004, 1.0, &rng);
+  const StepResult& r = run.last;
   std::printf("[ measured ] depth scale after %d frames (%d refined): %.5f (truth %.5f)\n", frames,
-              refined, r.depth_scale, 1.0 / 1.004);
-  EXPECT_GE(refined, 20);
+              run.refined, r.depth_scale, 1.0 / 1.004);
+  EXPECT_GE(run.refined, 20);
   EXPECT_NEAR(r.depth_scale * 1.004, 1.0, 0.001);
   EXPECT_FALSE(r.depth_scale_at_bound);
-  EXPECT_LT(distance(r.refinement.pose, poseToParticle(T_map_base)), 0.005);
+  EXPECT_LT(distance(r.refinement.pose, truth), 0.005);
   // The same camera with the bound at 0.2%: the estimate is held there, and the step says so.
   p.refinement.depth_scale_max_error = 0.002;
   loc.setParams(p);
-  for (int k = 0; k < 10; ++k) {
-    in.stamp_s = 2.0 + k / 30.0;
-    r = loc.step(in);
-  }
-  std::printf("[ measured ] with the bound at 0.2%%: %.5f, at the bound: %d\n", r.depth_scale,
-              r.depth_scale_at_bound ? 1 : 0);
-  EXPECT_TRUE(r.depth_scale_at_bound);
-  EXPECT_NEAR(r.depth_scale, 0.998, 1e-9);
+  run = test::stepLongDepths(&loc, p, 10, 1.004, 2.0, &rng);
+  std::printf("[ measured ] with the bound at 0.2%%: %.5f, at the bound: %d\n",
+              run.last.depth_scale, run.last.depth_scale_at_bound ? 1 : 0);
+  EXPECT_TRUE(run.last.depth_scale_at_bound);
+  EXPECT_NEAR(run.last.depth_scale, 0.998, 1e-9);
 }
 
 }  // namespace

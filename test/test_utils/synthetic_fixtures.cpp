@@ -5,6 +5,7 @@
 #include <cstdlib>
 
 #include "gmm_mcl/filter/pose.h"
+#include "gmm_mcl/measurement/depth_noise.h"
 #include "gmm_mcl/sim/mesh_scene.h"
 
 namespace gmm_mcl {
@@ -56,6 +57,41 @@ DepthImage renderImage(const Eigen::Isometry3d& T_map_base, const Intrinsics& K,
 DepthFrame renderFrame(const Eigen::Isometry3d& T_map_base, const Intrinsics& K,
                        const FrameParams& params, DepthEncoding encoding) {
   return prepareFrame(renderImage(T_map_base, K, params.max_range_m + 1.0, encoding), K, params);
+}
+
+LongDepthRun stepLongDepths(Localizer* loc, const LocalizerParams& p, int frames, double factor,
+                            double start_s, std::mt19937_64* rng) {
+  const Intrinsics K = smallCamera();
+  const Eigen::Isometry3d T_map_base = referenceBasePose();
+  const DepthImage exact = renderImage(T_map_base, K, 9.0, DepthEncoding::kFloat32Metres);
+  StepInput in;
+  in.intrinsics = K;
+  double yaw = 0.0;
+  rpyFromRotation(T_map_base.linear(), &in.roll_rad, &in.pitch_rad, &yaw);
+  in.has_attitude = true;
+  std::normal_distribution<double> n01(0.0, 1.0);
+  LongDepthRun out;
+  for (int k = 0; k < frames; ++k) {
+    std::vector<float> z(static_cast<size_t>(exact.width_px) * exact.height_px);
+    for (int v = 0; v < exact.height_px; ++v) {
+      for (int u = 0; u < exact.width_px; ++u) {
+        const float m = exact.depthMetres(u, v);
+        z[v * exact.width_px + u] =
+            std::isfinite(m) && m > 0.f
+                ? static_cast<float>(
+                      factor * (m + depthNoiseSigma(p.measurement.depth_noise, m) * n01(*rng)))
+                : m;
+      }
+    }
+    const DepthImage img = DepthImage::fromMetres(exact.width_px, exact.height_px, z);
+    in.depth = &img;
+    in.stamp_s = start_s + k / 30.0;
+    out.last = loc->step(in);
+    out.refined += out.last.refinement.refined ? 1 : 0;
+    out.refined_on_backend +=
+        out.last.refinement.refined && out.last.refinement.sums_on_backend ? 1 : 0;
+  }
+  return out;
 }
 
 std::string datasetsRoot() {

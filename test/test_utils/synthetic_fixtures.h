@@ -1,6 +1,7 @@
 // Shared synthetic fixtures for the core tests: the box scene, its tiled GMM, a camera, frames.
 #pragma once
 
+#include <cmath>
 #include <random>
 #include <string>
 
@@ -39,11 +40,29 @@ DepthFrame renderFrame(const Eigen::Isometry3d& T_map_base, const Intrinsics& K,
                        const FrameParams& params,
                        DepthEncoding encoding = DepthEncoding::kMono16Millimetres);
 
+// The distance between two particles' positions (m).
+inline double distance(const Particle& a, const Particle& b) {
+  return std::sqrt(std::pow(a.x_m - b.x_m, 2) + std::pow(a.y_m - b.y_m, 2) +
+                   std::pow(a.z_m - b.z_m, 2));
+}
+
 // `truth` moved about as far as a converged particle set spreads (the filter's process noise is
 // 2 cm): Gaussian offsets of 3 cm in x and y, 2 cm in z and 0.015 rad in yaw, drawn from n01 in
 // that order.
 Particle perturbed(const Particle& truth, std::normal_distribution<double>& n01,
                    std::mt19937_64& rng);
+
+// `frames` steps of `loc` at the reference pose of a camera (smallCamera) whose depths read
+// `factor` long, each depth with the measurement model's noise (p.measurement) drawn anew per
+// frame from `rng`, the attitude given, stamps from start_s at 30 Hz: the last step, and how many
+// steps were refined (with the pixel sums on the backend's evaluator).
+struct LongDepthRun {
+  StepResult last;
+  int refined = 0;
+  int refined_on_backend = 0;
+};
+LongDepthRun stepLongDepths(Localizer* loc, const LocalizerParams& p, int frames, double factor,
+                            double start_s, std::mt19937_64* rng);
 
 // Root of ../shared/datasets ($GMM_MCL_DATASETS overrides); empty when absent.
 std::string datasetsRoot();

@@ -42,8 +42,9 @@ struct RefinementParams {
   // are to be multiplied. The pose is refined with the frame's current estimate
   // (RefinementFrame::depth_scale); then f takes a Newton and a secant step from it with the pose
   // marginalised and a Gaussian prior of this standard deviation, corrected for the depth
-  // noise's bias, kept within 1 +- depth_scale_max_error. Pixel sums on the host (a device
-  // evaluator without supportsDepthScale() is not used then).
+  // noise's bias, kept within 1 +- depth_scale_max_error. An evaluator without
+  // supportsDepthScale() is not used then (the sums run on the host); the noise correction needs
+  // the frame's points on the host (RefinementFrame::points).
   bool estimate_depth_scale = false;
   // Take the depth noise's bias out of the estimate (simulation-extrapolation with the
   // measurement model's depth noise); off for a camera without noise (a simulator).
@@ -74,6 +75,9 @@ struct RefinementResult {
   // f after the pose is marginalised out of the normal equations, without f's prior): small for
   // a frame whose scale trades against a translation (a frontal wall). 0 when not estimated.
   double depth_scale_information = 0.0;
+  // Whether the pixel sums ran on the evaluator given (a backend's: the GPU with CUDA) rather
+  // than on the host.
+  bool sums_on_backend = false;
   int iterations = 0;
   double loglik_start = 0.0;  // nats per pixel at the start and the refined pose
   double loglik_refined = 0.0;

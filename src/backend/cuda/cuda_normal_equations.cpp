@@ -18,7 +18,11 @@ void CudaNormalEquations::setPoints(const std::vector<double>& x_m, const std::v
     throw std::invalid_argument("normal equations: points and patch ranges disagree");
   }
   num_pixels_ = n;
-  have_linearisation_ = false;
+  // The linearisation holds while the patches stay (new depths along the same rays, as the
+  // depth scale's noise correction sets them).
+  if (static_cast<int>(patch_begin.size()) - 1 != linearisation_patches_) {
+    have_linearisation_ = false;
+  }
   if (n == 0) return;
   host_points_.resize(3 * static_cast<size_t>(n));
   pixel_patch_.resize(n);
@@ -57,7 +61,7 @@ int CudaNormalEquations::setPointsFromBackendFrame(const Eigen::Isometry3d& T_ba
   }
   GMM_MCL_CUDA_CHECK(cudaSetDevice(device_));
   num_pixels_ = ref.pixels;
-  have_linearisation_ = false;
+  if (ref.patches != linearisation_patches_) have_linearisation_ = false;
   x_ = ref.x_m;
   y_ = ref.y_m;
   z_ = ref.z_m;
@@ -91,6 +95,7 @@ void CudaNormalEquations::setLinearisation(const std::vector<EvalComponentF>& ev
   // The caller may change its vectors after this returns.
   GMM_MCL_CUDA_CHECK(cudaStreamSynchronize(stream_));
   have_linearisation_ = true;
+  linearisation_patches_ = static_cast<int>(membership.begin.size()) - 1;
 }
 
 void CudaNormalEquations::evaluate(const PoseDerivatives& pose, float floor_log_density,
@@ -101,23 +106,35 @@ void CudaNormalEquations::evaluate(const PoseDerivatives& pose, float floor_log_
     throw std::logic_error("normal equations: evaluate() before setLinearisation()");
   }
   GMM_MCL_CUDA_CHECK(cudaSetDevice(device_));
-  // The pose applied to the points in use: q = R (R_bp p + t_bp) + t, dq_a = dR_a (R_bp p + t_bp).
+  // The pose applied to the points in use p, whose base-frame point is A p + b (A = R_bp, b =
+  // t_bp), with the depth scale f about the camera centre o: s = o + f (A p + b - o) = f A p + c,
+  // c = o + f (b - o); q = R s + t, dq_a = dR_a s, dq/df = R (A p + b - o).
   const Eigen::Matrix3d Rbp = T_base_points_.linear();
   const Eigen::Vector3d tbp = T_base_points_.translation();
   const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> R(pose.R);
-  const Eigen::Matrix3d Rc = R * Rbp;
-  const Eigen::Vector3d tc = R * tbp + Eigen::Vector3d(pose.t[0], pose.t[1], pose.t[2]);
+  const Eigen::Vector3d o(pose.scale_origin[0], pose.scale_origin[1], pose.scale_origin[2]);
+  const double f = pose.scale;
+  const Eigen::Matrix3d A = f * Rbp;
+  const Eigen::Vector3d c = o + f * (tbp - o);
+  const Eigen::Matrix3d Rc = R * A;
+  const Eigen::Vector3d tc = R * c + Eigen::Vector3d(pose.t[0], pose.t[1], pose.t[2]);
+  const Eigen::Matrix3d Rs = R * Rbp;
+  const Eigen::Vector3d ts = R * (tbp - o);
   NormalEquationPose p;
   for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) p.R[3 * r + c] = static_cast<float>(Rc(r, c));
+    for (int k = 0; k < 3; ++k) {
+      p.R[3 * r + k] = static_cast<float>(Rc(r, k));
+      p.Rs[3 * r + k] = static_cast<float>(Rs(r, k));
+    }
     p.t[r] = static_cast<float>(tc[r]);
+    p.ts[r] = static_cast<float>(ts[r]);
   }
   for (int a = 0; a < 3; ++a) {
     const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> dR(pose.dR[a]);
-    const Eigen::Matrix3d dRc = dR * Rbp;
-    const Eigen::Vector3d dtc = dR * tbp;
+    const Eigen::Matrix3d dRc = dR * A;
+    const Eigen::Vector3d dtc = dR * c;
     for (int r = 0; r < 3; ++r) {
-      for (int c = 0; c < 3; ++c) p.dR[a][3 * r + c] = static_cast<float>(dRc(r, c));
+      for (int k = 0; k < 3; ++k) p.dR[a][3 * r + k] = static_cast<float>(dRc(r, k));
       p.dt[a][r] = static_cast<float>(dtc[r]);
     }
   }
@@ -126,7 +143,8 @@ void CudaNormalEquations::evaluate(const PoseDerivatives& pose, float floor_log_
   partials_.reserve(values);
   h_partials_.reserve(values);
   GMM_MCL_CUDA_CHECK(launchNormalEquations(
-      num_pixels_, p, floor_log_density, linearise ? 1 : 0, x_, y_, z_, pixel_patch_dev_.data(),
+      num_pixels_, p, floor_log_density, linearise ? 1 : 0,
+      linearise && pose.estimate_scale ? 1 : 0, x_, y_, z_, pixel_patch_dev_.data(),
       member_begin_.data(), members_.data(), eval_.data(), partials_.data(), stream_));
   GMM_MCL_CUDA_CHECK(cudaMemcpyAsync(h_partials_.data(), partials_.data(), values * sizeof(double),
                                      cudaMemcpyDeviceToHost, stream_));
@@ -136,6 +154,8 @@ void CudaNormalEquations::evaluate(const PoseDerivatives& pose, float floor_log_
     out->loglik += v[0];
     for (int k = 0; k < 21; ++k) out->h[k] += v[1 + k];
     for (int k = 0; k < 6; ++k) out->g[k] += v[22 + k];
+    for (int k = 0; k < 7; ++k) out->hs[k] += v[28 + k];
+    out->gs += v[35];
   }
 }
 

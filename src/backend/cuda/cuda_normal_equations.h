@@ -1,7 +1,8 @@
 // The pose refinement's pixel sums on the GPU (NormalEquationsEvaluator of the CUDA backend):
 // the points and the membership lists are uploaded once per frame and per linearisation, and
 // each evaluation is one kernel and one download of the per-block sums, added on the host in
-// block order. Uses the backend's device and stream.
+// block order; a depth scale is folded into the pose the kernel applies. Uses the backend's device
+// and stream.
 #pragma once
 
 #include <cuda_runtime_api.h>
@@ -38,6 +39,7 @@ class CudaNormalEquations : public NormalEquationsEvaluator {
   int setPointsFromBackendFrame(const Eigen::Isometry3d& T_base_cam) override;
   void setLinearisation(const std::vector<EvalComponentF>& eval_nats,
                         const PatchMembership& membership) override;
+  bool supportsDepthScale() const override { return true; }
   void evaluate(const PoseDerivatives& pose, float floor_log_density, bool linearise,
                 NormalEquationSums* out) override;
 
@@ -61,6 +63,7 @@ class CudaNormalEquations : public NormalEquationsEvaluator {
   DeviceBuffer<double> partials_;
   PinnedBuffer<double> h_partials_;
   bool have_linearisation_ = false;
+  int linearisation_patches_ = -1;  // the patch count of its membership
 };
 
 }  // namespace cuda

@@ -1,6 +1,6 @@
 // The pose refinement's pixel sums (gmm_mcl/measurement/normal_equations.h) on the GPU: one
 // thread per pixel, looping over its patch's members three times (the maximum exponent, the
-// log-sum, then the responsibilities and the normal equations), in float; each block's 28 sums
+// log-sum, then the responsibilities and the normal equations), in float; each block's 36 sums
 // are reduced in double by a fixed tree (warp shuffles, then the warps in order), so the result
 // is the same on every run.
 #include <math.h>
@@ -22,7 +22,7 @@ __device__ __forceinline__ void residual(const EvalComponentF& e, const float q[
 
 __global__ void __launch_bounds__(kNormalEquationThreads)
     normalEquationsKernel(int num_pixels, NormalEquationPose pose, float floor_log_density,
-                          int linearise, const float* __restrict__ x_m,
+                          int linearise, int with_scale, const float* __restrict__ x_m,
                           const float* __restrict__ y_m, const float* __restrict__ z_m,
                           const int* __restrict__ pixel_patch, const int* __restrict__ member_begin,
                           const int* __restrict__ members, const EvalComponentF* __restrict__ eval,
@@ -63,6 +63,14 @@ __global__ void __launch_bounds__(kNormalEquationThreads)
                      pose.dR[a][3 * r + 2] * p[2] + pose.dt[a][r];
         }
       }
+      // dq / df (the depth scale), when it is estimated.
+      float dqs[3] = {0.f, 0.f, 0.f};
+      if (with_scale) {
+        for (int r = 0; r < 3; ++r) {
+          dqs[r] = pose.Rs[3 * r] * p[0] + pose.Rs[3 * r + 1] * p[1] + pose.Rs[3 * r + 2] * p[2] +
+                   pose.ts[r];
+        }
+      }
       const float inv_sum = 1.f / sum;
       for (int m = b; m < e; ++m) {
         float y[3];
@@ -86,6 +94,16 @@ __global__ void __launch_bounds__(kNormalEquationThreads)
                 gamma * (col[r][0] * col[c][0] + col[r][1] * col[c][1] + col[r][2] * col[c][2]);
           }
           acc[22 + r] += gamma * (col[r][0] * y[0] + col[r][1] * y[1] + col[r][2] * y[2]);
+        }
+        if (with_scale) {
+          const float cs[3] = {ev.u00 * dqs[0] + ev.u01 * dqs[1] + ev.u02 * dqs[2],
+                               ev.u11 * dqs[1] + ev.u12 * dqs[2], ev.u22 * dqs[2]};
+#pragma unroll
+          for (int r = 0; r < 6; ++r) {
+            acc[28 + r] += gamma * (col[r][0] * cs[0] + col[r][1] * cs[1] + col[r][2] * cs[2]);
+          }
+          acc[34] += gamma * (cs[0] * cs[0] + cs[1] * cs[1] + cs[2] * cs[2]);
+          acc[35] += gamma * (cs[0] * y[0] + cs[1] * y[1] + cs[2] * y[2]);
         }
       }
     }
@@ -127,16 +145,16 @@ cudaError_t launchFillPixelPatch(int patches, const int* patch_begin, int* pixel
 }
 
 cudaError_t launchNormalEquations(int num_pixels, const NormalEquationPose& pose,
-                                  float floor_log_density, int linearise, const float* x_m,
-                                  const float* y_m, const float* z_m, const int* pixel_patch,
-                                  const int* member_begin, const int* members,
-                                  const EvalComponentF* eval, double* partials_out,
-                                  cudaStream_t stream) {
+                                  float floor_log_density, int linearise, int with_scale,
+                                  const float* x_m, const float* y_m, const float* z_m,
+                                  const int* pixel_patch, const int* member_begin,
+                                  const int* members, const EvalComponentF* eval,
+                                  double* partials_out, cudaStream_t stream) {
   if (num_pixels <= 0) return cudaSuccess;
   const int blocks = normalEquationBlocks(num_pixels);
   normalEquationsKernel<<<blocks, kNormalEquationThreads, 0, stream>>>(
-      num_pixels, pose, floor_log_density, linearise, x_m, y_m, z_m, pixel_patch, member_begin,
-      members, eval, partials_out);
+      num_pixels, pose, floor_log_density, linearise, with_scale, x_m, y_m, z_m, pixel_patch,
+      member_begin, members, eval, partials_out);
   return cudaGetLastError();
 }
 
