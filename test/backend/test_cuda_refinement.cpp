@@ -33,6 +33,26 @@ constexpr double kNormalEquationsRelTol = 1e-4;  // of the largest entry of H (o
 constexpr double kRefinedPoseTolM = 2e-4;        // refined positions, host vs GPU
 constexpr double kScaleTol = 2e-5;               // depth-scale estimates, host vs GPU
 
+// The reference base pose, its attitude and particle, and starts near it.
+struct Reference {
+  Eigen::Isometry3d T_map_base = test::referenceBasePose();
+  double roll = 0.0, pitch = 0.0;
+  Particle truth;
+  Reference() {
+    double yaw;
+    rpyFromRotation(T_map_base.linear(), &roll, &pitch, &yaw);
+    truth = poseToParticle(T_map_base);
+  }
+  // Gaussian offsets of 3 cm in x and y and 0.015 rad in yaw, drawn in that order.
+  Particle near(std::normal_distribution<double>& n01, std::mt19937_64& rng) const {
+    Particle start = truth;
+    start.x_m += 0.03 * n01(rng);
+    start.y_m += 0.03 * n01(rng);
+    start.yaw_rad += 0.015 * n01(rng);
+    return start;
+  }
+};
+
 TEST_F(CudaBackendTest, RefinementSumsMatchHost) {
   const auto& w = test::world();
   gpu->setMap(w.map);
@@ -144,10 +164,10 @@ TEST_F(CudaBackendTest, RefinementOnTheDeviceFrameMatchesHost) {
   const auto& w = test::world();
   gpu->setMap(w.map);
   const Intrinsics K = test::vgaCamera();
-  const Eigen::Isometry3d T_map_base = test::referenceBasePose();
-  double roll, pitch, yaw;
-  rpyFromRotation(T_map_base.linear(), &roll, &pitch, &yaw);
-  const Particle truth = poseToParticle(T_map_base);
+  const Reference ref;
+  const Eigen::Isometry3d& T_map_base = ref.T_map_base;
+  const double roll = ref.roll, pitch = ref.pitch;
+  const Particle& truth = ref.truth;
   std::mt19937_64 rng(11);
   const DepthImage img =
       noisyImage(K, T_map_base * w.T_base_cam, DepthEncoding::kMono16Millimetres, &rng);
@@ -169,10 +189,7 @@ TEST_F(CudaBackendTest, RefinementOnTheDeviceFrameMatchesHost) {
   std::normal_distribution<double> n01(0.0, 1.0);
   double worst = 0.0;
   for (int k = 0; k < 4; ++k) {
-    Particle start = truth;
-    start.x_m += 0.03 * n01(rng);
-    start.y_m += 0.03 * n01(rng);
-    start.yaw_rad += 0.015 * n01(rng);
+    const Particle start = ref.near(n01, rng);
     const RefinementResult h =
         refinePose(w.map.packed(), frame, start, roll, pitch, w.T_base_cam, mp, rp);
     const RefinementResult d =
@@ -297,13 +314,10 @@ TEST_F(CudaBackendTest, DepthScaleEstimatedOnTheDeviceMatchesHost) {
   const auto& w = test::world();
   gpu->setMap(w.map);
   const Intrinsics K = test::vgaCamera();
-  const Eigen::Isometry3d T_map_base = test::referenceBasePose();
-  double roll, pitch, yaw;
-  rpyFromRotation(T_map_base.linear(), &roll, &pitch, &yaw);
-  const Particle truth = poseToParticle(T_map_base);
+  const Reference ref;
   std::mt19937_64 rng(12);
   const DepthImage exact =
-      noisyImage(K, T_map_base * w.T_base_cam, DepthEncoding::kFloat32Metres, &rng);
+      noisyImage(K, ref.T_map_base * w.T_base_cam, DepthEncoding::kFloat32Metres, &rng);
   std::vector<float> z(static_cast<size_t>(exact.width_px) * exact.height_px);
   for (int v = 0; v < exact.height_px; ++v) {
     for (int u = 0; u < exact.width_px; ++u)
@@ -324,14 +338,11 @@ TEST_F(CudaBackendTest, DepthScaleEstimatedOnTheDeviceMatchesHost) {
   std::normal_distribution<double> n01(0.0, 1.0);
   double worst_scale = 0.0, worst_pose = 0.0, worst_scale_frame = 0.0, host_ms = 0.0, gpu_ms = 0.0;
   for (int k = 0; k < 4; ++k) {
-    Particle start = truth;
-    start.x_m += 0.03 * n01(rng);
-    start.y_m += 0.03 * n01(rng);
-    start.yaw_rad += 0.015 * n01(rng);
+    const Particle start = ref.near(n01, rng);
     const RefinementResult h =
-        refinePose(w.map.packed(), frame, start, roll, pitch, w.T_base_cam, mp, rp);
+        refinePose(w.map.packed(), frame, start, ref.roll, ref.pitch, w.T_base_cam, mp, rp);
     const RefinementResult g =
-        refinePose(w.map.packed(), frame, start, roll, pitch, w.T_base_cam, mp, rp, sums);
+        refinePose(w.map.packed(), frame, start, ref.roll, ref.pitch, w.T_base_cam, mp, rp, sums);
     ASSERT_TRUE(h.refined && g.refined) << h.why << g.why;
     EXPECT_FALSE(h.sums_on_backend);
     EXPECT_TRUE(g.sums_on_backend);
@@ -344,20 +355,20 @@ TEST_F(CudaBackendTest, DepthScaleEstimatedOnTheDeviceMatchesHost) {
                 1e-3 * h.depth_scale_information);
     // The backend's own frame (camera points, the extrinsics folded into the pose).
     const RefinementResult hp =
-        refinePose(w.map.packed(), frame, start, roll, pitch, w.T_base_cam, mp, plain);
+        refinePose(w.map.packed(), frame, start, ref.roll, ref.pitch, w.T_base_cam, mp, plain);
     ASSERT_EQ(gpu->prepareDeviceFrame(img, K, fp).pixels, static_cast<int>(frame.size()));
     RefinementFrame on_device;
     on_device.intrinsics = K;
     on_device.grid = frame.grid;
     on_device.pixels = static_cast<int>(frame.size());
-    const RefinementResult d =
-        refinePose(w.map.packed(), on_device, start, roll, pitch, w.T_base_cam, mp, plain, sums);
+    const RefinementResult d = refinePose(w.map.packed(), on_device, start, ref.roll, ref.pitch,
+                                          w.T_base_cam, mp, plain, sums);
     ASSERT_TRUE(hp.refined && d.refined) << hp.why << d.why;
     worst_scale_frame = std::max(worst_scale_frame, std::abs(d.depth_scale - hp.depth_scale));
     worst_pose = std::max(worst_pose, distance(d.pose, hp.pose));
-    EXPECT_THROW(
-        refinePose(w.map.packed(), on_device, start, roll, pitch, w.T_base_cam, mp, rp, sums),
-        std::invalid_argument);
+    EXPECT_THROW(refinePose(w.map.packed(), on_device, start, ref.roll, ref.pitch, w.T_base_cam, mp,
+                            rp, sums),
+                 std::invalid_argument);
   }
   std::printf(
       "[ measured ] depth scale on the GPU vs host: within %.2e (host points, noise "
