@@ -93,10 +93,17 @@ void SensorBagWriter::writeStaticTransform(const ros::Time& stamp, const std::st
 }
 
 void SensorBagWriter::writeImu(const ros::Time& stamp, const ros::Time& receipt, double roll_rad,
-                               double pitch_rad, double yaw_rad, double attitude_sigma_rad) {
-  const sensor_msgs::Imu imu =
+                               double pitch_rad, double yaw_rad, double attitude_sigma_rad,
+                               const Eigen::Vector3d* omega_rad_s) {
+  sensor_msgs::Imu imu =
       ros_conv::imuFromAttitude(stamp, layout_.base_frame, roll_rad, pitch_rad, yaw_rad,
-                                attitude_sigma_rad * attitude_sigma_rad);
+                                attitude_sigma_rad * attitude_sigma_rad, omega_rad_s == nullptr);
+  if (omega_rad_s != nullptr) {
+    imu.angular_velocity.x = omega_rad_s->x();
+    imu.angular_velocity.y = omega_rad_s->y();
+    imu.angular_velocity.z = omega_rad_s->z();
+    imu.linear_acceleration_covariance[0] = -1.0;  // no accelerometer
+  }
   bag_.write(layout_.imu_topic, receipt, imu);
 }
 

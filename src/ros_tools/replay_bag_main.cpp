@@ -1,8 +1,10 @@
 // gmm_mcl_replay_bag: replays a bag through the core localizer directly (rosbag C++ API, no
 // ROS master), as fast as it runs, seeded; the offline counterpart of replay.launch and
 // cow_and_lady.launch. Inputs per depth frame (16UC1/32FC1 image + CameraInfo, or an organized
-// PointCloud2): odometry from nav_msgs/Odometry, from tf odom -> base, or synthesised from the
-// ground truth (DESIGN.md noise, as gmm_mcl_ground_truth_odometry); roll/pitch from the IMU
+// PointCloud2): odometry from nav_msgs/Odometry, from tf odom -> base, synthesised from the
+// ground truth (DESIGN.md noise, as gmm_mcl_ground_truth_odometry), or none (the localizer's
+// constant-velocity model, turned by the IMU gyro's heading when the IMU carries its rates, as
+// the nodelet without ~odom_topic: docs/no_odometry.md); roll/pitch from the IMU
 // (or synthesised from the truth); ground truth from a PoseStamped (base in map) or a
 // TransformStamped (marker in world, with the marker -> camera calibration). Outputs as
 // gmm_mcl_replay: TUM trajectories, per-frame CSV, the protocol's metrics.
@@ -45,7 +47,7 @@ const char* kUsage =
     "  [--depth-topic T (/camera/depth/image_raw)] [--info-topic T (.../camera_info)]\n"
     "  [--cloud-topic T] (organized PointCloud2 instead of the image)\n"
     "  [--imu-topic T (/imu/data)] [--odom-topic T (/odom)] [--truth-topic T (/ground_truth)]\n"
-    "  [--odometry topic|tf|truth] (default: topic if present, else tf, else truth)\n"
+    "  [--odometry topic|tf|truth|none] (default: topic if present, else tf, else truth)\n"
     "  [--marker-to-camera x,y,z,qx,qy,qz,qw] (TransformStamped truth: marker -> camera)\n"
     "  [--odom-frame odom] [--base-frame base_link] [--quiet]\n"
     "  --cow-and-lady: --cloud-topic /camera/depth_registered/points --truth-topic\n"
@@ -109,8 +111,8 @@ Options parseOptions(int argc, char** argv) {
     std::exit(2);
   }
   if (!o.odometry_mode.empty() && o.odometry_mode != "topic" && o.odometry_mode != "tf" &&
-      o.odometry_mode != "truth") {
-    std::fprintf(stderr, "--odometry must be topic, tf or truth\n");
+      o.odometry_mode != "truth" && o.odometry_mode != "none") {
+    std::fprintf(stderr, "--odometry must be topic, tf, truth or none\n");
     std::exit(2);
   }
   return o;
@@ -119,7 +121,8 @@ Options parseOptions(int argc, char** argv) {
 // Everything in the bag but the depth, indexed by header stamp.
 struct BagTracks {
   PoseTrack odom_topic{kWholeBagS}, odom_tf{kWholeBagS}, truth{kWholeBagS};
-  PoseTrack imu{kWholeBagS};  // roll and pitch
+  PoseTrack imu{kWholeBagS};     // roll and pitch
+  GyroHeading gyro{kWholeBagS};  // the heading the IMU's rates turned (when it carries them)
   std::map<double, sensor_msgs::CameraInfo> infos;
   Eigen::Isometry3d T_base_cam = opticalToBase();
   bool have_extrinsics = false;
@@ -152,6 +155,10 @@ void readTracks(rosbag::Bag& bag, const Options& o, BagTracks* tracks) {
       double r, p;
       if (imu && ros_conv::attitudeFromImu(*imu, &r, &p)) {
         tracks->imu.addAttitude(imu->header.stamp.toSec(), r, p);
+        Eigen::Vector3d omega;
+        if (ros_conv::angularVelocityFromImu(*imu, &omega)) {
+          tracks->gyro.add(imu->header.stamp.toSec(), omega, r, p);
+        }
       }
     } else if (topic == o.odom_topic) {
       if (auto od = m.instantiate<nav_msgs::Odometry>()) {
@@ -182,7 +189,7 @@ const PoseTrack& chooseOdometry(const BagTracks& tracks, const Options& o, std::
     *mode = !tracks.odom_topic.empty() ? "topic" : !tracks.odom_tf.empty() ? "tf" : "truth";
   }
   const PoseTrack& odom_track = *mode == "topic" ? tracks.odom_topic : tracks.odom_tf;
-  if (*mode != "truth" && odom_track.empty()) {
+  if (*mode != "truth" && *mode != "none" && odom_track.empty()) {
     throw std::runtime_error(
         o.bag_path + ": no odometry on " +
         (*mode == "topic" ? o.odom_topic : "tf " + o.odom_frame + " -> " + o.base_frame));
@@ -272,6 +279,11 @@ int run(const Options& o) {
   std::string odometry_mode = o.odometry_mode;
   const PoseTrack& odom_track = chooseOdometry(tracks, o, &odometry_mode);
   const bool synth_attitude = tracks.imu.empty();
+  const bool no_odometry = odometry_mode == "none";
+  if (no_odometry) {
+    odometry_mode = tracks.gyro.added() == 0 ? "none (constant velocity)"
+                                             : "none (constant velocity, gyro heading)";
+  }
 
   const GmmMap map = loadMap(o.map_path);
   LocalizerParams lp = o.lp;
@@ -296,6 +308,7 @@ int run(const Options& o) {
       o.map_path.c_str(), map.size(), lp.filter.num_particles, lp.frame.pixel_stride,
       static_cast<unsigned long long>(o.seed));
   double last_t = -1.0;
+  long long last_gyro_segment = -1;
   int skipped = 0;
   for (const rosbag::MessageInstance& m : view) {
     if (static_cast<int>(result.frames.size()) + skipped >= total) break;
@@ -311,6 +324,14 @@ int run(const Options& o) {
     if (odometry_mode == "truth") {
       in.has_odometry = has_truth;
       if (has_truth) in.T_odom_base = synth.next(T_truth, last_t < 0 ? 1.0 : (t - last_t) * 30.0);
+    } else if (no_odometry) {
+      // The gyro's heading, compared only within one segment of its samples (as the nodelet).
+      double heading = 0.0;
+      long long segment = -1;
+      const bool found = tracks.gyro.at(t, 0.05, &heading, &segment);
+      in.has_gyro_yaw = found && segment == last_gyro_segment;
+      in.gyro_yaw_rad = found ? heading : 0.0;
+      last_gyro_segment = found ? segment : -1;
     } else {
       in.has_odometry = odom_track.at(t, 0.05, &in.T_odom_base);
     }
@@ -320,7 +341,7 @@ int run(const Options& o) {
     } else {
       in.has_attitude = tracks.imu.attitudeAt(t, 0.05, &in.roll_rad, &in.pitch_rad);
     }
-    if (!ok || !in.has_odometry) {
+    if (!ok || (!in.has_odometry && !no_odometry)) {
       if (!o.quiet) {
         std::fprintf(stderr, "frame at %.3f s skipped: %s\n", t,
                      ok ? "no odometry at its stamp" : why.c_str());

@@ -1,5 +1,7 @@
 #include "gmm_mcl/ros_tools/sequence_bag.h"
 
+#include <Eigen/Geometry>
+#include <algorithm>
 #include <stdexcept>
 
 #include "gmm_mcl/map/gmm_map_io.h"
@@ -59,7 +61,16 @@ SequenceBagResult writeSequenceBag(const Sequence& seq, const GmmMap* map_world,
       double roll, pitch;
       odometry.attitude(truth[f], &roll, &pitch);
       const double yaw = yawFromRotation(truth[f].linear());
-      writer.writeImu(t, t_before, roll, pitch, yaw, options.noise.attitude_sigma_rad);
+      // The gyro: the true body rate over the interval ending at this frame (the first frame's
+      // over the next interval).
+      const int a = f > 0 ? f - 1 : 0, b = f > 0 ? f : std::min(1, n - 1);
+      Eigen::Vector3d omega = Eigen::Vector3d::Zero();
+      const double dt = seq.stampS(b) - seq.stampS(a);
+      if (b > a && dt > 0.0) {
+        const Eigen::AngleAxisd turn(truth[a].linear().transpose() * truth[b].linear());
+        omega = turn.angle() / dt * turn.axis();
+      }
+      writer.writeImu(t, t_before, roll, pitch, yaw, options.noise.attitude_sigma_rad, &omega);
       writer.writeOdometry(t, t_before, T_odom_base);
       writer.writeDepth(t, depth, seq.intrinsics());
       writer.writeGroundTruth(t, truth[f]);

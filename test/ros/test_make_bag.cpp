@@ -113,6 +113,14 @@ void checkImageLayout(const BagContents& c, const Sequence& seq, int n) {
     EXPECT_LT(
         (ros_conv::isometryFromPose(c.truth[f].pose).translation() - truth[f].translation()).norm(),
         kPoseTolM);
+    // The gyro: the true body rate over the interval ending at the frame (the first frame's over
+    // the next one), integrating to the true turn.
+    Eigen::Vector3d omega;
+    ASSERT_TRUE(ros_conv::angularVelocityFromImu(c.imu[f], &omega)) << "frame " << f;
+    const int a = f > 0 ? f - 1 : 0, b = f > 0 ? f : 1;
+    const Eigen::AngleAxisd turn(truth[a].linear().transpose() * truth[b].linear());
+    const Eigen::Vector3d rate = turn.angle() / (seq.stampS(b) - seq.stampS(a)) * turn.axis();
+    EXPECT_LT((omega - rate).norm(), 1e-6 + 1e-6 * rate.norm()) << "frame " << f;
   }
 }
 
@@ -293,6 +301,16 @@ TEST(ReplayBagTest, ImageAndCowAndLadyBagsWithoutAMaster) {
   EXPECT_EQ(rows, n);
   EXPECT_LT(err, kReplayFinalErrorM);
   EXPECT_EQ(test::readText(dir / "img/estimate.tum").size() > 0, true);
+
+  // Without odometry (docs/no_odometry.md): the constant-velocity model turned by the gyro's
+  // heading (the bag's IMU carries the true body rates), every frame used.
+  run(std::string(GMM_MCL_REPLAY_BAG) + " " + (dir / "img.bag") + common +
+      " --odometry none --out " + (dir / "none"));
+  err = lastError(dir / "none/frames.csv", &rows);
+  std::printf("[ measured ] image bag without odometry: final error %.3f m over %d frames\n", err,
+              rows);
+  EXPECT_EQ(rows, n);
+  EXPECT_LT(err, kReplayFinalErrorM);
 
   run(std::string(GMM_MCL_REPLAY_BAG) + " " + (dir / "cow.bag") + common +
       " --cow-and-lady --marker-to-camera 0.1,-0.05,0.12,0,0,0.0998334,0.9950042 --out " +

@@ -53,9 +53,11 @@ class SensorBagWriter {
   // Latched /tf_static, as a static broadcaster's: rosbag play republishes it latched.
   void writeStaticTransform(const ros::Time& stamp, const std::string& parent,
                             const std::string& child, const Eigen::Isometry3d& T_parent_child);
-  // IMU orientation from roll, pitch, yaw with roll/pitch variance sigma^2 (yaw unknown: 1).
+  // IMU orientation from roll, pitch, yaw with roll/pitch variance sigma^2 (yaw unknown: 1), and
+  // the gyro's angular velocity in the IMU (base) frame when given (else marked absent).
   void writeImu(const ros::Time& stamp, const ros::Time& receipt, double roll_rad, double pitch_rad,
-                double yaw_rad, double attitude_sigma_rad);
+                double yaw_rad, double attitude_sigma_rad,
+                const Eigen::Vector3d* omega_rad_s = nullptr);
   // nav_msgs/Odometry and tf odom -> base.
   void writeOdometry(const ros::Time& stamp, const ros::Time& receipt,
                      const Eigen::Isometry3d& T_odom_base);
