@@ -55,7 +55,8 @@ Localizer::Localizer(const LocalizerParams& params, GmmMap map,
   if (!why.empty()) backend_warning_ += (backend_warning_.empty() ? "" : "; ") + why;
   filter_->initialiseUniform(region_);
   lost_ = LostDetector(params_.lost, map_self_ll_);
-  depth_scale_ = params_.refinement.depth_scale_initial;
+  depth_scales_.assign(1, params_.refinement.depth_scale_initial);
+  depth_scale_information_.assign(1, 0.0);
 }
 
 void Localizer::prepareMap() {

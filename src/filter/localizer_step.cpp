@@ -401,11 +401,29 @@ void Localizer::estimateAndRefine(const StepInput& in, StepResult* res) {
   }
   have_refined_ = res->refinement.refined;
   if (have_refined_) last_refined_ = res->refinement.pose;
-  res->depth_scale = params_.refinement.estimate_depth_scale ? depth_scale_ : 1.0;
-  res->depth_scale_at_bound =
-      params_.refinement.estimate_depth_scale &&
-      std::abs(depth_scale_ - 1.0) >= 0.99 * params_.refinement.depth_scale_max_error;
+  syncDepthScales(in);
+  reportDepthScales(res);
   observeMotion(in, *res);
+}
+
+void Localizer::syncDepthScales(const StepInput& in) {
+  for (size_t c = depth_scales_.size(); c <= in.more_cameras.size(); ++c) {
+    depth_scales_.push_back(in.more_cameras[c - 1].depth_scale_initial);
+    depth_scale_information_.push_back(0.0);
+  }
+}
+
+void Localizer::reportDepthScales(StepResult* res) const {
+  const RefinementParams& rp = params_.refinement;
+  auto report = [&](int c, double* scale, bool* at_bound) {
+    const double f = c < static_cast<int>(depth_scales_.size()) ? depth_scales_[c] : 1.0;
+    *scale = rp.estimate_depth_scale ? f : 1.0;
+    *at_bound = rp.estimate_depth_scale && std::abs(f - 1.0) >= 0.99 * rp.depth_scale_max_error;
+  };
+  report(0, &res->depth_scale, &res->depth_scale_at_bound);
+  for (int c = 0; c < static_cast<int>(res->cameras.size()); ++c) {
+    report(c, &res->cameras[c].depth_scale, &res->cameras[c].depth_scale_at_bound);
+  }
 }
 
 void Localizer::observeMotion(const StepInput& in, const StepResult& res) {
@@ -474,9 +492,10 @@ void Localizer::refineEstimate(const StepInput& in, StepResult* res) {
   // prepared there), else on the host with the points prepared there now.
   NormalEquationsEvaluator* sums = backend_->normalEquations();
   RefinementFrame rf;
-  // The depth scale estimated is StepInput's own camera's. Its noise correction draws noise on
-  // the frame's points on the host (the sums still run on the backend's evaluator).
-  const bool with_scale = params_.refinement.estimate_depth_scale && first_camera_ == 0;
+  // The depth scales: each camera's own. Their noise correction draws noise on the frame's points
+  // on the host (the sums still run on the backend's evaluator).
+  const bool with_scale = params_.refinement.estimate_depth_scale;
+  syncDepthScales(in);
   if (!host_frame_ready_ && sums != nullptr && sums->hasBackendFrame() &&
       (!with_scale ||
        (sums->supportsDepthScale() && !params_.refinement.depth_scale_noise_correction))) {
@@ -493,6 +512,7 @@ void Localizer::refineEstimate(const StepInput& in, StepResult* res) {
   refineComponents(res->estimate.mean, rf, cam_.T_base_cam, *cam_.frame, mp, &refine_components_);
   // The rig's other cameras used in this update: their frames on the host.
   std::vector<RefinementView> more;
+  std::vector<int> more_camera;  // the camera of each view
   more_components_.resize(res->cameras.size());
   for (int c = first_camera_ + 1; c < static_cast<int>(res->cameras.size()); ++c) {
     if (!res->cameras[c].used) continue;
@@ -507,6 +527,7 @@ void Localizer::refineEstimate(const StepInput& in, StepResult* res) {
     v.weight = static_cast<double>(cam_.pixels) / std::max<size_t>(1, more_frames_[c].size());
     v.T_base_cam = m.T_base_cam;
     v.params = &m.measurement;
+    v.frame.depth_scale = with_scale ? depth_scales_[c] : 1.0;
     refineComponents(res->estimate.mean, v.frame, m.T_base_cam, m.frame, m.measurement,
                      &more_components_[c]);
     v.components = &more_components_[c];
@@ -515,8 +536,9 @@ void Localizer::refineEstimate(const StepInput& in, StepResult* res) {
     if (!more_sums_[c]) more_sums_[c] = backend_->makeNormalEquations();
     v.sums = more_sums_[c].get();
     more.push_back(v);
+    more_camera.push_back(c);
   }
-  rf.depth_scale = with_scale ? depth_scale_ : 1.0;
+  rf.depth_scale = with_scale ? depth_scales_[first_camera_] : 1.0;
   res->refinement = refinePose(refine_components_, rf, start, roll_rad_, pitch_rad_,
                                cam_.T_base_cam, mp, params_.refinement, sums, more);
   // Judged against the particle mean, whatever the start.
@@ -530,6 +552,18 @@ void Localizer::refineEstimate(const StepInput& in, StepResult* res) {
     res->refinement.why = "refined pose too far from the particle mean: rejected";
     res->refinement.pose = res->estimate.mean;
   }
+  if (with_scale) {
+    learnDepthScale(first_camera_, res->refinement.depth_scale,
+                    res->refinement.depth_scale_information, *res);
+    for (size_t k = 0; k < more_camera.size() && k < res->refinement.more_depth_scale.size(); ++k) {
+      learnDepthScale(more_camera[k], res->refinement.more_depth_scale[k],
+                      res->refinement.more_depth_scale_information[k], *res);
+    }
+  }
+  res->timings.refine_ms = res->refinement.ms;
+}
+
+void Localizer::learnDepthScale(int c, double estimate, double info, const StepResult& res) {
   // The depth scale: the mean of the refined frames' estimates weighted by their information (a
   // frame whose scale trades against a translation, a frontal wall, counts little), the past
   // frames' weight shrinking by depth_scale_rate per frame (it remembers about 1 / rate
@@ -537,17 +571,16 @@ void Localizer::refineEstimate(const StepInput& in, StepResult* res) {
   // must not carry it away). Only frames that fit the map about as well as the lost detector's
   // reference says a right pose does: a filter settled in a wrong place (scoring nats per pixel
   // lower) would teach the scale that place's misfit.
-  const double info = res->refinement.depth_scale_information;
-  if (with_scale && res->refinement.refined && info > 0.0 &&
-      res->refinement.loglik_refined >= lost_.reference() - kDepthScaleFitNats) {
-    const RefinementParams& rp = params_.refinement;
-    depth_scale_information_ = (1.0 - rp.depth_scale_rate) * depth_scale_information_ + info;
-    const double gain = info / depth_scale_information_;
-    depth_scale_ += gain * (res->refinement.depth_scale - depth_scale_);
-    depth_scale_ = std::min(1.0 + rp.depth_scale_max_error,
-                            std::max(1.0 - rp.depth_scale_max_error, depth_scale_));
+  if (!res.refinement.refined || !(info > 0.0) ||
+      res.refinement.loglik_refined < lost_.reference() - kDepthScaleFitNats) {
+    return;
   }
-  res->timings.refine_ms = res->refinement.ms;
+  const RefinementParams& rp = params_.refinement;
+  double& f = depth_scales_[c];
+  double& information = depth_scale_information_[c];
+  information = (1.0 - rp.depth_scale_rate) * information + info;
+  f += info / information * (estimate - f);
+  f = std::min(1.0 + rp.depth_scale_max_error, std::max(1.0 - rp.depth_scale_max_error, f));
 }
 
 StepStatus Localizer::resampleAndRecover(const MeasurementContext& ctx, StepResult* res,

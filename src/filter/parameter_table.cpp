@@ -395,7 +395,7 @@ void addRefinementParams(ParamTable<P>* t) {
                       "refine_tolerance_m"));
   add(t, paramSpec<P>("refine_depth_scale", GMM_MCL_PARAM_FIELD(P, refinement.estimate_depth_scale),
                       "", g, {}, kRuntime,
-                      "Refinement also estimates the camera's depth scale (a factor on its "
+                      "Refinement also estimates each camera's depth scale (a factor on its "
                       "depths, filtered over frames, applied to the refined frames' points)"));
   add(t, paramSpec<P>("refine_depth_scale_noise_correction",
                       GMM_MCL_PARAM_FIELD(P, refinement.depth_scale_noise_correction), "", g, {},
@@ -417,8 +417,8 @@ void addRefinementParams(ParamTable<P>* t) {
   add(t, paramSpec<P>("refine_depth_scale_initial",
                       GMM_MCL_PARAM_FIELD(P, refinement.depth_scale_initial), "", g, {0.5, 1.5},
                       kStartup,
-                      "Depth scale: the estimate at start (saved here with the pose by "
-                      "save_pose_rate)"));
+                      "Depth scale: the (first) camera's estimate at start (saved here with the "
+                      "pose by save_pose_rate; a rig camera's under ~NAME/)"));
 }
 
 // Initial region.

@@ -24,7 +24,6 @@ constexpr double kRelineariseRad = 0.01;
 struct Pose6 {
   Particle p;
   double roll = 0.0, pitch = 0.0;
-  double scale = 1.0;  // the depth scale (estimated with RefinementParams::estimate_depth_scale)
 
   // Moved by a step in (x, y, z, roll, pitch, yaw).
   template <typename V>
@@ -57,8 +56,8 @@ class Objective {
  public:
   Objective(const std::vector<ComponentF>& components, const RefinementFrame& frame,
             const Eigen::Isometry3d& T_base_cam, const MeasurementParams& params,
-            NormalEquationsEvaluator* sums, bool estimate_scale, bool scaled = true)
-      : scaled_(scaled),
+            NormalEquationsEvaluator* sums, bool estimate_scale)
+      : scale_(frame.depth_scale),
         components_(components),
         frame_(frame),
         T_base_cam_(T_base_cam),
@@ -117,6 +116,10 @@ class Objective {
     sums_->setLinearisation(eval == base_eval_.data() ? base_eval_ : noisy_, membership_);
   }
 
+  // The depth scale applied to the frame's points (RefinementFrame::depth_scale at the start).
+  double scale() const { return scale_; }
+  void setScale(double f) { scale_ = f; }
+
   Linearisation evaluate(const Pose6& pose, bool linearise) {
     PoseDerivatives d;
     const Eigen::Matrix3d R = rotationFromRpy(pose.roll, pose.pitch, pose.p.yaw_rad);
@@ -141,9 +144,9 @@ class Objective {
     d.t[0] = pose.p.x_m;
     d.t[1] = pose.p.y_m;
     d.t[2] = pose.p.z_m;
-    d.scale = scaled_ ? pose.scale : 1.0;
+    d.scale = scale_;
     for (int a = 0; a < 3; ++a) d.scale_origin[a] = T_base_cam_.translation()[a];
-    d.estimate_scale = estimate_scale_ && scaled_;
+    d.estimate_scale = estimate_scale_;
     NormalEquationSums s;
     sums_->evaluate(d, params_.floor_log_density, linearise, &s);
     Linearisation out;
@@ -158,7 +161,7 @@ class Objective {
   }
 
  private:
-  bool scaled_;            // the depth scale applies to this frame's points
+  double scale_;           // the depth scale applied to this frame's points
   int points_state_ = -1;  // setPoints' last extra_noise (0, 1), -1 before it
   const std::vector<ComponentF>& components_;
   const RefinementFrame& frame_;
@@ -237,61 +240,84 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
   }
   r.sums_on_backend = sums != nullptr;
   HostNormalEquations host_sums;
-  Objective objective(components, frame, T_base_cam, params, sums ? sums : &host_sums, with_scale);
-  // The rig's other frames: their own objectives, summed.
+  // The rig's cameras: the first frame, then `more`, each with its own objective and weight; with
+  // the depth scale estimated, each camera's scale of its own.
+  std::vector<std::unique_ptr<Objective>> objectives;
+  objectives.push_back(std::make_unique<Objective>(components, frame, T_base_cam, params,
+                                                   sums ? sums : &host_sums, with_scale));
   std::vector<HostNormalEquations> more_sums(more.size());
-  std::vector<std::unique_ptr<Objective>> more_objectives;
+  std::vector<double> weights = {1.0};
   double px = static_cast<double>(frame.pixels);
   for (size_t k = 0; k < more.size(); ++k) {
     if (more[k].frame.points == nullptr || more[k].components == nullptr ||
         more[k].params == nullptr) {
       throw std::invalid_argument("refinePose: another frame without host points or parameters");
     }
-    more_objectives.push_back(std::make_unique<Objective>(
+    NormalEquationsEvaluator* view_sums = more[k].sums;
+    if (with_scale && view_sums != nullptr && !view_sums->supportsDepthScale()) {
+      view_sums = nullptr;
+    }
+    objectives.push_back(std::make_unique<Objective>(
         *more[k].components, more[k].frame, more[k].T_base_cam, *more[k].params,
-        more[k].sums ? more[k].sums : &more_sums[k], with_scale, false));
+        view_sums ? view_sums : &more_sums[k], with_scale));
+    weights.push_back(more[k].weight);
     px += more[k].weight * more[k].frame.pixels;
   }
+  const int cameras = static_cast<int>(objectives.size());
   auto lineariseAll = [&](const Pose6& p) {
-    objective.linearisePatches(p);
-    for (auto& o : more_objectives) o->linearisePatches(p);
+    for (auto& o : objectives) o->linearisePatches(p);
+  };
+  // The weighted sum over the cameras (the pose's rows; the seventh, the scale's, is each
+  // camera's own, kept in `each`).
+  struct RigLinearisation {
+    Linearisation sum;
+    std::vector<Linearisation> each;
   };
   auto evaluateAll = [&](const Pose6& p) {
-    Linearisation sum = objective.evaluate(p, true);
-    for (size_t k = 0; k < more_objectives.size(); ++k) {
-      const Linearisation l = more_objectives[k]->evaluate(p, true);
-      sum.loglik += more[k].weight * l.loglik;
-      sum.H += more[k].weight * l.H;
-      sum.g += more[k].weight * l.g;
+    RigLinearisation out;
+    out.each.resize(cameras);
+    for (int k = 0; k < cameras; ++k) {
+      Linearisation l = objectives[k]->evaluate(p, true);
+      if (k > 0) {
+        l.loglik *= weights[k];
+        l.H *= weights[k];
+        l.g *= weights[k];
+      }
+      out.sum.loglik += l.loglik;
+      out.sum.H.topLeftCorner<6, 6>() += l.H.topLeftCorner<6, 6>();
+      out.sum.g.head<6>() += l.g.head<6>();
+      out.each[k] = l;
     }
-    return sum;
+    return out;
   };
   // Roll and pitch: free with a Gaussian prior at the attitude input (sigma > 0), else fixed.
   const double sigma_att = refinement.attitude_prior_sigma_rad;
   const bool six_dof = sigma_att > 0.0;
   const double prior = six_dof ? 0.5 / (sigma_att * sigma_att) : 0.0;
-  // The depth scale: held at the frame's current estimate while the pose is refined; then one
-  // step of its own with a Gaussian prior at that estimate, within its bounds.
-  const double scale0 = frame.depth_scale;
+  // The depth scales: held at the frames' current estimates while the pose is refined; then one
+  // step of their own with a Gaussian prior at those estimates, within their bounds.
+  std::vector<double> scale0(cameras);
+  for (int k = 0; k < cameras; ++k) scale0[k] = objectives[k]->scale();
   const double prior_s =
       with_scale ? 0.5 / (refinement.depth_scale_prior_sigma * refinement.depth_scale_prior_sigma)
                  : 0.0;
   const double scale_lo = 1.0 - refinement.depth_scale_max_error;
   const double scale_hi = 1.0 + refinement.depth_scale_max_error;
-  auto logPosterior = [&](const Pose6& p, const Linearisation& l) {
-    return l.loglik - prior * (std::pow(p.roll - roll_rad, 2) + std::pow(p.pitch - pitch_rad, 2));
+  auto logPosterior = [&](const Pose6& p, const RigLinearisation& l) {
+    return l.sum.loglik -
+           prior * (std::pow(p.roll - roll_rad, 2) + std::pow(p.pitch - pitch_rad, 2));
   };
-  Pose6 pose{start, roll_rad, pitch_rad, scale0};
-  r.depth_scale = scale0;
+  Pose6 pose{start, roll_rad, pitch_rad};
+  std::vector<double> scales = scale0;
   lineariseAll(pose);
-  Linearisation cur = evaluateAll(pose);
+  RigLinearisation cur = evaluateAll(pose);
   double cur_post = logPosterior(pose, cur);
-  r.loglik_start = cur.loglik / px;
+  r.loglik_start = cur.sum.loglik / px;
   double lambda = 1e-3;  // Levenberg-Marquardt damping, relative to the diagonal
   for (int it = 0; it < refinement.max_iterations; ++it) {
     ++r.iterations;
-    Eigen::Matrix<double, 7, 7> A = cur.H;
-    Eigen::Matrix<double, 7, 1> g = cur.g;
+    Eigen::Matrix<double, 7, 7> A = cur.sum.H;
+    Eigen::Matrix<double, 7, 1> g = cur.sum.g;
     auto fix = [&](int d) {
       A.row(d).setZero();
       A.col(d).setZero();
@@ -314,7 +340,7 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
     Eigen::Matrix<double, 7, 1> delta = -ldlt.solve(g);
     if (!delta.allFinite()) break;
     const Pose6 next = pose.moved(delta);
-    Linearisation cand = evaluateAll(next);
+    RigLinearisation cand = evaluateAll(next);
     double cand_post = logPosterior(next, cand);
     if (cand_post > cur_post) {
       // A step of more than a centimetre or degree: membership and noise at the new pose.
@@ -350,16 +376,17 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
     r.why = msg.str();
     r.refined = false;
   }
+  std::vector<double> information(cameras, 0.0);
   if (with_scale && r.refined) {
-    // The frame's depth-scale estimate: at the refined pose, a Newton and a secant step in the
-    // scale with the pose marginalised out of the normal equations (the pose moving with it to
+    // Each camera's depth-scale estimate: at the refined pose, a Newton and a secant step in the
+    // scales with the pose marginalised out of the normal equations (the pose moving with them to
     // first order), with the prior. The pixels' depth noise biases the steps short (the points'
     // noise lies along the very direction the scale moves them: docs/measurement_model.md, "Depth
     // scale"); the bias is taken out by simulation-extrapolation: the same gradient on the
-    // frame with the model's depth noise added once more, extrapolated linearly to no noise.
-    // Its information: 1 / (A^-1)_ss of the data's normal equations with the attitude prior
-    // (the scale's own prior left out).
-    Eigen::Matrix<double, 7, 7> A = cur.H;
+    // frames with the model's depth noise added once more, extrapolated linearly to no noise.
+    // A camera's information: 1 / (M^-1)_kk less its own prior, M the scales' normal equations
+    // with the pose marginalised and the priors (one camera: the Schur complement itself).
+    Eigen::Matrix<double, 7, 7> A = cur.sum.H;
     if (six_dof) {
       A(3, 3) += prior;
       A(4, 4) += prior;
@@ -373,14 +400,38 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
     const Eigen::Matrix<double, 6, 6> App = A.topLeftCorner<6, 6>();
     const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(App);
     if (ldlt.info() == Eigen::Success) {
-      const Eigen::Matrix<double, 6, 1> hps = A.block<6, 1>(0, 6);
+      // B: the pose-scale blocks (6 x cameras); the scales' marginal normal equations S.
+      Eigen::MatrixXd B(6, cameras);
+      Eigen::VectorXd D(cameras);
+      for (int k = 0; k < cameras; ++k) {
+        B.col(k) = cur.each[k].H.block<6, 1>(0, 6);
+        D(k) = cur.each[k].H(6, 6);
+      }
+      const Eigen::MatrixXd AinvB = ldlt.solve(B);
       // H is the Gauss-Newton matrix of sum |y|^2, half the Hessian of -loglik: x2.
-      const double S = A(6, 6) - hps.dot(ldlt.solve(hps));
-      r.depth_scale_information = std::max(0.0, 2.0 * S);
-      // The pose's gradient at p (with the attitude prior) and the scale's with the pose
+      const Eigen::MatrixXd S = Eigen::MatrixXd(D.asDiagonal()) - B.transpose() * AinvB;
+      // The cameras whose pixels tell something of their scale (the others keep theirs).
+      std::vector<int> act;
+      for (int k = 0; k < cameras; ++k) {
+        if (S(k, k) > 0.0) act.push_back(k);
+      }
+      const int na = static_cast<int>(act.size());
+      Eigen::MatrixXd M(na, na);
+      for (int a = 0; a < na; ++a) {
+        for (int b = 0; b < na; ++b) M(a, b) = S(act[a], act[b]) + (a == b ? prior_s : 0.0);
+      }
+      const Eigen::LDLT<Eigen::MatrixXd> mldlt(M);
+      const bool m_ok = na > 0 && mldlt.info() == Eigen::Success;
+      if (m_ok) {
+        const Eigen::MatrixXd Minv = mldlt.solve(Eigen::MatrixXd::Identity(na, na));
+        for (int a = 0; a < na; ++a) {
+          information[act[a]] = std::max(0.0, 2.0 * (1.0 / Minv(a, a) - prior_s));
+        }
+      }
+      // The pose's gradient at p (with the attitude prior) and the scales' with the pose
       // marginalised, both halves of the gradients of the objective minimised.
-      auto poseGradient = [&](const Pose6& p, const Linearisation& l) {
-        Eigen::Matrix<double, 6, 1> gp = l.g.head<6>();
+      auto poseGradient = [&](const Pose6& p, const RigLinearisation& l) {
+        Eigen::Matrix<double, 6, 1> gp = l.sum.g.head<6>();
         if (six_dof) {
           gp(3) += prior * (p.roll - roll_rad);
           gp(4) += prior * (p.pitch - pitch_rad);
@@ -389,49 +440,68 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
         }
         return gp;
       };
-      // Simulation-extrapolation of the marginal gradient at p: 2 x the frame's minus the
-      // frame's with the noise doubled, plus the prior's.
-      auto corrected = [&](const Pose6& p) {
-        objective.setPoints(false);
-        const Linearisation obs = evaluateAll(p);
-        const double m_obs = obs.g(6) - hps.dot(ldlt.solve(poseGradient(p, obs)));
-        double m = m_obs;
-        if (refinement.depth_scale_noise_correction) {
-          objective.setPoints(true);
-          const Linearisation aug = evaluateAll(p);
-          m = 2.0 * m_obs - (aug.g(6) - hps.dot(ldlt.solve(poseGradient(p, aug))));
-        }
-        return std::make_pair(m + prior_s * (p.scale - scale0), poseGradient(p, obs));
+      auto marginal = [&](const Pose6& p, const RigLinearisation& l) {
+        Eigen::VectorXd m(na);
+        const Eigen::Matrix<double, 6, 1> x = ldlt.solve(poseGradient(p, l));
+        for (int a = 0; a < na; ++a) m(a) = l.each[act[a]].g(6) - B.col(act[a]).dot(x);
+        return m;
       };
-      if (S > 0.0) {
-        // A Newton step with the Gauss-Newton curvature S, then a secant step with the
-        // curvature measured along it (the Gauss-Newton one overstates it: the step falls short).
-        const auto c0 = corrected(pose);
-        const double d1 = -c0.first / (S + prior_s);
-        const Eigen::Matrix<double, 6, 1> dp = -ldlt.solve(c0.second + hps * d1);
-        Pose6 p1 = pose.moved(dp);
-        p1.scale = scale0 + d1;
-        const double c1 = corrected(p1).first;
-        double step = d1;
-        const double slope = (c1 - c0.first) / d1;
-        if (std::isfinite(slope) && slope > 0.0) {
-          // At most four times the Newton step.
-          step = d1 - c1 / slope;
-          if (step / d1 > 4.0) step = 4.0 * d1;
-          if (step / d1 < 0.0) step = d1;
+      // Simulation-extrapolation of the marginal gradients at p with the scales s: 2 x the
+      // frames' minus the frames' with the noise doubled, plus the prior's.
+      auto corrected = [&](const Pose6& p, const std::vector<double>& s) {
+        for (int k = 0; k < cameras; ++k) {
+          objectives[k]->setScale(s[k]);
+          objectives[k]->setPoints(false);
         }
-        if (std::isfinite(step)) {
-          pose.scale = std::min(scale_hi, std::max(scale_lo, scale0 + step));
+        const RigLinearisation obs = evaluateAll(p);
+        const Eigen::VectorXd m_obs = marginal(p, obs);
+        Eigen::VectorXd m = m_obs;
+        if (refinement.depth_scale_noise_correction) {
+          for (auto& o : objectives) o->setPoints(true);
+          const RigLinearisation aug = evaluateAll(p);
+          m = 2.0 * m_obs - marginal(p, aug);
+        }
+        for (int a = 0; a < na; ++a) m(a) += prior_s * (s[act[a]] - scale0[act[a]]);
+        return std::make_pair(m, poseGradient(p, obs));
+      };
+      if (m_ok) {
+        // A Newton step with the Gauss-Newton curvature, then per camera a secant step with the
+        // curvature measured along it (the Gauss-Newton one overstates it: the step falls short).
+        const auto c0 = corrected(pose, scale0);
+        const Eigen::VectorXd d1 = -mldlt.solve(c0.first);
+        Eigen::VectorXd full_d1 = Eigen::VectorXd::Zero(cameras);
+        for (int a = 0; a < na; ++a) full_d1(act[a]) = d1(a);
+        const Eigen::Matrix<double, 6, 1> dp = -ldlt.solve(c0.second + B * full_d1);
+        Pose6 p1 = pose.moved(dp);
+        std::vector<double> s1 = scale0;
+        for (int a = 0; a < na; ++a) s1[act[a]] = scale0[act[a]] + d1(a);
+        const Eigen::VectorXd c1 = corrected(p1, s1).first;
+        for (int a = 0; a < na; ++a) {
+          double step = d1(a);
+          const double slope = (c1(a) - c0.first(a)) / d1(a);
+          if (std::isfinite(slope) && slope > 0.0) {
+            // At most four times the Newton step.
+            step = d1(a) - c1(a) / slope;
+            if (step / d1(a) > 4.0) step = 4.0 * d1(a);
+            if (step / d1(a) < 0.0) step = d1(a);
+          }
+          if (std::isfinite(step)) {
+            scales[act[a]] = std::min(scale_hi, std::max(scale_lo, scale0[act[a]] + step));
+          }
         }
       }
     }
   }
+  // Unchanged when not estimated or not refined.
+  r.depth_scale = scales[0];
+  r.depth_scale_information = information[0];
+  r.more_depth_scale.assign(scales.begin() + 1, scales.end());
+  r.more_depth_scale_information.assign(information.begin() + 1, information.end());
   if (r.refined) {
     r.pose = pose.p;
     r.roll_rad = pose.roll;
     r.pitch_rad = pose.pitch;
-    r.depth_scale = pose.scale;
-    r.loglik_refined = cur.loglik / px;
+    r.loglik_refined = cur.sum.loglik / px;
   } else {
     r.loglik_refined = r.loglik_start;
   }

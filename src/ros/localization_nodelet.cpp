@@ -257,8 +257,12 @@ void LocalizationNodelet::onFrame(const std_msgs::Header& header, const DepthIma
         last_result_,
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
     // amcl's pose persistence, written by the poll timer
+    CameraScales camera_scales;
+    for (size_t c = 1; c < last_result_.cameras.size(); ++c) {
+      camera_scales.emplace_back(last_result_.cameras[c].name, last_result_.cameras[c].depth_scale);
+    }
     pose_saver_.offer(opts_.save_pose_rate_hz, stamp, last_result_.estimate.mean,
-                      last_result_.estimate.covariance, last_result_.depth_scale);
+                      last_result_.estimate.covariance, last_result_.depth_scale, camera_scales);
   }
 }
 
@@ -337,6 +341,7 @@ void LocalizationNodelet::fillCameras(const FrameSet& set, StepInput* in,
     c.name = p.name;
     c.frame = p.frame;
     c.measurement = p.measurement;
+    c.depth_scale_initial = p.depth_scale_initial;
     const CameraFrame* f = set.frames[i].get();
     if (!f) {
       (*problems)[i] = "no frame in this set";
@@ -361,6 +366,8 @@ void LocalizationNodelet::recordCameras(const FrameSet& set, const StepResult& r
       if (i < r.cameras.size()) {  // the core's word (one per camera when given more_cameras)
         c.used_last = r.cameras[i].used;
         c.pixels = r.cameras[i].pixels;
+        c.depth_scale = r.cameras[i].depth_scale;
+        c.depth_scale_at_bound = r.cameras[i].depth_scale_at_bound;
         c.problem = problems[i].empty() ? r.cameras[i].problem : problems[i];
       } else {
         c.used_last = false;

@@ -104,6 +104,7 @@ void fillCameraStatus(const NodeHealth& h, double set_stamp_s, FilterStatus* s) 
     m.in_set = c.in_last_set;
     m.used = c.used_last;
     m.pixels = c.pixels;
+    m.depth_scale = c.depth_scale;
     m.problem = c.problem;
     m.state = c.sets.last_stamp_s < 0 ? "no_frame_yet" : c.sets.dropped_out ? "dropped_out" : "ok";
     m.frame_age_s = c.sets.last_stamp_s < 0 ? 0.0 : set_stamp_s - c.sets.last_stamp_s;
@@ -254,12 +255,19 @@ Diagnosis diagnose(const NodeHealth& h) {
     m << "not converged: sigma x/y " << h.sigma_xy_m << " m, yaw " << h.sigma_yaw_rad << " rad";
     find(S::WARN, m.str());
   }
-  if (h.have_step && h.depth_scale_at_bound) {
+  // A rig: each camera's own estimate (the first camera's is h.depth_scale too).
+  auto atBound = [&](const std::string& camera, double scale) {
     m.str("");
-    m << "depth scale " << h.depth_scale
+    m << "depth scale " << scale << camera
       << " held at its bound (refine_depth_scale_max_error): the camera's depths are further "
          "off, or the map does not fit the scene";
     find(S::WARN, m.str());
+  };
+  if (h.have_step && h.cameras.empty() && h.depth_scale_at_bound) atBound("", h.depth_scale);
+  for (const CameraHealth& cam : h.cameras) {
+    if (h.have_step && cam.depth_scale_at_bound) {
+      atBound(" of camera '" + cam.name + "'", cam.depth_scale);
+    }
   }
   if (!h.backend_warning.empty()) find(S::WARN, h.backend_warning);
   if (h.budget.enabled && h.budget.at_limit && h.budget.budget_ms > 0.0 &&
@@ -315,6 +323,7 @@ Diagnosis diagnose(const NodeHealth& h) {
                                   std::to_string(cam.dropped_input) + " (input)");
     add(k + "last stamp", cam.sets.last_stamp_s < 0 ? "none" : num(cam.sets.last_stamp_s));
     add(k + "topic", cam.topic);
+    add(k + "depth scale", num(cam.depth_scale));
     if (!cam.problem.empty()) add(k + "problem", cam.problem);
   }
   add("last problem", h.problems.empty() ? "" : h.problems.back().first);

@@ -81,7 +81,8 @@ void addNodeOptions(ParamTable<R>* t) {
              "comma-separated or a YAML list ([down]); camera NAME subscribes NAME/image + "
              "NAME/camera_info (or NAME/points) and reads ~NAME/depth_input, image_transport, "
              "pixel_stride, min_range_m, max_range_m, depth_noise_preset, depth_noise_a_m, "
-             "_b_per_m, _z0_m (defaults: the first camera's); extrinsics from tf. Empty: one "
+             "_b_per_m, _z0_m (defaults: the first camera's) and refine_depth_scale_initial "
+             "(default 1); extrinsics from tf. Empty: one "
              "camera"));
   add(t, paramSpec<R>("camera_set_window", GMM_MCL_PARAM_FIELD(R, camera_set_window_s), "s", g,
                       {0, 1}, kRuntime,

@@ -265,9 +265,9 @@ std::vector<std::string> moreCameraNames(const RosOptions& ros, std::string* err
 
 const std::vector<std::string>& rigCameraParamNames() {
   static const std::vector<std::string> names = {
-      "depth_input",     "image_transport",     "pixel_stride",
-      "min_range_m",     "max_range_m",         "depth_noise_preset",
-      "depth_noise_a_m", "depth_noise_b_per_m", "depth_noise_z0_m"};
+      "depth_input",      "image_transport",           "pixel_stride",    "min_range_m",
+      "max_range_m",      "depth_noise_preset",        "depth_noise_a_m", "depth_noise_b_per_m",
+      "depth_noise_z0_m", "refine_depth_scale_initial"};
   return names;
 }
 
@@ -290,12 +290,13 @@ std::string loadRigCameras(const ros::NodeHandle& pnh, const LocalizerParams& co
   cameras->clear();
   for (const std::string& name : names) {
     const ros::NodeHandle nh(pnh, name);
-    LocalizerParams c = core;  // the first camera's values are the defaults
+    LocalizerParams c = core;                // the first camera's values are the defaults
+    c.refinement.depth_scale_initial = 1.0;  // but not its depth scale: each camera has its own
     RosOptions r = ros;
     std::string f;
     loadTable(nh, core_table, &c, &f);
     loadTable(nh, ros_table, &r, &f);
-    const std::string v = c.frame.validate() + c.measurement.validate();
+    const std::string v = c.frame.validate() + c.measurement.validate() + c.refinement.validate();
     if (!v.empty()) f += v;
     if (r.image_transport.empty()) f += "~image_transport is empty; ";
     // "~pixel_stride ..." as "~down/pixel_stride ...".
@@ -308,6 +309,7 @@ std::string loadRigCameras(const ros::NodeHandle& pnh, const LocalizerParams& co
     cam.image_transport = r.image_transport;
     cam.frame = c.frame;
     cam.measurement = c.measurement;
+    cam.depth_scale_initial = c.refinement.depth_scale_initial;
     cameras->push_back(cam);
     if (unknown) {
       listUnknown(
@@ -425,8 +427,12 @@ std::string reconfigure(LocalizerConfig* config, LocalizerParams* core, RosOptio
 }
 
 void savePoseParams(const ros::NodeHandle& pnh, const Particle& m,
-                    const Eigen::Matrix<double, 6, 6>& c, double depth_scale) {
+                    const Eigen::Matrix<double, 6, 6>& c, double depth_scale,
+                    const CameraScales& camera_scales) {
   if (depth_scale != 1.0) pnh.setParam("refine_depth_scale_initial", depth_scale);
+  for (const auto& cam : camera_scales) {
+    if (cam.second != 1.0) pnh.setParam(cam.first + "/refine_depth_scale_initial", cam.second);
+  }
   pnh.setParam("initial_pose_x", m.x_m);
   pnh.setParam("initial_pose_y", m.y_m);
   pnh.setParam("initial_pose_z", m.z_m);
@@ -438,7 +444,8 @@ void savePoseParams(const ros::NodeHandle& pnh, const Particle& m,
 }
 
 void PoseSaver::offer(double rate_hz, const ros::Time& stamp, const Particle& mean,
-                      const Eigen::Matrix<double, 6, 6>& covariance, double depth_scale) {
+                      const Eigen::Matrix<double, 6, 6>& covariance, double depth_scale,
+                      const CameraScales& camera_scales) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (rate_hz <= 0 || (!last_.isZero() && (stamp - last_).toSec() < 1.0 / rate_hz)) return;
   last_ = stamp;
@@ -446,6 +453,7 @@ void PoseSaver::offer(double rate_hz, const ros::Time& stamp, const Particle& me
   mean_ = mean;
   covariance_ = covariance;
   depth_scale_ = depth_scale;
+  camera_scales_ = camera_scales;
 }
 
 void PoseSaver::restart() {
@@ -457,6 +465,7 @@ void PoseSaver::flush(const ros::NodeHandle& pnh) {
   Particle mean;
   Eigen::Matrix<double, 6, 6> covariance;
   double depth_scale = 1.0;
+  CameraScales camera_scales;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!pending_) return;
@@ -464,8 +473,9 @@ void PoseSaver::flush(const ros::NodeHandle& pnh) {
     mean = mean_;
     covariance = covariance_;
     depth_scale = depth_scale_;
+    camera_scales = camera_scales_;
   }
-  savePoseParams(pnh, mean, covariance, depth_scale);
+  savePoseParams(pnh, mean, covariance, depth_scale, camera_scales);
 }
 
 void initialPose(const RosOptions& o, Eigen::Isometry3d* T, Eigen::Matrix<double, 6, 6>* cov) {

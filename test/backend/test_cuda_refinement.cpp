@@ -120,9 +120,7 @@ TEST_F(CudaBackendTest, ARigsSecondCameraRefinesOnItsOwnDeviceEvaluator) {
   double roll, pitch, yaw;
   rpyFromRotation(T_map_base.linear(), &roll, &pitch, &yaw);
   const Particle truth = poseToParticle(T_map_base);
-  Eigen::Isometry3d T_base_cam2 = w.T_base_cam;
-  T_base_cam2.linear() =
-      Eigen::AngleAxisd(2.5, Eigen::Vector3d::UnitZ()).toRotationMatrix() * w.T_base_cam.linear();
+  const Eigen::Isometry3d T_base_cam2 = test::turnedCamera(2.5);
   const FrameParams fp = test::frameParams(8);
   const DepthFrame frame = test::renderFrame(T_map_base, test::vgaCamera(), fp);
   const DepthFrame frame2 =
@@ -141,23 +139,34 @@ TEST_F(CudaBackendTest, ARigsSecondCameraRefinesOnItsOwnDeviceEvaluator) {
   device_view.sums = second.get();
   std::mt19937_64 rng(47);
   std::normal_distribution<double> n01(0.0, 1.0);
-  double worst = 0.0;
-  for (int k = 0; k < 4; ++k) {
+  double worst = 0.0, worst_scale = 0.0;
+  for (int k = 0; k < 8; ++k) {
     const Particle start = test::perturbed(truth, n01, rng);
-    const RefinementParams rp;
+    // Half the starts with each camera's depth scale estimated as well.
+    RefinementParams rp;
+    rp.estimate_depth_scale = k % 2 == 1;
     const RefinementResult h = refinePose(w.map.packed(), RefinementFrame::of(frame), start, roll,
                                           pitch, w.T_base_cam, mp, rp, nullptr, {host_view});
     const RefinementResult g =
         refinePose(w.map.packed(), RefinementFrame::of(frame), start, roll, pitch, w.T_base_cam, mp,
                    rp, gpu->normalEquations(), {device_view});
     ASSERT_EQ(g.refined, h.refined) << k;
-    worst = std::max(worst, std::hypot(std::hypot(g.pose.x_m - h.pose.x_m, g.pose.y_m - h.pose.y_m),
-                                       g.pose.z_m - h.pose.z_m));
+    worst = std::max(worst, distance(g.pose, h.pose));
+    ASSERT_EQ(g.more_depth_scale.size(), 1u);
+    ASSERT_EQ(h.more_depth_scale.size(), 1u);
+    worst_scale = std::max({worst_scale, std::abs(g.depth_scale - h.depth_scale),
+                            std::abs(g.more_depth_scale[0] - h.more_depth_scale[0])});
+    if (rp.estimate_depth_scale && h.refined) {
+      EXPECT_GT(h.more_depth_scale_information[0], 0.0);
+      EXPECT_NE(h.more_depth_scale[0], 1.0);  // estimated, not left as it was
+    }
   }
   std::printf(
-      "[ measured ] rig refinement, second camera on the GPU: worst %.2e m from the host's\n",
-      worst);
+      "[ measured ] rig refinement, second camera on the GPU: worst %.2e m from the host's, "
+      "depth scales (both cameras' estimated) within %.2e\n",
+      worst, worst_scale);
   EXPECT_LT(worst, kRefinedPoseTolM);
+  EXPECT_LT(worst_scale, kScaleTol);
 }
 
 TEST_F(CudaBackendTest, RefinementOnTheDeviceFrameMatchesHost) {

@@ -167,6 +167,27 @@ TEST(CudaLocalizerTest, EstimatesTheDepthScaleWithTheSumsOnTheGpu) {
       EXPECT_GT(run.last.depth_scale * 1.004, 0.997);
     }
   }
+  // A rig whose second camera (turned 2.5 rad, its sums on an evaluator of its own) reads 1%
+  // short: each camera's estimate its own (as DepthScaleTest.EachCameraOfARigHasItsOwnEstimate).
+  LocalizerParams p = cudaParams(200, true);
+  p.frame.pixel_stride = 8;
+  p.refinement.estimate_depth_scale = true;
+  p.refinement.depth_scale_rate = 0.2;
+  Localizer loc(p, test::world().map);
+  loc.resetToPose(truth, Eigen::Vector4d(0.02, 0.02, 0.02, 0.02));
+  const test::LongDepthCamera second = test::shortSecondCamera();
+  std::mt19937_64 rng(10);
+  const test::LongDepthRun run = test::stepLongDepths(&loc, p, 30, 1.004, 1.0, &rng, &second);
+  ASSERT_EQ(run.last.cameras.size(), 2u);
+  std::printf(
+      "[ measured ] CUDA rig: depth scales after 30 frames (%d refined, %d with the sums on the "
+      "GPU): %.5f and %.5f (truth %.5f and %.5f)\n",
+      run.refined, run.refined_on_backend, run.last.cameras[0].depth_scale,
+      run.last.cameras[1].depth_scale, 1.0 / 1.004, 1.0 / 0.99);
+  EXPECT_GE(run.refined, 20);
+  EXPECT_EQ(run.refined_on_backend, run.refined);
+  EXPECT_NEAR(run.last.cameras[0].depth_scale * 1.004, 1.0, 0.001);
+  EXPECT_NEAR(run.last.cameras[1].depth_scale * 0.99, 1.0, 0.001);
 }
 
 TEST(CudaLocalizerTest, DeviceFilterIsReproducible) {

@@ -190,18 +190,91 @@ TEST_F(PoseRefinementTest, EstimatesTheDepthScale) {
   EXPECT_NE(bad.validate().find("depth_scale_rate"), std::string::npos);
 }
 
+// A rig of two cameras, the first reading 0.4% long and the second (turned 2.5 rad about the
+// vertical) 1% short, each with a depth camera's noise: each camera's scale is estimated on its
+// own, and fed back frame after frame both settle within 0.1% of their truths, the refined pose
+// about as good as an exact rig's.
+TEST_F(PoseRefinementTest, EstimatesEachCamerasDepthScale) {
+  const MeasurementParams mp;
+  RefinementParams on;
+  on.estimate_depth_scale = true;
+  const Eigen::Isometry3d T_base_cam2 = test::turnedCamera(2.5);
+  const DepthFrame frame2 = test::renderFrame(T_map_base * T_base_cam2 * w.T_base_cam.inverse(),
+                                              test::vgaCamera(), test::frameParams(8));
+  ASSERT_GT(frame2.size(), 1000u);
+  const double truth1 = 1.0 / 1.004, truth2 = 1.0 / 0.99;
+  // Frames of both cameras with the given factors, refined with the scales s1, s2.
+  auto refineRig = [&](double f1, double f2, double s1, double s2, const Particle& start,
+                       uint64_t seed) {
+    const DepthFrame a = noisyFrame(frame, f1, mp, seed);
+    const DepthFrame b = noisyFrame(frame2, f2, mp, seed + 500000);
+    RefinementFrame rf = RefinementFrame::of(a);
+    rf.depth_scale = s1;
+    RefinementView v;
+    v.components = &w.map.packed();
+    v.frame = RefinementFrame::of(b);
+    v.frame.depth_scale = s2;
+    v.T_base_cam = T_base_cam2;
+    v.params = &mp;
+    v.weight = static_cast<double>(a.size()) / b.size();
+    return refinePose(w.map.packed(), rf, start, roll, pitch, w.T_base_cam, mp, on, nullptr, {v});
+  };
+  std::mt19937_64 rng(6);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  double worst1 = 0.0, worst2 = 0.0, worst_exact = 0.0, sum_err = 0.0, sum_exact = 0.0;
+  const int starts = 3, frames = 8;
+  for (int k = 0; k < starts; ++k) {
+    const Particle start = test::perturbed(truth, n01, rng);
+    double s1 = 1.0, s2 = 1.0, e1 = 1.0, e2 = 1.0;
+    RefinementResult last, last_exact;
+    for (int f = 0; f < frames; ++f) {
+      last = refineRig(1.004, 0.99, s1, s2, start, 1000 * k + f);
+      last_exact = refineRig(1.0, 1.0, e1, e2, start, 1000 * k + f);
+      ASSERT_TRUE(last.refined && last_exact.refined) << last.why << last_exact.why;
+      ASSERT_EQ(last.more_depth_scale.size(), 1u);
+      EXPECT_GT(last.more_depth_scale_information[0], 0.0);
+      s1 = last.depth_scale;
+      s2 = last.more_depth_scale[0];
+      e1 = last_exact.depth_scale;
+      e2 = last_exact.more_depth_scale[0];
+    }
+    worst1 = std::max(worst1, std::abs(s1 / truth1 - 1.0));
+    worst2 = std::max(worst2, std::abs(s2 / truth2 - 1.0));
+    worst_exact = std::max({worst_exact, std::abs(e1 - 1.0), std::abs(e2 - 1.0)});
+    sum_err += distance(last.pose, truth);
+    sum_exact += distance(last_exact.pose, truth);
+  }
+  std::printf(
+      "[ measured ] rig, first camera 0.4%% long, second 1%% short: after %d frames the scales "
+      "within %.3f%% and %.3f%% of their truths, pose error %.2f mm; exact rig: scales within "
+      "%.3f%% of 1, pose error %.2f mm\n",
+      frames, 100.0 * worst1, 100.0 * worst2, 1000.0 * sum_err / starts, 100.0 * worst_exact,
+      1000.0 * sum_exact / starts);
+  EXPECT_LT(worst1, 0.001);
+  EXPECT_LT(worst2, 0.001);
+  EXPECT_LT(worst_exact, 0.001);
+  EXPECT_LT(sum_err, 1.3 * sum_exact + 0.001 * starts);
+}
+
+// The localizers of the depth-scale tests: 200 particles, stride 8, the estimate on and quick
+// (rate 0.2).
+LocalizerParams depthScaleParams() {
+  LocalizerParams p;
+  p.filter.num_particles = 200;
+  p.frame.pixel_stride = 8;
+  p.frame.max_range_m = 8.f;
+  p.T_base_cam = test::world().T_base_cam;
+  p.refinement.estimate_depth_scale = true;
+  p.refinement.depth_scale_rate = 0.2;
+  return p;
+}
+
 // The localizer's estimate over frames of a camera whose depths read 0.4% long (with a depth
 // camera's noise, drawn anew per frame): starting at 1, it follows the refined frames' to
 // within 0.1% of 1 / 1.004 and reports it in every step.
 TEST(DepthScaleTest, LocalizerEstimateFollowsTheFrames) {
   const auto& w = test::world();
-  LocalizerParams p;
-  p.filter.num_particles = 200;
-  p.frame.pixel_stride = 8;
-  p.frame.max_range_m = 8.f;
-  p.T_base_cam = w.T_base_cam;
-  p.refinement.estimate_depth_scale = true;
-  p.refinement.depth_scale_rate = 0.2;
+  LocalizerParams p = depthScaleParams();
   Localizer loc(p, w.map);
   const Particle truth = poseToParticle(test::referenceBasePose());
   loc.resetToPose(truth, Eigen::Vector4d(0.02, 0.02, 0.02, 0.02));
@@ -223,6 +296,46 @@ TEST(DepthScaleTest, LocalizerEstimateFollowsTheFrames) {
               run.last.depth_scale, run.last.depth_scale_at_bound ? 1 : 0);
   EXPECT_TRUE(run.last.depth_scale_at_bound);
   EXPECT_NEAR(run.last.depth_scale, 0.998, 1e-9);
+}
+
+// A rig (the second camera turned 2.5 rad about the vertical, reading 1% short, its estimate
+// starting at 0.995): each camera's estimate follows its own frames, reported per camera.
+TEST(DepthScaleTest, EachCameraOfARigHasItsOwnEstimate) {
+  const auto& w = test::world();
+  LocalizerParams p = depthScaleParams();
+  Localizer loc(p, w.map);
+  const Particle truth = poseToParticle(test::referenceBasePose());
+  loc.resetToPose(truth, Eigen::Vector4d(0.02, 0.02, 0.02, 0.02));
+  const test::LongDepthCamera second = test::shortSecondCamera();
+  std::mt19937_64 rng(10);
+  const test::LongDepthRun run = test::stepLongDepths(&loc, p, 30, 1.004, 1.0, &rng, &second);
+  const StepResult& r = run.last;
+  ASSERT_EQ(r.cameras.size(), 2u);
+  // The same rig with exact cameras.
+  Localizer exact_loc(p, w.map);
+  exact_loc.resetToPose(truth, Eigen::Vector4d(0.02, 0.02, 0.02, 0.02));
+  test::LongDepthCamera exact_second = second;
+  exact_second.factor = 1.0;
+  exact_second.depth_scale_initial = 1.0;
+  std::mt19937_64 rng_exact(10);
+  const test::LongDepthRun exact =
+      test::stepLongDepths(&exact_loc, p, 30, 1.0, 1.0, &rng_exact, &exact_second);
+  const double err = distance(r.refinement.pose, truth);
+  const double exact_err = distance(exact.last.refinement.pose, truth);
+  std::printf(
+      "[ measured ] rig after 30 frames (%d refined): first camera %.5f (truth %.5f), second "
+      "%.5f (truth %.5f), refined pose %.2f mm off; exact rig %.5f and %.5f, %.2f mm off\n",
+      run.refined, r.cameras[0].depth_scale, 1.0 / 1.004, r.cameras[1].depth_scale, 1.0 / 0.99,
+      1000.0 * err, exact.last.cameras[0].depth_scale, exact.last.cameras[1].depth_scale,
+      1000.0 * exact_err);
+  EXPECT_LT(err, 1.3 * exact_err + 0.001);
+  EXPECT_GE(run.refined, 20);
+  EXPECT_TRUE(r.cameras[0].used && r.cameras[1].used);
+  EXPECT_EQ(r.depth_scale, r.cameras[0].depth_scale);
+  EXPECT_NEAR(r.cameras[0].depth_scale * 1.004, 1.0, 0.001);
+  EXPECT_NEAR(r.cameras[1].depth_scale * 0.99, 1.0, 0.001);
+  EXPECT_FALSE(r.cameras[1].depth_scale_at_bound);
+  EXPECT_NEAR(exact.last.cameras[1].depth_scale, 1.0, 0.001);
 }
 
 }  // namespace

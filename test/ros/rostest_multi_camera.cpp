@@ -96,9 +96,20 @@ TEST(MultiCameraTest, BothCamerasTrack) {
     EXPECT_TRUE(depth->leads && depth->used && down->used) << describeCameras(*s);
     EXPECT_GT(down->pixels, 0);
     EXPECT_EQ(s->step_status, "ok") << s->message;
+    // Each camera's depth scale (~refine_depth_scale): the first camera's is the status's, the
+    // down camera's its own, begun at its ~down/refine_depth_scale_initial (0.997), not 1.
+    EXPECT_EQ(depth->depth_scale, s->depth_scale);
+    EXPECT_NE(down->depth_scale, 1.0);
+    EXPECT_NEAR(down->depth_scale, 1.0, 0.01);
+    EXPECT_NEAR(depth->depth_scale, 1.0, 0.01);
     worst = std::max(worst, errorOfFrame(t, w->k));
   }
   std::printf("[ measured ] two cameras: worst position error %.3f m\n", worst);
+  if (!w->obs.statuses.empty() && w->obs.statuses.back().cameras.size() == 2) {
+    const FilterStatus& last = w->obs.statuses.back();
+    std::printf("[ measured ] depth scales: depth %.5f, down %.5f (begun at 0.997)\n",
+                last.cameras[0].depth_scale, last.cameras[1].depth_scale);
+  }
   EXPECT_LT(worst, kTrackedM);
   EXPECT_TRUE(diagSays("cameras in the last update", "2"));
   EXPECT_TRUE(diagSays("camera down: state", "OK"));

@@ -137,6 +137,39 @@ TEST(NodeStatusTest, DepthScaleAtItsBoundWarns) {
   EXPECT_EQ(diagnose(h).level, S::OK) << diagnose(h).message;
 }
 
+// A rig: each camera's depth-scale estimate in /diagnostics and ~status, and a camera's held at
+// its bound warned by its name.
+TEST(NodeStatusTest, EachCamerasDepthScaleIsReported) {
+  NodeHealth h = tracking(10.0);
+  h.cameras.resize(2);
+  h.cameras[0].name = "depth";
+  h.cameras[1].name = "down";
+  for (CameraHealth& cam : h.cameras) {  // both in use
+    cam.sets.frames = cam.sets.used = 10;
+    cam.sets.last_stamp_s = cam.sets.last_used_s = 9.9;
+    cam.used_last = cam.in_last_set = true;
+  }
+  h.cameras[0].depth_scale = 0.996;
+  h.cameras[1].depth_scale = 1.05;
+  h.cameras[1].depth_scale_at_bound = true;
+  FilterStatus s;
+  recordFrame(converged(), false, true, 10.0, LostDetectionParams(), "cpu", "", 1.0, "", &h, &s);
+  const Diagnosis d = diagnose(h);
+  EXPECT_EQ(d.level, S::WARN);
+  EXPECT_NE(d.message.find("depth scale 1.05 of camera 'down' held at its bound"),
+            std::string::npos)
+      << d.message;
+  EXPECT_EQ(value(d, "camera depth: depth scale"), "0.996");
+  EXPECT_EQ(value(d, "camera down: depth scale"), "1.05");
+  fillCameraStatus(h, 10.0, &s);
+  ASSERT_EQ(s.cameras.size(), 2u);
+  EXPECT_EQ(s.cameras[0].depth_scale, 0.996);
+  EXPECT_EQ(s.cameras[1].depth_scale, 1.05);
+  h.cameras[1].depth_scale = 1.04;
+  h.cameras[1].depth_scale_at_bound = false;
+  EXPECT_EQ(diagnose(h).level, S::OK) << diagnose(h).message;
+}
+
 // The best particle below the lost detector's line, and a lost event: warned.
 TEST(NodeStatusTest, LostDetectorWarns) {
   NodeHealth h = tracking(10.0);

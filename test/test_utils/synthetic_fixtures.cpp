@@ -59,31 +59,72 @@ DepthFrame renderFrame(const Eigen::Isometry3d& T_map_base, const Intrinsics& K,
   return prepareFrame(renderImage(T_map_base, K, params.max_range_m + 1.0, encoding), K, params);
 }
 
+Eigen::Isometry3d turnedCamera(double yaw_rad) {
+  Eigen::Isometry3d T = world().T_base_cam;
+  T.linear() = Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix() * T.linear();
+  return T;
+}
+
+LongDepthCamera shortSecondCamera() {
+  LongDepthCamera c;
+  c.T_base_cam = turnedCamera(2.5);
+  c.factor = 0.99;
+  c.depth_scale_initial = 0.995;
+  return c;
+}
+
+namespace {
+
+// `exact`'s depths times `factor`, each with the depth noise's N(0, sigma(z)^2) drawn from rng.
+DepthImage longDepths(const DepthImage& exact, double factor, const DepthNoiseModel& noise,
+                      std::normal_distribution<double>* n01, std::mt19937_64* rng) {
+  std::vector<float> z(static_cast<size_t>(exact.width_px) * exact.height_px);
+  for (int v = 0; v < exact.height_px; ++v) {
+    for (int u = 0; u < exact.width_px; ++u) {
+      const float m = exact.depthMetres(u, v);
+      z[v * exact.width_px + u] =
+          std::isfinite(m) && m > 0.f
+              ? static_cast<float>(factor * (m + depthNoiseSigma(noise, m) * (*n01)(*rng)))
+              : m;
+    }
+  }
+  return DepthImage::fromMetres(exact.width_px, exact.height_px, z);
+}
+
+}  // namespace
+
 LongDepthRun stepLongDepths(Localizer* loc, const LocalizerParams& p, int frames, double factor,
-                            double start_s, std::mt19937_64* rng) {
+                            double start_s, std::mt19937_64* rng, const LongDepthCamera* second) {
   const Intrinsics K = smallCamera();
   const Eigen::Isometry3d T_map_base = referenceBasePose();
   const DepthImage exact = renderImage(T_map_base, K, 9.0, DepthEncoding::kFloat32Metres);
+  DepthImage exact2;
   StepInput in;
   in.intrinsics = K;
   double yaw = 0.0;
   rpyFromRotation(T_map_base.linear(), &in.roll_rad, &in.pitch_rad, &yaw);
   in.has_attitude = true;
+  if (second != nullptr) {
+    exact2 = renderImage(T_map_base * second->T_base_cam * world().T_base_cam.inverse(), K, 9.0,
+                         DepthEncoding::kFloat32Metres);
+    CameraInput c;
+    c.name = "second";
+    c.intrinsics = K;
+    c.T_base_cam = second->T_base_cam;
+    c.frame = p.frame;
+    c.measurement = p.measurement;
+    c.depth_scale_initial = second->depth_scale_initial;
+    in.more_cameras.push_back(c);
+  }
   std::normal_distribution<double> n01(0.0, 1.0);
   LongDepthRun out;
   for (int k = 0; k < frames; ++k) {
-    std::vector<float> z(static_cast<size_t>(exact.width_px) * exact.height_px);
-    for (int v = 0; v < exact.height_px; ++v) {
-      for (int u = 0; u < exact.width_px; ++u) {
-        const float m = exact.depthMetres(u, v);
-        z[v * exact.width_px + u] =
-            std::isfinite(m) && m > 0.f
-                ? static_cast<float>(
-                      factor * (m + depthNoiseSigma(p.measurement.depth_noise, m) * n01(*rng)))
-                : m;
-      }
+    const DepthImage img = longDepths(exact, factor, p.measurement.depth_noise, &n01, rng);
+    DepthImage img2;
+    if (second != nullptr) {
+      img2 = longDepths(exact2, second->factor, p.measurement.depth_noise, &n01, rng);
+      in.more_cameras[0].depth = &img2;
     }
-    const DepthImage img = DepthImage::fromMetres(exact.width_px, exact.height_px, z);
     in.depth = &img;
     in.stamp_s = start_s + k / 30.0;
     out.last = loc->step(in);

@@ -61,8 +61,22 @@ struct LongDepthRun {
   int refined = 0;
   int refined_on_backend = 0;
 };
+// The world's camera turned by yaw_rad about the base's vertical (a rig's second camera).
+Eigen::Isometry3d turnedCamera(double yaw_rad);
+
+// A rig's second camera in stepLongDepths: its extrinsics, its depths' factor and the
+// localizer's initial estimate of its scale (CameraInput::depth_scale_initial).
+struct LongDepthCamera {
+  Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();
+  double factor = 1.0;
+  double depth_scale_initial = 1.0;
+};
+// The rig's second camera of the depth-scale tests: turnedCamera(2.5), its depths 1% short, its
+// estimate begun at 0.995.
+LongDepthCamera shortSecondCamera();
 LongDepthRun stepLongDepths(Localizer* loc, const LocalizerParams& p, int frames, double factor,
-                            double start_s, std::mt19937_64* rng);
+                            double start_s, std::mt19937_64* rng,
+                            const LongDepthCamera* second = nullptr);
 
 // Root of ../shared/datasets ($GMM_MCL_DATASETS overrides); empty when absent.
 std::string datasetsRoot();

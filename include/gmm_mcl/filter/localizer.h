@@ -42,6 +42,8 @@ struct CameraInput {
   Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();  // its optical frame in base
   FrameParams frame;
   MeasurementParams measurement;
+  // Its depth-scale estimate at start (refine_depth_scale; read when the camera first appears).
+  double depth_scale_initial = 1.0;
 };
 
 struct StepInput {
@@ -77,6 +79,10 @@ struct CameraStepResult {
   bool used = false;    // its likelihood is in this update
   int pixels = 0;       // its used pixels
   std::string problem;  // why not used (no frame, no valid pixel, a bad frame)
+  // Its depth-scale estimate after this step and whether it sits at its bound (as
+  // StepResult::depth_scale for the first camera).
+  double depth_scale = 1.0;
+  bool depth_scale_at_bound = false;
 };
 
 struct StepTimings {
@@ -104,9 +110,10 @@ struct StepResult {
   // The estimate refined by local maximisation of the likelihood (pose_refinement.h), when the
   // filter has converged and refinement is on; refinement.refined says whether it is usable.
   RefinementResult refinement;
-  // The camera's depth-scale estimate after this step (refine_depth_scale; 1 when off), and
-  // whether it sits at its bound, 1 +- refine_depth_scale_max_error (within 1% of that range):
-  // the camera's depths are further off than the bound allows, or the map does not fit.
+  // The (first) camera's depth-scale estimate after this step (refine_depth_scale; 1 when off),
+  // and whether it sits at its bound, 1 +- refine_depth_scale_max_error (within 1% of that
+  // range): the camera's depths are further off than the bound allows, or the map does not fit.
+  // A rig's other cameras: `cameras`.
   double depth_scale = 1.0;
   bool depth_scale_at_bound = false;
   double neff = 0.0;  // effective sample size after the update (before resampling)
@@ -193,6 +200,12 @@ class Localizer {
   StepStatus weighStep(StepResult* res, std::string* why);
   void estimateAndRefine(const StepInput& input, StepResult* res);
   void refineEstimate(const StepInput& input, StepResult* res);  // the converged estimate
+  // depth_scales_ for the cameras of `input` (a camera seen first starts at its initial value).
+  void syncDepthScales(const StepInput& input);
+  // A refined frame's depth-scale estimate (and its information) into camera c's estimate.
+  void learnDepthScale(int c, double estimate, double information, const StepResult& res);
+  // The estimates into res (StepResult::depth_scale, cameras[].depth_scale).
+  void reportDepthScales(StepResult* res) const;
   // The packed components a camera (its frame rf, extrinsics, parameters) can meet while the
   // refinement moves the pose from `mean`.
   void refineComponents(const Particle& mean, const RefinementFrame& rf,
@@ -261,10 +274,11 @@ class Localizer {
   double pitch_rad_ = 0.0;
   bool have_refined_ = false;  // last_refined_: the last frame's refined pose, moved by odometry
   Particle last_refined_;
-  double depth_scale_ = 1.0;  // the camera's depth-scale estimate (refine_depth_scale)
-  // The refined frames' depth-scale information, summed with the estimate's forgetting (0: none
-  // yet).
-  double depth_scale_information_ = 0.0;
+  // Each camera's depth-scale estimate (refine_depth_scale; the first camera, then
+  // more_cameras) and its refined frames' information, summed with the estimate's forgetting
+  // (0: none yet).
+  std::vector<double> depth_scales_;
+  std::vector<double> depth_scale_information_;
   // The components the refinement can meet this frame (map indices, packed copies).
   std::vector<int> refine_index_;
   std::vector<ComponentF> refine_components_;

@@ -39,12 +39,12 @@ struct RefinementParams {
   double tolerance_rad = 5e-4;
   // Depth-scale self-calibration (docs/measurement_model.md, "Depth scale"): the refinement also
   // estimates the factor f by which the camera's depths (and so its points, along their rays)
-  // are to be multiplied. The pose is refined with the frame's current estimate
-  // (RefinementFrame::depth_scale); then f takes a Newton and a secant step from it with the pose
-  // marginalised and a Gaussian prior of this standard deviation, corrected for the depth
-  // noise's bias, kept within 1 +- depth_scale_max_error. An evaluator without
-  // supportsDepthScale() is not used then (the sums run on the host); the noise correction needs
-  // the frame's points on the host (RefinementFrame::points).
+  // are to be multiplied, each camera of a rig its own. The pose is refined with the frames'
+  // current estimates (RefinementFrame::depth_scale); then the f take a Newton and a secant step
+  // from them with the pose marginalised and a Gaussian prior of this standard deviation,
+  // corrected for the depth noise's bias, kept within 1 +- depth_scale_max_error. An evaluator
+  // without supportsDepthScale() is not used then (the sums run on the host); the noise correction
+  // needs the frame's points on the host (RefinementFrame::points).
   bool estimate_depth_scale = false;
   // Take the depth noise's bias out of the estimate (simulation-extrapolation with the
   // measurement model's depth noise); off for a camera without noise (a simulator).
@@ -75,6 +75,10 @@ struct RefinementResult {
   // f after the pose is marginalised out of the normal equations, without f's prior): small for
   // a frame whose scale trades against a translation (a frontal wall). 0 when not estimated.
   double depth_scale_information = 0.0;
+  // The same for each RefinementView of the rig (in their order): each camera's depth scale is
+  // its own (RefinementView::frame.depth_scale at the start).
+  std::vector<double> more_depth_scale;
+  std::vector<double> more_depth_scale_information;
   // Whether the pixel sums ran on the evaluator given (a backend's: the GPU with CUDA) rather
   // than on the host.
   bool sums_on_backend = false;
@@ -107,9 +111,10 @@ struct RefinementFrame {
 };
 
 // Another camera of a rig in the same refinement (docs/multi_camera.md): its frame (points on the
-// host), its components (packed map components near its view), extrinsics and measurement
-// parameters. Its pixel sums run in `sums` (a backend's, LikelihoodBackend::makeNormalEquations;
-// nullptr: on the host); the depth scale is the first frame's only.
+// host; its depth scale in frame.depth_scale), its components (packed map components near its
+// view), extrinsics and measurement parameters. Its pixel sums run in `sums` (a backend's,
+// LikelihoodBackend::makeNormalEquations; nullptr: on the host). With the depth scale estimated,
+// each camera's is estimated (RefinementResult::more_depth_scale).
 struct RefinementView {
   const std::vector<ComponentF>* components = nullptr;
   RefinementFrame frame;

@@ -87,7 +87,9 @@ struct CameraHealth {
   CameraSetStats sets;          // the frame sets' counts (frame_sets.h)
   bool leads = false, in_last_set = false, used_last = false;  // in the last update
   int pixels = 0;
-  std::string problem;  // why not used in the last update
+  std::string problem;       // why not used in the last update
+  double depth_scale = 1.0;  // its depth-scale estimate and whether it sits at its bound
+  bool depth_scale_at_bound = false;
 };
 
 struct NodeHealth {

@@ -96,11 +96,12 @@ const ParamTable<RosOptions>& rosOptionsTable();
 // One more depth camera of the rig (RosOptions::more_cameras): its own input and frame and noise
 // parameters, read from ~NAME/ with the first camera's values as defaults.
 struct RigCameraParams {
-  std::string name;               // its namespace: NAME/image + NAME/camera_info, or NAME/points
-  std::string depth_input;        // ~NAME/depth_input: image or cloud
-  std::string image_transport;    // ~NAME/image_transport
-  FrameParams frame;              // ~NAME/pixel_stride, min_range_m, max_range_m
-  MeasurementParams measurement;  // ~NAME/depth_noise_preset, depth_noise_a_m, _b_per_m, _z0_m
+  std::string name;                  // its namespace: NAME/image + NAME/camera_info, or NAME/points
+  std::string depth_input;           // ~NAME/depth_input: image or cloud
+  std::string image_transport;       // ~NAME/image_transport
+  FrameParams frame;                 // ~NAME/pixel_stride, min_range_m, max_range_m
+  MeasurementParams measurement;     // ~NAME/depth_noise_preset, depth_noise_a_m, _b_per_m, _z0_m
+  double depth_scale_initial = 1.0;  // ~NAME/refine_depth_scale_initial (1, not the first's)
 };
 // The names in more_cameras (split at commas and blanks); "" in *error unless each is a valid
 // ROS name, not "depth" (the first camera's namespace) and given once.
@@ -151,16 +152,20 @@ std::string reconfigure(LocalizerConfig* config, LocalizerParams* core, RosOptio
 
 // amcl's pose persistence: the estimate written to ~initial_pose_* and ~initial_cov_*, which a
 // restart reads back (RosOptions::hasInitialPose).
-// (and the depth-scale estimate as ~refine_depth_scale_initial when it is not 1)
+// (and the depth-scale estimate as ~refine_depth_scale_initial when it is not 1, a rig camera's
+// as ~NAME/refine_depth_scale_initial)
+using CameraScales = std::vector<std::pair<std::string, double>>;  // rig camera name, estimate
 void savePoseParams(const ros::NodeHandle& pnh, const Particle& mean,
-                    const Eigen::Matrix<double, 6, 6>& covariance, double depth_scale = 1.0);
+                    const Eigen::Matrix<double, 6, 6>& covariance, double depth_scale = 1.0,
+                    const CameraScales& camera_scales = {});
 // The same at save_pose_rate, off the update thread: offer() keeps a frame's estimate when a
 // save is due by the frame stamps (cheap, the update thread); flush() writes the kept one (eight
 // blocking calls to the master, another thread), so an update never waits for the master.
 class PoseSaver {
  public:
   void offer(double rate_hz, const ros::Time& stamp, const Particle& mean,
-             const Eigen::Matrix<double, 6, 6>& covariance, double depth_scale = 1.0);
+             const Eigen::Matrix<double, 6, 6>& covariance, double depth_scale = 1.0,
+             const CameraScales& camera_scales = {});
   void restart();  // the stamps jumped back: the next offer is due
   void flush(const ros::NodeHandle& pnh);
 
@@ -171,6 +176,7 @@ class PoseSaver {
   Particle mean_;
   Eigen::Matrix<double, 6, 6> covariance_;
   double depth_scale_ = 1.0;
+  CameraScales camera_scales_;
 };
 // The single-pose start of the options as a pose in the map frame with its covariance.
 void initialPose(const RosOptions& ros, Eigen::Isometry3d* T_map_base,
