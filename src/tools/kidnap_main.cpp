@@ -34,7 +34,7 @@ const char* kUsage =
     "                      [--lost-margin-nats NATS] [--lost-grace-frames FRAMES]\n"
     "                      [--lost-frames FRAMES] [--min-particles MIN]\n"
     "                      [--depth-noise A,B,Z0] [--out DIR] [--init region|map]\n"
-    "                      [--odometry truth|none]\n"
+    "                      [--odometry truth|none] [--imu truth|attitude]\n"
     "Particles: MIN..MAX by KLD-sampling (default 1068..3000 on the CPU, 1068..100000 with\n"
     "CUDA; MIN = MAX: fixed).\n"
     "--track-frames 0: global localisation trials (uniform start, no kidnap): over the recovery\n"
@@ -55,7 +55,7 @@ int run(int argc, char** argv) {
   uint64_t first_seed = 1;
   KidnapParams kp;
   bool lost_detector = true;
-  std::string out_dir, init = "region", odometry = "truth";
+  std::string out_dir, init = "region", odometry = "truth", imu = "truth";
   double attitude_noise_deg = kp.attitude_sigma_rad * 180.0 / M_PI;
   cli::CommandLine cl("gmm_mcl_kidnap", kUsage);
   // clang-format off
@@ -64,7 +64,7 @@ int run(int argc, char** argv) {
            {"start-frame", &kp.start_frame}, {"backend", &backend},
            {"attitude-noise", &attitude_noise_deg},
            {"no-lost-detector", cli::Clear{&lost_detector}}, {"out", &out_dir}, {"init", &init},
-           {"odometry", &odometry}});
+           {"odometry", &odometry}, {"imu", &imu}});
   // clang-format on
   kp.localizer.frame.pixel_stride = 8;
   cl.addLocalizerParams(&kp.localizer,
@@ -80,6 +80,9 @@ int run(int argc, char** argv) {
   kp.whole_map_start = init == "map";
   if (odometry != "truth" && odometry != "none") cl.fail("--odometry: truth or none");
   kp.odometry = odometry == "truth";
+  // --imu truth: attitude and (without odometry) the gyro's heading; attitude: attitude only.
+  if (imu != "truth" && imu != "attitude") cl.fail("--imu: truth or attitude");
+  kp.gyro = imu == "truth";
   return cli::reportErrors("gmm_mcl_kidnap", [&] {
     std::unique_ptr<FrameSource> src;
     if (scene == "synthetic" || scene == "box") {

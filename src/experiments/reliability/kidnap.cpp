@@ -197,6 +197,9 @@ KidnapResult runKidnapTrial(const FrameSource& src, const KidnapParams& params, 
   std::mt19937_64 rng(seed * 7919 + 17);
   std::normal_distribution<double> g(0.0, 1.0);
   Eigen::Isometry3d odom = src.truthBase(r.start_frame);
+  // The gyro feels the turns the odometry reports: its own random draws (the frames' unchanged).
+  OdometrySynthesizer gyro(ProtocolNoise(), seed);
+  double felt_yaw = poseToParticle(odom).yaw_rad;
   std::vector<double> errors(total);
   double total_ms = 0.0;
   for (int k = 0; k < total; ++k) {
@@ -211,6 +214,8 @@ KidnapResult runKidnapTrial(const FrameSource& src, const KidnapParams& params, 
                                                           Eigen::Vector3d::UnitZ())
                                             .toRotationMatrix();
       odom = odom * delta;
+      felt_yaw += wrapAngle(poseToParticle(src.truthBase(b)).yaw_rad -
+                            poseToParticle(src.truthBase(a)).yaw_rad);
       if (k == params.track_frames) {
         // The odometry's tilt stays the body's own: a visual-inertial or wheel-and-IMU odometry
         // takes roll and pitch from gravity, so a kidnap leaves its position and yaw wrong but
@@ -230,6 +235,11 @@ KidnapResult runKidnapTrial(const FrameSource& src, const KidnapParams& params, 
     in.stamp_s = k / src.frameRateHz();
     in.has_odometry = params.odometry;
     in.T_odom_base = odom;
+    if (!params.odometry && params.gyro) {
+      const Eigen::Isometry3d felt(Eigen::AngleAxisd(felt_yaw, Eigen::Vector3d::UnitZ()));
+      in.gyro_yaw_rad = gyro.gyroYaw(felt, k > 0 ? 1.0 / src.frameRateHz() : 0.0);
+      in.has_gyro_yaw = k > 0;
+    }
     in.has_attitude = true;
     in.roll_rad = roll + params.attitude_sigma_rad * g(rng);
     in.pitch_rad = pitch + params.attitude_sigma_rad * g(rng);

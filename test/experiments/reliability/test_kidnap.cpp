@@ -68,6 +68,23 @@ TEST(KidnapTest, SyntheticRecoversWithinFiveSeconds) {
                            << " m";
 }
 
+// Without odometry (docs/no_odometry.md): the constant-velocity model, turned by the gyro's
+// heading (which, like the odometry, feels the old trajectory's turn across the kidnap), tracks
+// and recovers; the frames' random draws are those of the odometry trial.
+TEST(KidnapTest, SyntheticRecoversWithoutOdometry) {
+  const auto src = reliability::makeSyntheticSource(test::smallCamera(), 1500);
+  reliability::KidnapParams kp;
+  kp.localizer.frame.pixel_stride = 8;
+  kp.localizer.frame.max_range_m = 8.f;
+  kp.odometry = false;
+  const reliability::KidnapResult r = reliability::runKidnapTrial(*src, kp, 2);
+  print(r);
+  EXPECT_LT(r.error_before_m, 0.10) << "not tracking before the kidnap";
+  EXPECT_FALSE(r.any_non_finite);
+  EXPECT_TRUE(r.recovered) << "recovery " << r.recovery_s << " s, final error " << r.final_error_m
+                           << " m";
+}
+
 // Without recovery (no augmented MCL, no lost detector) the kidnap is not recovered: the trial
 // measures the recovery, not an easy teleport.
 TEST(KidnapTest, WithoutRecoveryTheFilterStaysLost) {

@@ -56,6 +56,10 @@ struct KidnapParams {
   // false: the odometry is withheld (the localizer's constant-velocity model predicts; the
   // kidnap is then a jump of the frames alone): docs/no_odometry.md.
   bool odometry = true;
+  // Without odometry, the IMU gyro's heading as well (StepInput::gyro_yaw_rad; as gmm_mcl_replay
+  // --imu truth): the turn the odometry would report (across the kidnap the old trajectory's),
+  // with the protocol's gyro bias and noise (ProtocolNoise).
+  bool gyro = true;
   int after_frames = 180;                         // frames after it
   int start_frame = -1;                           // -1: drawn per seed
   double region_half_extent_m = 2.0;              // recovery region: the protocol's 4 m cube ...
