@@ -58,7 +58,7 @@ fi
 # Jetson TX2 proxies (docs/tx2.md): every package source as strict C++14 (the main build's
 # compile commands), the ROS Melodic checks, the CUDA backend by nvcc 11.8 for sm_62 when
 # scripts/tx2_cuda_compile.sh has installed it, and the core's unit tests cross-built for
-# aarch64 and run under qemu (less twelve cases that take minutes emulated).
+# aarch64 and run under qemu (less the cases that take minutes emulated).
 start=$(date +%s)
 "$GMM_MCL_ROOT/scripts/tx2_cxx14_check.sh" "$BUILD"
 "$GMM_MCL_ROOT/scripts/tx2_melodic_check.sh"
@@ -79,7 +79,9 @@ echo "== TX2 aarch64 stage took $(( $(date +%s) - start )) s"
 # test_membership and test_likelihood, and the other LocalizerTest cases run the localizer's
 # step on bad frames, time and odometry jumps) and the camera rig's two runs (the corridor, two
 # 80-step runs of 1500 particles; the room loop, two 150-step runs; the other
-# LocalizerCamerasTest cases run the rig's code paths).
+# LocalizerCamerasTest cases run the rig's code paths), and the localizer's depth-scale cases
+# (DepthScaleTest: 30-frame runs; PoseRefinementTest runs the same estimate's code, one camera
+# and a rig). Two programs at a time, their OpenMP threads passive.
 #  - detect_leaks=1: LeakSanitizer at exit (the default on x86-64 Linux, stated).
 #  - halt_on_error/abort_on_error: the first report ends the test with a non-zero status.
 #  - libgomp is not instrumented; the CPU backend's OpenMP loops (1-3 threads) run under ASan
@@ -108,11 +110,11 @@ cmake --build "$SAN_BUILD" -j2 --target "${san_targets[@]}"
 echo "== sanitizer build took $(( $(date +%s) - start )) s"
 start=$(date +%s)
 regex="^($(IFS='|'; echo "${san_targets[*]}"))\$"
-(cd "$SAN_BUILD" && \
+(cd "$SAN_BUILD" && OMP_WAIT_POLICY=passive \
   ASAN_OPTIONS="detect_leaks=1:halt_on_error=1:abort_on_error=1:strict_string_checks=1" \
   UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1" \
-  GTEST_FILTER="-LocalizerTest.ConvergesFromAUniformFourMetreCube:LocalizerCamerasTest.ADownwardCameraResolvesTheCorridorTheForwardCameraCannot:LocalizerCamerasTest.ACameraWithMorePixelsAddsToTheFirstOneAndMayDropOut" \
-  ctest --output-on-failure --timeout 600 -R "$regex") | tee "$SAN_BUILD/ctest.log"
+  GTEST_FILTER="-LocalizerTest.ConvergesFromAUniformFourMetreCube:LocalizerCamerasTest.ADownwardCameraResolvesTheCorridorTheForwardCameraCannot:LocalizerCamerasTest.ACameraWithMorePixelsAddsToTheFirstOneAndMayDropOut:DepthScaleTest.*" \
+  ctest -j2 --output-on-failure --timeout 600 -R "$regex") | tee "$SAN_BUILD/ctest.log"
 echo "== sanitizer tests took $(( $(date +%s) - start )) s"
 
 # One closing line over all ctest runs (set -e has already stopped on any failure).
