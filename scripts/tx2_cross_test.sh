@@ -7,7 +7,7 @@
 # architecture to dpkg once). Builds into build/aarch64 (GMM_MCL_AARCH64_BUILD_DIR).
 #
 #   scripts/tx2_cross_test.sh        # every case of every core unit test (hours under qemu)
-#   scripts/tx2_cross_test.sh --ci   # the same less ten long cases, test_pose_refinement not built (scripts/test.sh runs this)
+#   scripts/tx2_cross_test.sh --ci   # the same less eleven long cases, test_pose_refinement not built (scripts/test.sh runs this)
 #
 # The --ci filter leaves out the cases that take minutes emulated (qemu emulates their double
 # precision references and OpenMP loops slowly; docs/tx2.md has the measured times):
@@ -16,7 +16,9 @@
 # and .ApproximateLikelihoodWithinOnePercentOfExact, LikelihoodTest.FloatKernelAgreesWith-
 # DoubleReferencePerPixel, BackendThreadsTest.SameLikelihoodsForEveryThreadCount,
 # LocalizerTest.AWideStartSearchesAroundItsBestCandidates (48,000 candidates scored twice per
-# seed: 7 s natively, minutes emulated). The same kernels run
+# seed: 7 s natively, minutes emulated), LocalizerTest.AWideStartFollowsItsPlacesAndTheBest-
+# SeedsTheParticles (two runs of 30 frames with 3000 particles: 12 s natively; the places'
+# own code runs in test_start_hypotheses' cases in the sanitizer stage). The same kernels run
 # emulated in the other membership, likelihood, depth-noise and localizer cases. test_pose_refinement
 # is not built: each of its cases refines in double precision over whole frames (the first three
 # took over 10 min emulated together, the two localizer depth-scale cases 3 min), and the C++14
@@ -44,6 +46,7 @@ SLOW_CASES+=":LocalizerTest.BackendFailureFallsBackToTheCpuBackendKeepingThePart
 SLOW_CASES+=":LocalizerTest.SetParamsKeepsTheBelief:LocalizerTest.SetMapKeepsTheParticles"
 SLOW_CASES+=":LocalizerTest.PerFrameExtrinsicsEnterWithoutTouchingTheBelief"
 SLOW_CASES+=":LocalizerTest.AWideStartSearchesAroundItsBestCandidates"
+SLOW_CASES+=":LocalizerTest.AWideStartFollowsItsPlacesAndTheBestSeedsTheParticles"
 # Static archives of what the tests link (libgomp.a comes with the cross compiler, libpng.a and
 # libz.a with libpng-dev:arm64 and zlib1g-dev:arm64).
 GOMP_A="$(aarch64-linux-gnu-g++ -print-file-name=libgomp.a)"

@@ -101,6 +101,7 @@ void Localizer::setParams(const LocalizerParams& params) {
   params_ = params;
   if (map_terms) prepareMap();
   lost_.setParams(params_.lost, map_self_ll_);
+  if (params_.lost.start_places == 0) start_places_.stop();
 }
 
 void Localizer::setMap(GmmMap map) {
@@ -109,6 +110,7 @@ void Localizer::setMap(GmmMap map) {
   prepareMap();
   lost_ = LostDetector(params_.lost, map_self_ll_);
   have_refined_ = false;
+  start_places_.stop();
 }
 
 void Localizer::reset(const InitRegion& region) {
@@ -120,6 +122,7 @@ void Localizer::reset(const InitRegion& region) {
   screen_pending_ = true;
   have_refined_ = false;
   motion_model_.reset();
+  start_places_.stop();
 }
 
 void Localizer::resetToPose(const Particle& pose, const Eigen::Vector4d& sigma) {
@@ -128,6 +131,7 @@ void Localizer::resetToPose(const Particle& pose, const Eigen::Vector4d& sigma) 
   screen_pending_ = false;
   have_refined_ = false;
   motion_model_.reset();
+  start_places_.stop();
 }
 
 InitRegion Localizer::mapBounds() const { return gmm_mcl::mapBounds(map_); }

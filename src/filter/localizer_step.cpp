@@ -18,6 +18,10 @@ namespace {
 // wrong place in the Replica office scored 2.7 nats below, a pose 10-20 cm off 1.5).
 constexpr double kDepthScaleFitNats = 1.0;
 
+// The particle set a wide start's chosen place seeds: x, y, z, yaw sigmas (the places' own
+// local draws, start_hypotheses.h).
+const Eigen::Vector4d kStartPlaceSigma(0.05, 0.05, 0.01, 0.03);
+
 // The belief's spread: the largest position standard deviation and the yaw's.
 void beliefSpread(const Eigen::Matrix<double, 6, 6>& C, double* position_sigma, double* yaw_sigma) {
   *position_sigma = std::sqrt(std::max({C(0, 0), C(1, 1), C(2, 2)}));
@@ -47,12 +51,15 @@ void Localizer::stepOnce(const StepInput& in, StepResult* res_out) {
   ctx.pitch_rad = pitch_rad_;
   ctx.T_base_cam = cam_.T_base_cam;
   ctx.params = cam_.measurement;
+  if (start_places_.active()) followStartPlaces(&res);
   status = evaluateStep(ctx, patches_with_pixels, &res, &why);
   if (status != StepStatus::kOk) return finishStep(status, why, t_start, &res);
   status = evaluateMoreCameras(in, ctx, &res, &why);
   if (status != StepStatus::kOk) return finishStep(status, why, t_start, &res);
   status = weighStep(&res, &why);
   if (status != StepStatus::kOk) return finishStep(status, why, t_start, &res);
+  if (seed_start_places_) seedStartPlaces();
+  res.start_places = static_cast<int>(start_places_.places().size());
   estimateAndRefine(in, &res);
   status = resampleAndRecover(ctx, &res, &why);
   if (status != StepStatus::kOk) return finishStep(status, why, t_start, &res);
@@ -68,6 +75,7 @@ void Localizer::takeStepInputs(const StepInput& in, StepResult* res) {
         << " s: filter re-initialised";
     filter_->initialiseUniform(region_);
     lost_.restart();
+    start_places_.stop();
     screen_pending_ = true;
     have_refined_ = false;
     have_odometry_ = false;
@@ -134,6 +142,7 @@ void Localizer::predictStep(const StepInput& in, StepResult* res) {
   have_gyro_yaw_ = in.has_gyro_yaw && std::isfinite(in.gyro_yaw_rad);
   last_gyro_yaw_rad_ = in.gyro_yaw_rad;
   filter_->predict(delta);
+  last_delta_ = delta;
   if (have_refined_) {  // the last refined pose moved like a particle, without noise
     const double c = std::cos(last_refined_.yaw_rad), sn = std::sin(last_refined_.yaw_rad);
     last_refined_.x_m += c * delta.translation_m.x() - sn * delta.translation_m.y();
@@ -332,8 +341,10 @@ StepStatus Localizer::evaluateStep(const MeasurementContext& ctx, long long patc
   try {
     if (screen_pending_ && params_.lost.candidates_per_particle > 1) {
       const double area_m2 = 4.0 * region_.half_extent_m.x() * region_.half_extent_m.y();
-      screenCandidates(ctx, filter_->size(), area_m2 >= params_.lost.start_local_stage_min_area_m2);
+      const bool wide = area_m2 >= params_.lost.start_local_stage_min_area_m2;
+      screenCandidates(ctx, filter_->size(), wide);
       filter_->replaceAllByBestCandidates();
+      seed_start_places_ = wide && params_.lost.start_places > 0;
       res->screened_candidates = filter_->size() * params_.lost.candidates_per_particle;
     }
     screen_pending_ = false;
@@ -345,9 +356,9 @@ StepStatus Localizer::evaluateStep(const MeasurementContext& ctx, long long patc
     return StepStatus::kBackendError;
   }
   if (patches_with_pixels >= 0) stats.patches_with_pixels = patches_with_pixels;
-  res->timings.projection_membership_ms = stats.projection_membership_ms;
-  res->timings.likelihood_ms = stats.likelihood_ms;
-  res->evaluations = stats.evaluations;
+  res->timings.projection_membership_ms += stats.projection_membership_ms;
+  res->timings.likelihood_ms += stats.likelihood_ms;
+  res->evaluations += stats.evaluations;
   if (stats.patches_with_pixels > 0) {
     res->relevant_per_patch = static_cast<double>(stats.relevant_pairs) /
                               (stats.patches_with_pixels * static_cast<double>(filter_->size()));
@@ -581,6 +592,72 @@ void Localizer::learnDepthScale(int c, double estimate, double info, const StepR
   information = (1.0 - rp.depth_scale_rate) * information + info;
   f += info / information * (estimate - f);
   f = std::min(1.0 + rp.depth_scale_max_error, std::max(1.0 - rp.depth_scale_max_error, f));
+}
+
+void Localizer::seedStartPlaces() {
+  seed_start_places_ = false;
+  StartHypothesesParams p;
+  p.places = params_.lost.start_places;
+  p.frames = params_.lost.start_place_frames;
+  start_places_ = StartHypotheses(p, params_.filter.seed ^ 0x5bd1e995u);
+  // The set's weights after the first update rank its particles by their frame's likelihood
+  // (equal weights before it).
+  start_places_.seed(filter_->particles(), filter_->weights());
+}
+
+void Localizer::followStartPlaces(StepResult* res) {
+  const Clock::time_point t0 = Clock::now();
+  start_places_.predict(last_delta_);
+  const std::vector<Particle>& proposals = start_places_.proposals();
+  std::vector<RigidTransformF> poses(proposals.size());
+  for (size_t i = 0; i < proposals.size(); ++i) {
+    poses[i] = toRigidF(particleToPose(proposals[i], roll_rad_, pitch_rad_) * cam_.T_base_cam);
+  }
+  const DepthFrame& frame = hostFrame();
+  BackendOutput out;
+  try {
+    backend_->evaluate(frame, poses, *cam_.measurement, &out);
+  } catch (const BackendError&) {
+    throw;
+  } catch (const std::exception& e) {  // the stage ends; the particle set goes on
+    start_places_.stop();
+    res->message += std::string(res->message.empty() ? "" : "; ") + "start places not scored (" +
+                    e.what() + "): their stage ended";
+    return;
+  }
+  start_places_.update(out.log_likelihood, static_cast<int>(frame.size()));
+  res->evaluations += out.evaluations;
+  if (start_places_.finished()) {
+    // The best place seeds the particle set unless the set has already settled there.
+    const StartHypotheses::Place best = start_places_.best();
+    const int followed = static_cast<int>(start_places_.places().size());
+    start_places_.stop();
+    const PoseEstimate e = filter_->estimate();
+    double position_sigma, yaw_sigma;
+    beliefSpread(e.covariance, &position_sigma, &yaw_sigma);
+    const bool settled_there =
+        position_sigma <= params_.refinement.max_position_sigma_m &&
+        yaw_sigma <= params_.refinement.max_yaw_sigma_rad &&
+        std::hypot(std::hypot(e.mean.x_m - best.pose.x_m, e.mean.y_m - best.pose.y_m),
+                   e.mean.z_m - best.pose.z_m) < params_.refinement.max_correction_m &&
+        std::abs(wrapAngle(e.mean.yaw_rad - best.pose.yaw_rad)) <
+            params_.refinement.max_correction_rad;
+    if (!settled_there) {
+      filter_->initialiseGaussian(best.pose, kStartPlaceSigma);
+      lost_.restart();
+      have_refined_ = false;
+      motion_model_.reset();
+      res->start_place_chosen = true;
+      std::ostringstream msg;
+      msg << "start: the best of " << followed << " places followed over "
+          << params_.lost.start_place_frames << " frames (" << best.last_loglik
+          << " nats/px on this frame) seeds the particles at (" << best.pose.x_m << ", "
+          << best.pose.y_m << ", " << best.pose.z_m << ") m, yaw " << best.pose.yaw_rad << " rad";
+      res->message += (res->message.empty() ? "" : "; ") + msg.str();
+    }
+  }
+  res->start_places = static_cast<int>(start_places_.places().size());
+  res->timings.likelihood_ms += msSince(t0);
 }
 
 StepStatus Localizer::resampleAndRecover(const MeasurementContext& ctx, StepResult* res,

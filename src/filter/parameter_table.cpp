@@ -296,6 +296,15 @@ void addLostParams(ParamTable<P>* t) {
                       "A uniform start over at least this horizontal area (a whole building) "
                       "searches as a lost redraw does: blurred uniform stage, then local "
                       "candidates"));
+  add(t, paramSpec<P>("lost_start_places", GMM_MCL_PARAM_FIELD(P, lost.start_places), "", g,
+                      {0, 100000}, kRuntime,
+                      "Such a wide start follows this many of its first update's best distinct "
+                      "places over its next frames, each by its own hill climb; the best then "
+                      "seeds the particles (0 = off)"));
+  add(t,
+      paramSpec<P>("lost_start_place_frames", GMM_MCL_PARAM_FIELD(P, lost.start_place_frames),
+                   "frames", g, {1, 100000}, kRuntime,
+                   "Frames a wide start follows its places before the best seeds the particles"));
 }
 
 // Depth frame.

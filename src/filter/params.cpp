@@ -114,6 +114,12 @@ std::string LostDetectionParams::validate() const {
     err << "lost.start_local_stage_min_area_m2 must be >= 0 (got " << start_local_stage_min_area_m2
         << "); ";
   }
+  if (start_places < 0 || start_places > 100000) {
+    err << "lost.start_places must be in [0, 100000] (got " << start_places << "); ";
+  }
+  if (start_place_frames < 1 || start_place_frames > 100000) {
+    err << "lost.start_place_frames must be in [1, 100000] (got " << start_place_frames << "); ";
+  }
   if (!(redraw_blur_m >= 0.0) || !std::isfinite(redraw_blur_m)) {
     err << "lost.redraw_blur_m must be >= 0 (got " << redraw_blur_m << "); ";
   }

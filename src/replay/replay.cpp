@@ -135,8 +135,19 @@ TrialResult runTrial(const Sequence& seq, const DepthProvider& depth, const GmmM
     const Particle true_pose = poseToParticle(truth[f]);
     out.frames.push_back(makeReplayFrame(in.stamp_s, loc.step(in), &true_pose));
     if (params.nearest_particle) {
-      out.frames.back().nearest_particle_m =
+      ReplayFrame& rf = out.frames.back();
+      rf.nearest_particle_m =
           nearestParticleM(loc.filter().particles(), true_pose, params.nearest_particle_yaw_rad);
+      // The places are in order of their scores: the index is the rank.
+      const std::vector<StartHypotheses::Place>& places = loc.startPlaces().places();
+      for (size_t i = 0; i < places.size(); ++i) {
+        const double d =
+            nearestParticleM({places[i].pose}, true_pose, params.nearest_particle_yaw_rad);
+        if (d < rf.nearest_place_m || (std::isfinite(d) && rf.nearest_place_rank < 0)) {
+          rf.nearest_place_m = d;
+          rf.nearest_place_rank = static_cast<int>(i);
+        }
+      }
     }
     if (progress) progress(k, steps, out.frames.back());
   }
@@ -166,7 +177,7 @@ void writeFrameCsv(const TrialResult& r, const std::string& path) {
          "beta_fraction,reinitialised,lost_redrawn,status,pixels,frame_prep_ms,membership_ms,"
          "likelihood_ms,resample_ms,refined,refined_error_m,refined_error_yaw_deg,refine_ms,"
          "particles,total_ms,depth_scale,nearest_particle_m,loglik_refined_per_px,"
-         "reference_loglik_per_px\n";
+         "reference_loglik_per_px,start_places,nearest_place_m,nearest_place_rank\n";
   out.precision(7);
   for (const ReplayFrame& f : r.frames) {
     const StepResult& s = f.step;
@@ -198,7 +209,9 @@ void writeFrameCsv(const TrialResult& r, const std::string& path) {
     if (std::isfinite(f.nearest_particle_m)) out << f.nearest_particle_m;
     out << ',';
     if (s.refinement.refined) out << s.refinement.loglik_refined;
-    out << ',' << s.reference_loglik_per_pixel << '\n';
+    out << ',' << s.reference_loglik_per_pixel << ',' << s.start_places << ',';
+    if (std::isfinite(f.nearest_place_m)) out << f.nearest_place_m;
+    out << ',' << f.nearest_place_rank << '\n';
   }
 }
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <random>
 
@@ -43,7 +44,11 @@ struct RunResult {
   double max_error_last_30_m;
 };
 
-RunResult runSynthetic(const LocalizerParams& params, int frames, uint64_t noise_seed) {
+// Each step's result and the truth, for the cases that check more than the end.
+using StepCheck = std::function<void(int frame, const StepResult&, const Particle& truth)>;
+
+RunResult runSynthetic(const LocalizerParams& params, int frames, uint64_t noise_seed,
+                       const StepCheck& check = nullptr) {
   const auto& w = test::world();
   const Intrinsics K = test::smallCamera();
   const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(frames);
@@ -66,6 +71,7 @@ RunResult runSynthetic(const LocalizerParams& params, int frames, uint64_t noise
     const StepResult res = loc.step(sim::frameInput(f / 30.0, odom, roll, pitch, depth, K));
     EXPECT_EQ(res.status, StepStatus::kOk) << res.message;
     const Particle gt = poseToParticle(truth[f]);
+    if (check) check(f, res, gt);
     const Particle est = res.estimate.mean;
     r.final_error_m = std::sqrt(std::pow(est.x_m - gt.x_m, 2) + std::pow(est.y_m - gt.y_m, 2) +
                                 std::pow(est.z_m - gt.z_m, 2));
@@ -132,6 +138,51 @@ TEST(LocalizerTest, AWideStartSearchesAroundItsBestCandidates) {
       "uniform only %.3f %.3f %.3f m\n",
       local[0], local[1], local[2], uniform[0], uniform[1], uniform[2]);
   EXPECT_LT(local[1], uniform[1]);
+}
+
+// A wide start that follows its places (start_hypotheses.h): they are reported while followed,
+// and at the end of the stage the best of them, where the particles are then, is the truth.
+TEST(LocalizerTest, AWideStartFollowsItsPlacesAndTheBestSeedsTheParticles) {
+  const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(1);
+  LocalizerParams p = syntheticParams(truth[0]);
+  p.filter.num_particles = 3000;
+  p.frame.pixel_stride = 8;
+  p.init.half_extent_m = Eigen::Vector3d(12.0, 12.0, 0.2);  // 576 m^2: a wide start
+  p.init.yaw_half_range_rad = M_PI;
+  p.lost.start_places = 64;
+  p.lost.start_place_frames = 30;
+  int followed = 0, chosen_at = -1;
+  double settled_error_m = 0.0;
+  runSynthetic(p, 36, 5, [&](int f, const StepResult& res, const Particle& gt) {
+    if (f < p.lost.start_place_frames) {
+      EXPECT_GT(res.start_places, 0) << "frame " << f;
+      followed += res.start_places > 0;
+    } else {
+      EXPECT_EQ(res.start_places, 0) << "frame " << f;
+    }
+    if (res.start_place_chosen) chosen_at = f;
+    if (f == p.lost.start_place_frames) {  // the set's mean at the stage's end, either way
+      const Particle& e = res.estimate.mean;
+      settled_error_m = std::hypot(std::hypot(e.x_m - gt.x_m, e.y_m - gt.y_m), e.z_m - gt.z_m);
+    }
+  });
+  // The same start without the places: where the particle set alone is at that frame.
+  LocalizerParams alone = p;
+  alone.lost.start_places = 0;
+  double alone_error_m = 0.0;
+  runSynthetic(alone, p.lost.start_place_frames + 1, 5,
+               [&](int f, const StepResult& res, const Particle& gt) {
+                 const Particle& e = res.estimate.mean;
+                 if (f == p.lost.start_place_frames)
+                   alone_error_m = std::hypot(e.x_m - gt.x_m, e.y_m - gt.y_m);
+               });
+  std::printf(
+      "[ measured ] places followed for %d frames, chosen at frame %d, set %.3f m from "
+      "the truth after the stage (%.3f m without the places)\n",
+      followed, chosen_at, settled_error_m, alone_error_m);
+  EXPECT_EQ(followed, p.lost.start_place_frames);
+  EXPECT_TRUE(chosen_at == -1 || chosen_at == p.lost.start_place_frames);
+  EXPECT_LT(settled_error_m, 0.1);
 }
 
 TEST(LocalizerTest, BadFramesKeepTheStateAndSayWhy) {

@@ -15,6 +15,7 @@
 #include "gmm_mcl/filter/particle_filter.h"
 #include "gmm_mcl/filter/particle_filter_base.h"
 #include "gmm_mcl/filter/pose_refinement.h"
+#include "gmm_mcl/filter/start_hypotheses.h"
 
 namespace gmm_mcl {
 
@@ -105,6 +106,10 @@ struct StepResult {
   bool lost = false;            // the LostDetector fired on this frame (see message)
   int lost_reinitialised = 0;   // particles redrawn because of it
   int screened_candidates = 0;  // uniform candidates scored on this frame (redraws, start)
+  // A wide start's places still followed after this step (start_hypotheses.h; 0: none), and
+  // whether this step's best of them seeded the particle set.
+  int start_places = 0;
+  bool start_place_chosen = false;
   double reference_loglik_per_pixel = 0.0;  // the LostDetector's reference level
   PoseEstimate estimate;
   // The estimate refined by local maximisation of the likelihood (pose_refinement.h), when the
@@ -176,6 +181,8 @@ class Localizer {
   double pitchRad() const { return pitch_rad_; }
   // The constant-velocity model of steps without odometry (its velocity: velocity()).
   const ConstantVelocityModel& motionModel() const { return motion_model_; }
+  // A wide start's places while they are followed (start_hypotheses.h; inactive otherwise).
+  const StartHypotheses& startPlaces() const { return start_places_; }
 
  private:
   // Fills the filter's candidate pool with count * lost.candidates_per_particle draws scored on
@@ -215,6 +222,11 @@ class Localizer {
   void observeMotion(const StepInput& input, const StepResult& res);
   StepStatus resampleAndRecover(const MeasurementContext& context, StepResult* res,
                                 std::string* why);
+  // A wide start's places (start_places_): followed on this frame, and at the stage's end the
+  // best seeds the particle set (before the set is scored on the frame).
+  void followStartPlaces(StepResult* res);
+  // After a wide start's first update: its best distinct places, from the scored particle set.
+  void seedStartPlaces();
   // An early end: the status (unless one is set), the message, the estimate and the timings.
   void finishStep(StepStatus status, const std::string& why,
                   std::chrono::steady_clock::time_point t_start, StepResult* res);
@@ -237,7 +249,10 @@ class Localizer {
   InitRegion region_;
   double map_self_ll_ = 0.0;
   LostDetector lost_;
-  bool screen_pending_ = true;  // after a uniform (re)initialisation: screen the next frame
+  bool screen_pending_ = true;      // after a uniform (re)initialisation: screen the next frame
+  bool seed_start_places_ = false;  // this step screened a wide start: seed start_places_
+  StartHypotheses start_places_;
+  PlanarDelta last_delta_;  // this step's motion (predictStep)
   // The camera measuring first this step: its frame, extrinsics and parameters.
   struct StepCamera {
     const DepthImage* depth = nullptr;

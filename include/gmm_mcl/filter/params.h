@@ -128,6 +128,13 @@ struct LostDetectionParams {
   // the local candidates. Uniform draws alone rarely land in the true pose's basin there. Smaller
   // regions (the 4 m cube, one room) keep the plain uniform candidates. 0: every start.
   double start_local_stage_min_area_m2 = 400.0;
+  // Such a start can also follow this many of the first update's best distinct places over
+  // its next start_place_frames frames, each by a hill climb on every frame
+  // (start_hypotheses.h); then the best of them seeds the particle set unless the set already
+  // sits there. 0: off (the default: in the building world it found the truth in 1 of 4 walks,
+  // docs/building_scale.md).
+  int start_places = 0;
+  int start_place_frames = 90;
 
   std::string validate() const;
 };

@@ -50,6 +50,10 @@ struct ReplayFrame {
   FrameError error;
   StepResult step;
   double nearest_particle_m = std::numeric_limits<double>::quiet_NaN();  // see ReplayParams
+  // With nearest_particle, while a wide start follows its places: the nearest place's distance
+  // (yaw within the same bound; NaN: none) and its rank by score (0: the best; -1: none).
+  double nearest_place_m = std::numeric_limits<double>::quiet_NaN();
+  int nearest_place_rank = -1;
 };
 
 struct TrialResult {
