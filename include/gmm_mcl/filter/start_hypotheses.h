@@ -1,16 +1,19 @@
 // The places a wide start (a whole building, ~global_localization) keeps in play over its first
-// frames, beside the particle set (docs/building_scale.md "Global localization").
+// frames, beside the particle set (docs/building_scale.md "Global localization in the building
+// world").
 //
 // After the first update of a start spread over a building, the particle set holds many places
 // whose first frame scores about as well as the truth's, and the truth's own particles often sit
 // a few decimetres outside its likelihood's basin. Weighted resampling then settles on one place
 // within a few frames, by a frame's evidence each, and the truth's neighbourhood dies. Here the
 // best distinct places of the first update are each followed on their own: moved by the
-// step's motion, improved by the best of a few local draws on every frame (a hill climb into
-// the basin), and scored by an exponentially forgotten sum of their per-pixel log-likelihoods
-// (a place that climbs into its basin is not held back by its first frames). None of them is
-// resampled away by another place's frame. After the stage's frames the best place seeds the
-// particle set when the set does not already sit there.
+// step's motion, moved to the best of a few local draws on every frame (a hill climb into the
+// basin), and scored by the log of the mean of their draws' per-pixel likelihoods (the
+// neighbourhood's evidence: the best draw's score would let a wrong place re-fit every frame),
+// summed with exponential forgetting (a place that climbs into its basin is not held back by
+// its first frames). None of them is resampled away by another place's frame. After the
+// stage's frames the best place seeds the particle set when the set does not already sit there.
+// Off by default (LostDetectionParams::start_places): docs/building_scale.md has what it found.
 #pragma once
 
 #include <cstdint>
@@ -41,8 +44,8 @@ class StartHypotheses {
  public:
   struct Place {
     Particle pose;
-    double score = 0.0;        // forgotten sum of per-pixel log-likelihoods
-    double last_loglik = 0.0;  // the last frame's, per pixel
+    double score = 0.0;        // forgotten sum of its frames' scores
+    double last_loglik = 0.0;  // the last frame's: log mean of the draws' per-pixel likelihoods
   };
 
   StartHypotheses() = default;
