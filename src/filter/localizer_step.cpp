@@ -143,13 +143,8 @@ void Localizer::predictStep(const StepInput& in, StepResult* res) {
   last_gyro_yaw_rad_ = in.gyro_yaw_rad;
   filter_->predict(delta);
   last_delta_ = delta;
-  if (have_refined_) {  // the last refined pose moved like a particle, without noise
-    const double c = std::cos(last_refined_.yaw_rad), sn = std::sin(last_refined_.yaw_rad);
-    last_refined_.x_m += c * delta.translation_m.x() - sn * delta.translation_m.y();
-    last_refined_.y_m += sn * delta.translation_m.x() + c * delta.translation_m.y();
-    last_refined_.z_m += delta.translation_m.z();
-    last_refined_.yaw_rad = wrapAngle(last_refined_.yaw_rad + delta.yaw_rad);
-  }
+  // The last refined pose moves like a particle, without noise.
+  if (have_refined_) applyDelta(delta, &last_refined_);
   res->timings.predict_ms = msSince(t0);
 }
 
@@ -656,7 +651,6 @@ void Localizer::followStartPlaces(StepResult* res) {
       res->message += (res->message.empty() ? "" : "; ") + msg.str();
     }
   }
-  res->start_places = static_cast<int>(start_places_.places().size());
   res->timings.likelihood_ms += msSince(t0);
 }
 

@@ -79,4 +79,12 @@ PlanarDelta odometryDelta(const Eigen::Isometry3d& T_odom_prev,
   return d;
 }
 
+void applyDelta(const PlanarDelta& delta, Particle* p) {
+  const double c = std::cos(p->yaw_rad), s = std::sin(p->yaw_rad);
+  p->x_m += c * delta.translation_m.x() - s * delta.translation_m.y();
+  p->y_m += s * delta.translation_m.x() + c * delta.translation_m.y();
+  p->z_m += delta.translation_m.z();
+  p->yaw_rad = wrapAngle(p->yaw_rad + delta.yaw_rad);
+}
+
 }  // namespace gmm_mcl

@@ -34,14 +34,7 @@ void StartHypotheses::seed(const std::vector<Particle>& poses, const std::vector
 }
 
 void StartHypotheses::predict(const PlanarDelta& delta) {
-  for (Place& place : places_) {
-    Particle& p = place.pose;
-    const double c = std::cos(p.yaw_rad), s = std::sin(p.yaw_rad);
-    p.x_m += c * delta.translation_m.x() - s * delta.translation_m.y();
-    p.y_m += s * delta.translation_m.x() + c * delta.translation_m.y();
-    p.z_m += delta.translation_m.z();
-    p.yaw_rad = wrapAngle(p.yaw_rad + delta.yaw_rad);
-  }
+  for (Place& place : places_) applyDelta(delta, &place.pose);
 }
 
 const std::vector<Particle>& StartHypotheses::proposals() {

@@ -15,6 +15,15 @@ std::string stampText(double t_s) {
   return buf;
 }
 
+// The distance between a pose and the truth; NaN when their yaws differ by more than the bound.
+double distanceWithinYawM(const Particle& p, const Particle& truth, double max_yaw_error_rad) {
+  if (std::abs(wrapAngle(p.yaw_rad - truth.yaw_rad)) > max_yaw_error_rad) {
+    return std::numeric_limits<double>::quiet_NaN();
+  }
+  return std::sqrt(std::pow(p.x_m - truth.x_m, 2) + std::pow(p.y_m - truth.y_m, 2) +
+                   std::pow(p.z_m - truth.z_m, 2));
+}
+
 }  // namespace
 
 Eigen::Isometry3d opticalToBase() {
@@ -72,10 +81,8 @@ double nearestParticleM(const std::vector<Particle>& particles, const Particle& 
                         double max_yaw_error_rad) {
   double best = std::numeric_limits<double>::quiet_NaN();
   for (const Particle& p : particles) {
-    if (std::abs(wrapAngle(p.yaw_rad - truth.yaw_rad)) > max_yaw_error_rad) continue;
-    const double d = std::sqrt(std::pow(p.x_m - truth.x_m, 2) + std::pow(p.y_m - truth.y_m, 2) +
-                               std::pow(p.z_m - truth.z_m, 2));
-    if (!(d >= best)) best = d;
+    const double d = distanceWithinYawM(p, truth, max_yaw_error_rad);
+    if (std::isfinite(d) && !(d >= best)) best = d;
   }
   return best;
 }
@@ -142,7 +149,7 @@ TrialResult runTrial(const Sequence& seq, const DepthProvider& depth, const GmmM
       const std::vector<StartHypotheses::Place>& places = loc.startPlaces().places();
       for (size_t i = 0; i < places.size(); ++i) {
         const double d =
-            nearestParticleM({places[i].pose}, true_pose, params.nearest_particle_yaw_rad);
+            distanceWithinYawM(places[i].pose, true_pose, params.nearest_particle_yaw_rad);
         if (d < rf.nearest_place_m || (std::isfinite(d) && rf.nearest_place_rank < 0)) {
           rf.nearest_place_m = d;
           rf.nearest_place_rank = static_cast<int>(i);

@@ -107,12 +107,8 @@ bool StepInputs::gather(const std_msgs::Header& header, StepInput* in, Gaps* gap
     if (gaps->imu) gaps->warnings += "IMU attitude: " + gap + " (roll/pitch from odometry); ";
     // The gyro's heading, for a step without odometry; compared only within one segment of
     // gap-free samples (the first frame of a segment carries none).
-    double heading;
-    long long segment = -1;
-    const bool found = gyro_.at(in->stamp_s, opts_.imu_timeout_s, &heading, &segment);
-    in->has_gyro_yaw = found && segment == last_gyro_segment_;
-    in->gyro_yaw_rad = found ? heading : 0.0;
-    last_gyro_segment_ = found ? segment : -1;
+    in->has_gyro_yaw = gyroHeadingForStep(gyro_, in->stamp_s, opts_.imu_timeout_s,
+                                          &last_gyro_segment_, &in->gyro_yaw_rad);
   }
   return true;
 }

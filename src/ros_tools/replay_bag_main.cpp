@@ -326,12 +326,8 @@ int run(const Options& o) {
       if (has_truth) in.T_odom_base = synth.next(T_truth, last_t < 0 ? 1.0 : (t - last_t) * 30.0);
     } else if (no_odometry) {
       // The gyro's heading, compared only within one segment of its samples (as the nodelet).
-      double heading = 0.0;
-      long long segment = -1;
-      const bool found = tracks.gyro.at(t, 0.05, &heading, &segment);
-      in.has_gyro_yaw = found && segment == last_gyro_segment;
-      in.gyro_yaw_rad = found ? heading : 0.0;
-      last_gyro_segment = found ? segment : -1;
+      in.has_gyro_yaw =
+          gyroHeadingForStep(tracks.gyro, t, 0.05, &last_gyro_segment, &in.gyro_yaw_rad);
     } else {
       in.has_odometry = odom_track.at(t, 0.05, &in.T_odom_base);
     }

@@ -138,5 +138,26 @@ TEST(GyroHeadingTest, IntegratesTheTurnAboutTheVerticalAndSplitsAtGaps) {
   EXPECT_NE(s2, s1);
 }
 
+TEST(GyroHeadingTest, AStepCarriesATurnOnlyWithinTheLastStepsSegment) {
+  GyroHeading gyro(2.0, 0.1);
+  for (int k = 0; k <= 50; ++k) gyro.add(10.0 + 0.01 * k, Eigen::Vector3d(0, 0, 0.5), 0.0, 0.0);
+  long long last = -1;
+  double h0 = -1.0, h1 = -1.0;
+  // The segment's first step has nothing to compare with; its heading is still the reference.
+  EXPECT_FALSE(gyroHeadingForStep(gyro, 10.1, 0.05, &last, &h0));
+  EXPECT_GE(last, 0);
+  EXPECT_TRUE(gyroHeadingForStep(gyro, 10.2, 0.05, &last, &h1));
+  EXPECT_NEAR(h1 - h0, 0.05, 1e-9);
+  // No sample near the stamp: none, heading 0, and the next step starts over.
+  EXPECT_FALSE(gyroHeadingForStep(gyro, 20.0, 0.05, &last, &h1));
+  EXPECT_EQ(h1, 0.0);
+  EXPECT_EQ(last, -1);
+  EXPECT_FALSE(gyroHeadingForStep(gyro, 10.3, 0.05, &last, &h1));
+  // A gap: the new segment's first step carries no turn.
+  for (int k = 0; k <= 10; ++k) gyro.add(11.0 + 0.01 * k, Eigen::Vector3d(0, 0, 0.5), 0.0, 0.0);
+  EXPECT_FALSE(gyroHeadingForStep(gyro, 11.05, 0.05, &last, &h1));
+  EXPECT_TRUE(gyroHeadingForStep(gyro, 11.08, 0.05, &last, &h1));
+}
+
 }  // namespace
 }  // namespace gmm_mcl

@@ -47,5 +47,7 @@ struct PlanarDelta {
 };
 PlanarDelta odometryDelta(const Eigen::Isometry3d& T_odom_prev,
                           const Eigen::Isometry3d& T_odom_cur);
+// Moves a pose by a delta without noise (the delta's translation turned by the pose's yaw).
+void applyDelta(const PlanarDelta& delta, Particle* p);
 
 }  // namespace gmm_mcl

@@ -55,7 +55,6 @@ class StartHypotheses {
   void seed(const std::vector<Particle>& poses, const std::vector<double>& scores);
   bool active() const { return !places_.empty(); }
   void stop() { places_.clear(); }
-  int framesSeen() const { return frames_; }
   bool finished() const { return active() && frames_ >= params_.frames; }
 
   // Every place moved by the step's motion (in its own heading, without noise).
