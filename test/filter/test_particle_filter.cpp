@@ -258,6 +258,35 @@ TEST(ParticleFilterTest, ReplaceWorstKeepsTheBestAndCanGrow) {
   EXPECT_NEAR(total, 1.0, 1e-12);
 }
 
+// The local stage's draws (a wide start's, a redraw's): the centres are the pool's best in score
+// order, and the draws go round them in turn with the given spread.
+TEST(ParticleFilterTest, LocalDrawsGoRoundTheBestCandidatesInTurn) {
+  ParticleFilter pf(oneGroup(10));
+  std::vector<std::pair<double, Particle>> pool;
+  for (int i = 0; i < 4; ++i) pool.emplace_back(-double(i), Particle{10.0 * (3 - i), 0, 0, 0});
+  pf.setCandidatePool(pool);  // the best at x = 30, then 20; 10 and 0 left out
+  pf.selectCandidateCentres(2, true);
+  EXPECT_EQ(pf.scoredCandidates(), 0);  // the pool was cleared
+  const int n = 4000;
+  pf.drawCandidatesAroundCentres(0.25, 0.2, n);
+  const std::vector<Particle>& drawn = pf.pendingCandidates();
+  ASSERT_EQ(static_cast<int>(drawn.size()), n);
+  double sum[2] = {0.0, 0.0}, sq[2] = {0.0, 0.0}, yaw_sq = 0.0;
+  for (int k = 0; k < n; ++k) {
+    const double dx = drawn[k].x_m - (k % 2 == 0 ? 30.0 : 20.0);
+    ASSERT_LT(std::abs(dx), 8 * 0.25) << "draw " << k << " is not around its centre";
+    sum[k % 2] += dx;
+    sq[k % 2] += dx * dx;
+    yaw_sq += drawn[k].yaw_rad * drawn[k].yaw_rad;
+  }
+  for (int c = 0; c < 2; ++c) {
+    const double m = sum[c] / (n / 2), sd = std::sqrt(sq[c] / (n / 2) - m * m);
+    EXPECT_LT(std::abs(m), 5 * 0.25 / std::sqrt(n / 2.0)) << "centre " << c;
+    EXPECT_NEAR(sd, 0.25, 0.025) << "centre " << c;
+  }
+  EXPECT_NEAR(std::sqrt(yaw_sq / n), 0.2, 0.02);
+}
+
 // Parameters change in place: the particles and weights stay, the next prediction uses the new
 // noise, a count outside the new range is resampled from the same set.
 TEST(ParticleFilterTest, SetParamsKeepsTheParticlesAndTheirWeights) {

@@ -97,6 +97,8 @@ class ParticleFilter : public ParticleFilterBase {
                               const std::vector<int>& floor_hits);
   // The scored candidate pool (score, candidate) in the order scored.
   const std::vector<std::pair<double, Particle>>& candidatePool() const { return scored_; }
+  // The drawn candidates not yet scored, in the order drawn.
+  const std::vector<Particle>& pendingCandidates() const { return pending_; }
   void setCandidatePool(const std::vector<std::pair<double, Particle>>& scored) {
     scored_ = scored;
   }
