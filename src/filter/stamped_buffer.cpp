@@ -1,5 +1,6 @@
 #include "gmm_mcl/filter/stamped_buffer.h"
 
+#include <algorithm>
 #include <cmath>
 #include <iterator>
 #include <sstream>
@@ -137,11 +138,30 @@ void GyroHeading::add(double stamp_s, const Eigen::Vector3d& omega_imu_rad_s, do
 
 bool GyroHeading::at(double t_s, double tolerance_s, double* heading_rad, long long* segment,
                      std::string* why) const {
-  Eigen::Isometry3d T;
-  if (!track_.at(t_s, tolerance_s, &T, why)) return false;
-  *heading_rad = T.translation().x();
-  *segment = std::llround(T.translation().y());
-  return true;
+  for (int attempt = 0; attempt < 2; ++attempt) {
+    Eigen::Isometry3d T;
+    if (track_.at(t_s, 0.0, &T)) {  // between two samples of a segment, or at one
+      *heading_rad = T.translation().x();
+      *segment = std::llround(T.translation().y());
+      return true;
+    }
+    std::lock_guard<std::mutex> lock(mutex_);
+    const double ahead_s = t_s - last_stamp_s_;
+    if (have_ && ahead_s > 0.0 && ahead_s <= std::min(tolerance_s, max_gap_s_)) {
+      *heading_rad = heading_rad_ + last_rate_rad_s_ * ahead_s;
+      *segment = segment_;
+      return true;
+    }
+    // A sample at or after t arrived between the two looks: look between the samples again.
+    if (!(have_ && ahead_s <= 0.0)) break;
+  }
+  if (why) {
+    std::ostringstream msg;
+    msg << "no gyro samples around " << t_s << " s (the heading is extrapolated at most "
+        << std::min(tolerance_s, max_gap_s_) << " s past the newest)";
+    *why = msg.str();
+  }
+  return false;
 }
 
 void GyroHeading::eraseAfter(double t_s) {

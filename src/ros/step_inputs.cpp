@@ -9,11 +9,13 @@ namespace gmm_mcl {
 bool StepInputs::addImu(const sensor_msgs::Imu& imu) {
   double roll, pitch;
   if (!ros_conv::attitudeFromImu(imu, &roll, &pitch)) return false;
-  imu_.addAttitude(imu.header.stamp.toSec(), roll, pitch);
+  // The gyro's sample first: a frame waiting for this message wakes on the attitude's
+  // (waitForInputs) and must find both.
   Eigen::Vector3d omega;
   if (ros_conv::angularVelocityFromImu(imu, &omega)) {
     gyro_.add(imu.header.stamp.toSec(), omega, roll, pitch);
   }
+  imu_.addAttitude(imu.header.stamp.toSec(), roll, pitch);
   return true;
 }
 

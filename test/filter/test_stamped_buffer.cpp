@@ -106,12 +106,16 @@ TEST(StampedPoseBufferTest, WaitUntilReachesWakesOnAdd) {
   producer.join();
 }
 
+// A level IMU turning at 0.5 rad/s: samples at 100 Hz from t0_s, the last at t0_s + samples / 100.
+void turnLevel(GyroHeading* gyro, double t0_s, int samples) {
+  for (int k = 0; k <= samples; ++k) gyro->add(t0_s + 0.01 * k, Eigen::Vector3d(0, 0, 0.5), 0, 0);
+}
+
 // The gyro's heading: the vertical component of the angular velocity, integrated; a gap starts a
 // new segment.
 TEST(GyroHeadingTest, IntegratesTheTurnAboutTheVerticalAndSplitsAtGaps) {
   GyroHeading gyro(2.0, 0.1);
-  // Level, turning at 0.5 rad/s, 100 Hz, from t = 10 s.
-  for (int k = 0; k <= 50; ++k) gyro.add(10.0 + 0.01 * k, Eigen::Vector3d(0, 0, 0.5), 0.0, 0.0);
+  turnLevel(&gyro, 10.0, 50);  // level, turning at 0.5 rad/s, 100 Hz, from t = 10 s
   double h0, h1;
   long long s0, s1;
   ASSERT_TRUE(gyro.at(10.1, 0.05, &h0, &s0));
@@ -127,7 +131,7 @@ TEST(GyroHeadingTest, IntegratesTheTurnAboutTheVerticalAndSplitsAtGaps) {
   ASSERT_TRUE(rolled.at(0.0, 0.05, &h0, &s0));
   EXPECT_NEAR(h1 - h0, -0.4 * 0.1, 1e-9);
   // A gap of 0.5 s: a new segment, whose headings are not comparable with the old one's.
-  for (int k = 0; k <= 10; ++k) gyro.add(11.0 + 0.01 * k, Eigen::Vector3d(0, 0, 0.5), 0.0, 0.0);
+  turnLevel(&gyro, 11.0, 10);
   ASSERT_TRUE(gyro.at(11.05, 0.05, &h1, &s1));
   EXPECT_NE(s1, s0);
   // Time going back: the later samples dropped, a new segment again.
@@ -138,9 +142,27 @@ TEST(GyroHeadingTest, IntegratesTheTurnAboutTheVerticalAndSplitsAtGaps) {
   EXPECT_NE(s2, s1);
 }
 
+// Past the newest sample the heading goes on at its rate for at most the gap that would end the
+// segment; held there, it would claim that the body stopped turning (an IMU whose rates stopped).
+TEST(GyroHeadingTest, PastTheNewestSampleTheHeadingGoesOnAtItsRateForAGapAtMost) {
+  GyroHeading gyro(2.0, 0.1);
+  turnLevel(&gyro, 10.0, 50);
+  double h_end, h;
+  long long s_end, s;
+  ASSERT_TRUE(gyro.at(10.5, 0.5, &h_end, &s_end));
+  ASSERT_TRUE(gyro.at(10.56, 0.5, &h, &s));
+  EXPECT_EQ(s, s_end);
+  EXPECT_NEAR(h - h_end, 0.5 * 0.06, 1e-9);
+  std::string why;
+  EXPECT_FALSE(gyro.at(10.65, 0.5, &h, &s, &why)) << "0.15 s past the newest sample";
+  EXPECT_NE(why.find("no gyro samples"), std::string::npos) << why;
+  EXPECT_FALSE(gyro.at(10.55, 0.02, &h, &s)) << "beyond the caller's tolerance";
+  EXPECT_FALSE(gyro.at(9.99, 0.5, &h, &s)) << "before the first sample";
+}
+
 TEST(GyroHeadingTest, AStepCarriesATurnOnlyWithinTheLastStepsSegment) {
   GyroHeading gyro(2.0, 0.1);
-  for (int k = 0; k <= 50; ++k) gyro.add(10.0 + 0.01 * k, Eigen::Vector3d(0, 0, 0.5), 0.0, 0.0);
+  turnLevel(&gyro, 10.0, 50);
   long long last = -1;
   double h0 = -1.0, h1 = -1.0;
   // The segment's first step has nothing to compare with; its heading is still the reference.
@@ -154,7 +176,7 @@ TEST(GyroHeadingTest, AStepCarriesATurnOnlyWithinTheLastStepsSegment) {
   EXPECT_EQ(last, -1);
   EXPECT_FALSE(gyroHeadingForStep(gyro, 10.3, 0.05, &last, &h1));
   // A gap: the new segment's first step carries no turn.
-  for (int k = 0; k <= 10; ++k) gyro.add(11.0 + 0.01 * k, Eigen::Vector3d(0, 0, 0.5), 0.0, 0.0);
+  turnLevel(&gyro, 11.0, 10);
   EXPECT_FALSE(gyroHeadingForStep(gyro, 11.05, 0.05, &last, &h1));
   EXPECT_TRUE(gyroHeadingForStep(gyro, 11.08, 0.05, &last, &h1));
 }

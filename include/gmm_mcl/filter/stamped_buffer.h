@@ -64,8 +64,10 @@ class GyroHeading {
   explicit GyroHeading(double max_age_s = 2.0, double max_gap_s = 0.1);
   void add(double stamp_s, const Eigen::Vector3d& omega_imu_rad_s, double roll_rad,
            double pitch_rad);
-  // The heading at t (interpolated between samples, else the nearest within tolerance_s) and
-  // its segment. False, with why, when neither.
+  // The heading at t and its segment: interpolated between samples (or a sample's own); after
+  // the newest sample, by at most tolerance_s and max_gap_s, extrapolated at its rate. False,
+  // with why, otherwise: a heading held beyond the samples would claim that the body did not
+  // turn (an IMU whose rates stopped, or a frame before the first sample).
   bool at(double t_s, double tolerance_s, double* heading_rad, long long* segment,
           std::string* why = nullptr) const;
   void eraseAfter(double t_s);  // time went back: the later samples dropped, a new segment
@@ -73,8 +75,8 @@ class GyroHeading {
 
  private:
   double max_gap_s_;
-  StampedPoseBuffer track_;  // heading in translation x, segment in translation y
-  std::mutex mutex_;         // the integration's state below
+  StampedPoseBuffer track_;   // heading in translation x, segment in translation y
+  mutable std::mutex mutex_;  // the integration's state below
   bool have_ = false;
   double last_stamp_s_ = 0.0, last_rate_rad_s_ = 0.0, heading_rad_ = 0.0;
   long long segment_ = 0;
