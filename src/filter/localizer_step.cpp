@@ -132,6 +132,7 @@ void Localizer::predictStep(const StepInput& in, StepResult* res) {
     delta = motion_model_.predict(step_dt_s_, params_.filter.sigma_translation_m,
                                   params_.filter.sigma_yaw_rad, gyro ? &gyro_delta : nullptr);
     res->motion = MotionSource::kConstantVelocity;
+    res->gyro_yaw = gyro && params_.constant_velocity.use_gyro;
   } else {
     res->motion = MotionSource::kStatic;
   }

@@ -60,6 +60,9 @@ void fillStatus(const StepResult& r, const FrameCounters& c, const std::string& 
   s->resets = static_cast<int32_t>(c.resets);
   s->resampled = r.resampled;
   s->odometry_jump = r.odometry_jump;
+  s->motion = r.motion == MotionSource::kConstantVelocity && r.gyro_yaw
+                  ? "constant_velocity_gyro"
+                  : motionSourceName(r.motion);
   s->backend_fallback = r.backend_fallback;
   s->refined = r.refinement.refined;
   s->refine_why = r.refinement.why;

@@ -37,6 +37,7 @@ struct Track {
   int within_last = 0;  // of the last frames, those within kTrackedErrorM
   int constant_velocity_steps = 0;
   int odometry_steps = 0;
+  int gyro_steps = 0;  // constant-velocity steps turned by the gyro (StepResult::gyro_yaw)
   double roll_error_rad = 0.0, pitch_error_rad = 0.0;  // the localizer's at the end
 };
 
@@ -97,6 +98,7 @@ Track run(const LocalizerParams& params, int frames, int step, int odometry_from
     EXPECT_EQ(res.status, StepStatus::kOk) << res.message;
     t.constant_velocity_steps += res.motion == MotionSource::kConstantVelocity ? 1 : 0;
     t.odometry_steps += res.motion == MotionSource::kOdometry ? 1 : 0;
+    t.gyro_steps += res.gyro_yaw ? 1 : 0;
     if (k >= steps - last) {
       const Particle gt = poseToParticle(truth[f]);
       const Particle& est = res.refinement.pose;  // the refined pose, else the mean
@@ -156,6 +158,8 @@ TEST(LocalizerNoOdometryTest, TheGyroCarriesFastTurnsAtTenHertz) {
   EXPECT_GE(with.within_last, 30);
   EXPECT_LT(with.worst_last_yaw_rad, 0.05);
   EXPECT_GT(with.within_last, without.within_last);
+  EXPECT_EQ(with.gyro_steps, 99);  // every step but the first, which has no earlier heading
+  EXPECT_EQ(without.gyro_steps, 0);
 }
 
 // Odometry that appears after the filter started without it: its first message has no delta

@@ -29,6 +29,7 @@ namespace lockstep {
 struct RobotFrame {
   bool odom_tf = true;
   bool imu = true;
+  bool imu_rates = false;  // the IMU's angular velocity too: the turn since the last frame sent
   bool camera_info = true;
   bool image = true;
   std::string encoding = "16UC1";  // rgb8: a wrong encoding; 32FC1 with nan_depth
@@ -123,12 +124,16 @@ class SyntheticRobot {
   void publishOdometry(const ros::Time& t, const Eigen::Isometry3d& T_map_base) {
     sendTf(ros_conv::transformStamped(T_odom_base(T_map_base), "odom", "base_link", t));
   }
-  void publishImu(const ros::Time& t, double roll_rad, double pitch_rad) {
+  void publishImu(const ros::Time& t, double roll_rad, double pitch_rad,
+                  const Eigen::Vector3d& omega_rad_s = Eigen::Vector3d::Zero()) {
     sensor_msgs::Imu imu;
     imu.header.stamp = t;
     imu.header.frame_id = "base_link";
     imu.orientation =
         ros_conv::poseFromIsometry(particleToPose(Particle(), roll_rad, pitch_rad)).orientation;
+    imu.angular_velocity.x = omega_rad_s.x();
+    imu.angular_velocity.y = omega_rad_s.y();
+    imu.angular_velocity.z = omega_rad_s.z();
     imu_pub_.publish(imu);
     ++imu_published_;
   }
@@ -149,8 +154,17 @@ class SyntheticRobot {
     if (f.imu) {
       double roll, pitch, yaw;
       rpyFromRotation(T_map_base.linear(), &roll, &pitch, &yaw);
-      publishImu(t, roll, pitch);
+      // The body's angular velocity over the interval since the last frame (the IMU is the base).
+      Eigen::Vector3d omega = Eigen::Vector3d::Zero();
+      if (f.imu_rates && have_last_ && t > last_t_) {
+        const Eigen::AngleAxisd turn(last_T_map_base_.linear().transpose() * T_map_base.linear());
+        omega = turn.axis() * turn.angle() / (t - last_t_).toSec();
+      }
+      publishImu(t, roll, pitch, omega);
     }
+    have_last_ = true;
+    last_t_ = t;
+    last_T_map_base_ = T_map_base;
     sensor_msgs::Image img;
     img.header.stamp = t;
     img.header.frame_id = f.camera_frame;
@@ -235,6 +249,9 @@ class SyntheticRobot {
   std::mt19937_64 rng_;
   uint32_t seq_ = 0;
   long long imu_published_ = 0;
+  bool have_last_ = false;  // the last frame sent (the IMU's rates)
+  ros::Time last_t_;
+  Eigen::Isometry3d last_T_map_base_ = Eigen::Isometry3d::Identity();
   bool static_sent_ = false;
 };
 

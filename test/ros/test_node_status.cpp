@@ -170,6 +170,24 @@ TEST(NodeStatusTest, EachCamerasDepthScaleIsReported) {
   EXPECT_EQ(diagnose(h).level, S::OK) << diagnose(h).message;
 }
 
+// What predicted the step, by name: the gyro's turn named apart from the model's own yaw rate.
+TEST(NodeStatusTest, TheStepsMotionIsNamed) {
+  StepResult r;
+  FilterStatus s;
+  fillStatus(r, FrameCounters(), "cpu", "", 1.0, "", &s);
+  EXPECT_EQ(s.motion, "odometry");
+  r.motion = MotionSource::kConstantVelocity;
+  fillStatus(r, FrameCounters(), "cpu", "", 1.0, "", &s);
+  EXPECT_EQ(s.motion, "constant_velocity");
+  r.gyro_yaw = true;
+  fillStatus(r, FrameCounters(), "cpu", "", 1.0, "", &s);
+  EXPECT_EQ(s.motion, "constant_velocity_gyro");
+  r.motion = MotionSource::kStatic;
+  r.gyro_yaw = false;
+  fillStatus(r, FrameCounters(), "cpu", "", 1.0, "", &s);
+  EXPECT_EQ(s.motion, "static");
+}
+
 // The best particle below the lost detector's line, and a lost event: warned.
 TEST(NodeStatusTest, LostDetectorWarns) {
   NodeHealth h = tracking(10.0);

@@ -98,6 +98,8 @@ struct StepResult {
   // How this step predicted: odometry, the constant-velocity model (no odometry, or the first
   // step of an odometry that appeared) or no motion (motion_model.h).
   MotionSource motion = MotionSource::kOdometry;
+  // A constant-velocity step whose yaw change came from the IMU gyro's heading (cv_gyro).
+  bool gyro_yaw = false;
   // The backend failed on this frame and the localizer switched to the CPU backend (the
   // particles kept); Localizer::backendWarning() says why from now on.
   bool backend_fallback = false;
