@@ -71,9 +71,10 @@ TEST(NoOdometryTest, TheGyroTurnsEachStepWhereTheImuCarriesItsRates) {
   const double worst_start_m = track(60, withoutOdometry(false), &motions, &last_m);
   ASSERT_EQ(motions.size(), 60u);
   EXPECT_EQ(std::count(motions.begin(), motions.end(), "constant_velocity"), 60);
-  std::printf("[ measured ] from the reset, the filter's own motion: largest error %.3f m over "
-              "60 frames, last %.3f m\n",
-              worst_start_m, last_m);
+  std::printf(
+      "[ measured ] from the reset, the filter's own motion: largest error %.3f m over "
+      "60 frames, last %.3f m\n",
+      worst_start_m, last_m);
 
   // With the body's angular velocity: the run's first frame has no earlier heading, and a step
   // turns by the gyro only between two frames that both carry one, so from the third on.
