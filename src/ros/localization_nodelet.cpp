@@ -107,6 +107,9 @@ void LocalizationNodelet::advertise() {
     odom_sub_ = getMTNodeHandle().subscribe<nav_msgs::Odometry>(
         "odom", 1000, [this](const nav_msgs::OdometryConstPtr& m) { inputs_->addOdometry(*m); });
   }
+  // A frame waits for the first message of a source with a publisher (it may be on its way).
+  inputs_->setConnections([this] { return imu_sub_ && imu_sub_.getNumPublishers() > 0; },
+                          [this] { return odom_sub_ && odom_sub_.getNumPublishers() > 0; });
   DepthInput::Callbacks cb;
   cb.arrived = [this](const std_msgs::Header& h) { health_.arrived(h.seq, nowS()); };
   cb.camera_info = [this](const std_msgs::Header&) { health_.cameraInfo(nowS()); };

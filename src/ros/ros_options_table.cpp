@@ -74,7 +74,8 @@ void addNodeOptions(ParamTable<R>* t) {
   add(t, paramSpec<R>("input_wait", GMM_MCL_PARAM_FIELD(R, input_wait_s), "s", g, {0, 10}, kRuntime,
                       "A frame whose IMU sample or odometry message (odometry_source topic) at its "
                       "stamp has not arrived yet waits for them at most this long; sources that "
-                      "never delivered are not waited for (0 = never wait)"));
+                      "never delivered and have no publisher are not waited for (0 = never "
+                      "wait)"));
   add(t, paramSpec<R>(
              "more_cameras", GMM_MCL_PARAM_FIELD(R, more_cameras), "", g, {}, kStartup,
              "The rig's other depth cameras (docs/ros.md, Several depth cameras): names, "

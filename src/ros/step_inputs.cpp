@@ -43,8 +43,10 @@ bool StepInputs::odometryAt(const ros::Time& stamp, Eigen::Isometry3d* T_odom_ba
 
 bool StepInputs::inputsArrived(const ros::Time& stamp) const {
   const double t = stamp.toSec();
-  if (opts_.use_imu && imu_.added() > 0 && !imu_.reaches(t)) return false;
-  if (opts_.odometry_source == "topic" && odom_.added() > 0 && !odom_.reaches(t)) return false;
+  if (opts_.use_imu && awaited(imu_, imu_connected_) && !imu_.reaches(t)) return false;
+  if (opts_.odometry_source == "topic" && awaited(odom_, odom_connected_) && !odom_.reaches(t)) {
+    return false;
+  }
   return true;
 }
 
@@ -56,9 +58,10 @@ bool StepInputs::waitForInputs(const ros::Time& stamp) {
                             std::chrono::duration<double>(opts_.input_wait_s));
   // Each buffer wakes its waiter when a message is added (StampedPoseBuffer::waitUntilReaches).
   const double t = stamp.toSec();
-  const bool imu = !opts_.use_imu || imu_.added() == 0 || imu_.waitUntilReaches(t, deadline);
-  const bool odom =
-      opts_.odometry_source != "topic" || odom_.added() == 0 || odom_.waitUntilReaches(t, deadline);
+  const bool imu =
+      !opts_.use_imu || !awaited(imu_, imu_connected_) || imu_.waitUntilReaches(t, deadline);
+  const bool odom = opts_.odometry_source != "topic" || !awaited(odom_, odom_connected_) ||
+                    odom_.waitUntilReaches(t, deadline);
   if (imu && odom) return true;
   ++waits_in_vain_;
   return false;

@@ -58,11 +58,14 @@ bool resetToTruth() {
 }
 
 // What predicted each step, by the frames' own content (their stamps and the IMU messages sent
-// with them), so the same on any machine. The errors are printed, not checked: from the reset the
-// nodelet's estimate lags the moving robot by up to 0.26 m before the velocity is learned, and
-// beside another rostest the same frames have ended 0.18 m off instead of 0.02 m (a difference
-// between runs not found yet; docs/no_odometry.md). Tracking without odometry is checked on the
-// core's runs (test_localizer_no_odometry, test_kidnap).
+// with them), so the same on any machine; and how closely the estimate follows the robot. From
+// the reset the estimate lags the moving robot (0.6 m/s) until the filter has learned its
+// velocity (0.26 m at most here), so the first phase checks where it ends; the later phases
+// check every frame. The runs are the same on a loaded machine: the first frame waits for the IMU
+// message sent with it (StepInputs::setConnections); it used to go on without an attitude now and
+// then, and those runs ended 0.18 m off instead of 0.02 m. Tracked: kTrackedM
+// (nodelet_test_world.h, 0.05 m).
+
 TEST(NoOdometryTest, TheGyroTurnsEachStepWhereTheImuCarriesItsRates) {
   ASSERT_TRUE(resetToTruth());
   // IMU messages without rates (orientation only): the filter's own recent motion.
@@ -75,6 +78,7 @@ TEST(NoOdometryTest, TheGyroTurnsEachStepWhereTheImuCarriesItsRates) {
       "[ measured ] from the reset, the filter's own motion: largest error %.3f m over "
       "60 frames, last %.3f m\n",
       worst_start_m, last_m);
+  EXPECT_LT(last_m, kTrackedM) << "the velocity not learned within 60 frames (2 s)";
 
   // With the body's angular velocity: the run's first frame has no earlier heading, and a step
   // turns by the gyro only between two frames that both carry one, so from the third on.
@@ -86,6 +90,7 @@ TEST(NoOdometryTest, TheGyroTurnsEachStepWhereTheImuCarriesItsRates) {
   EXPECT_EQ(std::count(motions.begin() + 2, motions.end(), "constant_velocity_gyro"), 88);
   std::printf("[ measured ] gyro-turned steps: largest error %.3f m over 90 frames, last %.3f m\n",
               worst_gyro_m, last_m);
+  EXPECT_LT(worst_gyro_m, kTrackedM);
 
   // The rates stop: the heading goes on at the last rate for at most 0.1 s (the gyro's gap),
   // then the filter's own motion again.
@@ -95,6 +100,7 @@ TEST(NoOdometryTest, TheGyroTurnsEachStepWhereTheImuCarriesItsRates) {
   EXPECT_EQ(std::count(motions.begin() + 3, motions.end(), "constant_velocity"), 27);
   std::printf("[ measured ] after the rates stopped: largest error %.3f m over 30 frames\n",
               worst_after_m);
+  EXPECT_LT(worst_after_m, kTrackedM);
 }
 
 }  // namespace lockstep

@@ -104,6 +104,8 @@ TEST_F(StepInputsTest, AFrameWaitsForTheOdometryMessageAtItsStamp) {
   EXPECT_NEAR(in.T_odom_base.translation().x(), 2.0, 1e-9) << "not the odometry at its stamp";
 }
 
+// Without a publisher (no connection: nothing is on its way), a source that never delivered is
+// not waited for.
 TEST_F(StepInputsTest, ASourceThatNeverDeliveredIsNotWaitedFor) {
   opts_.odometry_source = "topic";
   inputs_.setOptions(opts_);
@@ -116,6 +118,19 @@ TEST_F(StepInputsTest, ASourceThatNeverDeliveredIsNotWaitedFor) {
   EXPECT_FALSE(in.has_odometry);
   EXPECT_TRUE(gaps.imu);
   EXPECT_TRUE(gaps.odometry);
+}
+
+// The first frame after start: its IMU message was published just before it but is handled on
+// another connection's thread after it. With a publisher on the topic, the frame waits for that
+// first sample instead of going on without an attitude (which set the nodelet's no-odometry
+// runs on a loaded machine apart: rostest no_odometry.test).
+TEST_F(StepInputsTest, TheFirstFrameWaitsForTheFirstSampleOfAConnectedSource) {
+  inputs_.setConnections([] { return true; }, [] { return false; });
+  const StepInput in = gatherWithLate(1.0, [&] { inputs_.addImu(imuAt(1.0, 0.2)); });
+  EXPECT_EQ(inputs_.waitsBegun(), 1);
+  EXPECT_EQ(inputs_.waitsInVain(), 0);
+  ASSERT_TRUE(in.has_attitude) << "the first frame went on without its IMU sample";
+  EXPECT_NEAR(in.roll_rad, 0.2, 1e-9);
 }
 
 TEST_F(StepInputsTest, ASourceThatStopsIsAGapAfterTheWait) {

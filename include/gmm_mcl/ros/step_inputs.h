@@ -10,7 +10,9 @@
 #include <tf2_ros/buffer.h>
 
 #include <atomic>
+#include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "gmm_mcl/filter/localizer.h"
@@ -36,9 +38,16 @@ class StepInputs {
     bool imu = false;       // no IMU attitude at the stamp: roll and pitch from odometry
     std::string warnings;   // why, for ~status
   };
+  // Whether each source (the IMU, the odometry topic) has a publisher connected now; called from
+  // the frame's thread (ros::Subscriber::getNumPublishers). Unset: none.
+  void setConnections(std::function<bool()> imu, std::function<bool()> odometry) {
+    imu_connected_ = std::move(imu);
+    odom_connected_ = std::move(odometry);
+  }
   // Whether the IMU sample and the odometry message (odometry_source topic) at the stamp have
-  // arrived; sources that never delivered, or are not used, count as arrived. (Odometry from tf
-  // is awaited before: DepthInput's tf message filter.)
+  // arrived; sources that are not used, or never delivered and have no publisher, count as
+  // arrived (a connected one's first message may be on its way behind the frame). (Odometry
+  // from tf is awaited before: DepthInput's tf message filter.)
   bool inputsArrived(const ros::Time& stamp) const;
   // Waits, at most opts.input_wait_s, until inputsArrived(stamp): messages published with a
   // frame travel on other connections and threads and may be handled after it. True when
@@ -81,6 +90,11 @@ class StepInputs {
   static const Eigen::Isometry3d kIdentity;
   bool clear_tf_ = false;
   std::atomic<long long> waits_begun_{0}, waits_in_vain_{0};
+  std::function<bool()> imu_connected_, odom_connected_;
+  // Whether a frame at t waits for the buffer: it has delivered, or a publisher is connected.
+  bool awaited(const StampedPoseBuffer& b, const std::function<bool()>& connected) const {
+    return b.added() > 0 || (connected && connected());
+  }
 };
 
 }  // namespace gmm_mcl
