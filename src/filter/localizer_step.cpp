@@ -127,7 +127,8 @@ void Localizer::predictStep(const StepInput& in, StepResult* res) {
   } else if (params_.constant_velocity.enabled) {
     // No odometry (or its first message: no delta yet): the filter's own recent motion, its
     // yaw change from the gyro where the input has one.
-    const bool gyro = in.has_gyro_yaw && have_gyro_yaw_ && std::isfinite(in.gyro_yaw_rad);
+    const bool gyro = in.has_gyro_yaw && have_gyro_yaw_ && in.gyro_segment == last_gyro_segment_ &&
+                      std::isfinite(in.gyro_yaw_rad);
     const double gyro_delta = gyro ? in.gyro_yaw_rad - last_gyro_yaw_rad_ : 0.0;
     delta = motion_model_.predict(step_dt_s_, params_.filter.sigma_translation_m,
                                   params_.filter.sigma_yaw_rad, gyro ? &gyro_delta : nullptr);
@@ -142,6 +143,7 @@ void Localizer::predictStep(const StepInput& in, StepResult* res) {
   }
   have_gyro_yaw_ = in.has_gyro_yaw && std::isfinite(in.gyro_yaw_rad);
   last_gyro_yaw_rad_ = in.gyro_yaw_rad;
+  last_gyro_segment_ = in.gyro_segment;
   filter_->predict(delta);
   last_delta_ = delta;
   // The last refined pose moves like a particle, without noise.

@@ -171,14 +171,14 @@ void GyroHeading::eraseAfter(double t_s) {
   ++segment_;
 }
 
-bool gyroHeadingForStep(const GyroHeading& gyro, double t_s, double tolerance_s,
-                        long long* last_segment, double* heading_rad) {
-  long long segment = -1;
-  const bool found = gyro.at(t_s, tolerance_s, heading_rad, &segment);
-  if (!found) *heading_rad = 0.0;
-  const bool same = found && segment == *last_segment;
-  *last_segment = found ? segment : -1;
-  return same;
+bool gyroHeadingForStep(const GyroHeading& gyro, double t_s, double tolerance_s, long long* segment,
+                        double* heading_rad) {
+  const bool found = gyro.at(t_s, tolerance_s, heading_rad, segment);
+  if (!found) {
+    *heading_rad = 0.0;
+    *segment = -1;
+  }
+  return found;
 }
 
 }  // namespace gmm_mcl

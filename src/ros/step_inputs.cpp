@@ -110,10 +110,10 @@ bool StepInputs::gather(const std_msgs::Header& header, StepInput* in, Gaps* gap
         imu_.attitudeAt(in->stamp_s, opts_.imu_timeout_s, &in->roll_rad, &in->pitch_rad, &gap);
     gaps->imu = !in->has_attitude;
     if (gaps->imu) gaps->warnings += "IMU attitude: " + gap + " (roll/pitch from odometry); ";
-    // The gyro's heading, for a step without odometry; compared only within one segment of
-    // gap-free samples (the first frame of a segment carries none).
+    // The gyro's heading, for a step without odometry (the localizer compares headings only
+    // within one segment of gap-free samples).
     in->has_gyro_yaw = gyroHeadingForStep(gyro_, in->stamp_s, opts_.imu_timeout_s,
-                                          &last_gyro_segment_, &in->gyro_yaw_rad);
+                                          &in->gyro_segment, &in->gyro_yaw_rad);
   }
   return true;
 }
@@ -121,7 +121,6 @@ bool StepInputs::gather(const std_msgs::Header& header, StepInput* in, Gaps* gap
 void StepInputs::timeJumpedBack(const ros::Time& stamp) {
   imu_.eraseAfter(stamp.toSec());
   gyro_.eraseAfter(stamp.toSec());
-  last_gyro_segment_ = -1;
   odom_.eraseAfter(stamp.toSec());
   clear_tf_ = true;
 }

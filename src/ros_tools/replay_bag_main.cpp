@@ -308,7 +308,6 @@ int run(const Options& o) {
       o.map_path.c_str(), map.size(), lp.filter.num_particles, lp.frame.pixel_stride,
       static_cast<unsigned long long>(o.seed));
   double last_t = -1.0;
-  long long last_gyro_segment = -1;
   int skipped = 0;
   for (const rosbag::MessageInstance& m : view) {
     if (static_cast<int>(result.frames.size()) + skipped >= total) break;
@@ -325,9 +324,9 @@ int run(const Options& o) {
       in.has_odometry = has_truth;
       if (has_truth) in.T_odom_base = synth.next(T_truth, last_t < 0 ? 1.0 : (t - last_t) * 30.0);
     } else if (no_odometry) {
-      // The gyro's heading, compared only within one segment of its samples (as the nodelet).
+      // The gyro's heading and its segment of samples (as the nodelet's).
       in.has_gyro_yaw =
-          gyroHeadingForStep(tracks.gyro, t, 0.05, &last_gyro_segment, &in.gyro_yaw_rad);
+          gyroHeadingForStep(tracks.gyro, t, 0.05, &in.gyro_segment, &in.gyro_yaw_rad);
     } else {
       in.has_odometry = odom_track.at(t, 0.05, &in.T_odom_base);
     }

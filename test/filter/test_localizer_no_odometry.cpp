@@ -187,6 +187,33 @@ TEST(LocalizerNoOdometryTest, WithoutAttitudeRollAndPitchFollowTheRefinedEstimat
   EXPECT_LT(t.pitch_error_rad, 0.5 * M_PI / 180);
 }
 
+// The gyro turns a step between two headings of one segment (StepInput::gyro_segment): the
+// second step of a run of IMU samples already turns (the first has nothing to compare with), and
+// a heading of a new run (after a gap) does not turn against the old run's. Predict-only steps.
+TEST(LocalizerNoOdometryTest, TheGyroTurnsFromTheSecondStepOfASegment) {
+  LocalizerParams params = trackingParams(sim::makeTrajectory(1)[0]);
+  params.filter.num_particles = 20;
+  Localizer loc(params, test::world().map);
+  const auto step = [&](int k, bool has, long long segment) {
+    StepInput in;
+    in.stamp_s = 10.0 + k * kDt;
+    in.has_gyro_yaw = has;
+    in.gyro_yaw_rad = 0.01 * k;
+    in.gyro_segment = segment;
+    const StepResult r = loc.step(in);
+    EXPECT_EQ(r.motion, MotionSource::kConstantVelocity);
+    return r.gyro_yaw;
+  };
+  EXPECT_FALSE(step(0, true, 3)) << "a segment's first step";
+  EXPECT_TRUE(step(1, true, 3)) << "its second step";
+  EXPECT_TRUE(step(2, true, 3));
+  EXPECT_FALSE(step(3, true, 4)) << "a new segment's first step";
+  EXPECT_TRUE(step(4, true, 4));
+  EXPECT_FALSE(step(5, false, -1)) << "no heading";
+  EXPECT_FALSE(step(6, true, 4)) << "nothing to compare with in the step before";
+  EXPECT_TRUE(step(7, true, 4));
+}
+
 // Time going back and a reset forget the velocity.
 TEST(LocalizerNoOdometryTest, TimeJumpBackAndResetForgetTheVelocity) {
   const auto& w = test::world();

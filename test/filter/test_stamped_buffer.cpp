@@ -160,25 +160,24 @@ TEST(GyroHeadingTest, PastTheNewestSampleTheHeadingGoesOnAtItsRateForAGapAtMost)
   EXPECT_FALSE(gyro.at(9.99, 0.5, &h, &s)) << "before the first sample";
 }
 
-TEST(GyroHeadingTest, AStepCarriesATurnOnlyWithinTheLastStepsSegment) {
+TEST(GyroHeadingTest, AStepsHeadingNamesItsSegment) {
   GyroHeading gyro(2.0, 0.1);
   turnLevel(&gyro, 10.0, 50);
-  long long last = -1;
+  long long s0 = -2, s1 = -2;
   double h0 = -1.0, h1 = -1.0;
-  // The segment's first step has nothing to compare with; its heading is still the reference.
-  EXPECT_FALSE(gyroHeadingForStep(gyro, 10.1, 0.05, &last, &h0));
-  EXPECT_GE(last, 0);
-  EXPECT_TRUE(gyroHeadingForStep(gyro, 10.2, 0.05, &last, &h1));
+  ASSERT_TRUE(gyroHeadingForStep(gyro, 10.1, 0.05, &s0, &h0));
+  EXPECT_GE(s0, 0);
+  ASSERT_TRUE(gyroHeadingForStep(gyro, 10.2, 0.05, &s1, &h1));
+  EXPECT_EQ(s1, s0);
   EXPECT_NEAR(h1 - h0, 0.05, 1e-9);
-  // No sample near the stamp: none, heading 0, and the next step starts over.
-  EXPECT_FALSE(gyroHeadingForStep(gyro, 20.0, 0.05, &last, &h1));
+  // No sample near the stamp: none, heading 0, segment -1.
+  EXPECT_FALSE(gyroHeadingForStep(gyro, 20.0, 0.05, &s1, &h1));
   EXPECT_EQ(h1, 0.0);
-  EXPECT_EQ(last, -1);
-  EXPECT_FALSE(gyroHeadingForStep(gyro, 10.3, 0.05, &last, &h1));
-  // A gap: the new segment's first step carries no turn.
+  EXPECT_EQ(s1, -1);
+  // A gap: a new segment, whose headings are not comparable with the old one's.
   turnLevel(&gyro, 11.0, 10);
-  EXPECT_FALSE(gyroHeadingForStep(gyro, 11.05, 0.05, &last, &h1));
-  EXPECT_TRUE(gyroHeadingForStep(gyro, 11.08, 0.05, &last, &h1));
+  ASSERT_TRUE(gyroHeadingForStep(gyro, 11.05, 0.05, &s1, &h1));
+  EXPECT_GT(s1, s0);
 }
 
 }  // namespace

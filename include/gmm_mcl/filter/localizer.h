@@ -59,9 +59,12 @@ struct StepInput {
   // The IMU gyro's heading at the stamp: its turn rate about the vertical integrated over time,
   // from any origin (only differences between steps are used). A step without odometry takes its
   // yaw change from the difference to the previous step's (cv_gyro), where the
-  // constant-velocity model's yaw rate lags a fast turn.
+  // constant-velocity model's yaw rate lags a fast turn. gyro_segment: the run of gap-free
+  // samples the heading belongs to; headings of different runs are not compared (a gap or a time
+  // jump starts a new run: GyroHeading). A caller with one continuous source leaves it 0.
   bool has_gyro_yaw = false;
   double gyro_yaw_rad = 0.0;
+  long long gyro_segment = 0;
   const DepthImage* depth = nullptr;  // nullptr: predict only
   Intrinsics intrinsics;
   // The camera optical frame in the base frame at this frame's stamp (a gimbal, a moving
@@ -283,6 +286,7 @@ class Localizer {
   Eigen::Isometry3d last_odom_ = Eigen::Isometry3d::Identity();
   bool have_gyro_yaw_ = false;  // the previous step's StepInput::gyro_yaw_rad
   double last_gyro_yaw_rad_ = 0.0;
+  long long last_gyro_segment_ = 0;
   bool have_stamp_ = false;
   double last_stamp_s_ = 0.0;
   double step_dt_s_ = 0.0;  // time since the previous step (0 at the first, after a jump back)

@@ -82,10 +82,10 @@ class GyroHeading {
   long long segment_ = 0;
 };
 
-// A step's gyro heading (StepInput::gyro_yaw_rad, has_gyro_yaw): the heading at t, 0 where there
-// is none; true only when it lies in the previous step's segment (*last_segment, updated), since
-// headings of different segments are not comparable and a segment's first frame carries no turn.
-bool gyroHeadingForStep(const GyroHeading& gyro, double t_s, double tolerance_s,
-                        long long* last_segment, double* heading_rad);
+// A step's gyro heading (StepInput::has_gyro_yaw, gyro_yaw_rad, gyro_segment): whether there is
+// one at t, the heading (0 where none) and its segment (-1 where none). The localizer compares
+// headings of one segment only.
+bool gyroHeadingForStep(const GyroHeading& gyro, double t_s, double tolerance_s, long long* segment,
+                        double* heading_rad);
 
 }  // namespace gmm_mcl

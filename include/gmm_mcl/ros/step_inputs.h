@@ -80,8 +80,7 @@ class StepInputs {
   tf2_ros::Buffer* tf_;
   RosOptions opts_;
   StampedPoseBuffer imu_{2.0}, odom_{10.0};
-  GyroHeading gyro_{2.0, 0.1};        // the IMU's angular velocity, integrated
-  long long last_gyro_segment_ = -1;  // of the last frame gathered
+  GyroHeading gyro_{2.0, 0.1};  // the IMU's angular velocity, integrated
   struct Extrinsics {
     std::string frame;  // the camera frame they belong to ("": none yet)
     Eigen::Isometry3d T_base_cam = Eigen::Isometry3d::Identity();
