@@ -31,21 +31,16 @@ constexpr float kNegligibleBelowFloor = 25.f;
 // exponents of all members (9 FMA per vector, each member's 10 constants broadcast once for all
 // V vectors), with the indices of the non-negligible vectors; then exp and the sum over those
 // only, in member order (no branch per member: on the benchmark most (member, patch) pairs are
-// negligible, in an unpredictable pattern; the share is in docs/benchmark.md).
+// negligible, in an unpredictable pattern; the share is in docs/benchmark.md). Scratch: t_out
+// [k][V][8] exponents, kept [V][k] the members with a used lane kept (the caller's: a
+// thread_local looked up here, once per call, cost 3% of the CPU backend's update).
 template <int V>
 __attribute__((noinline)) void patchMixture(const EvalComponentF* __restrict comps,
                                             const int* __restrict members, int k, float shift,
                                             float negligible, const v8f* __restrict x,
                                             const v8f* __restrict y, const v8f* __restrict z,
-                                            const v8i* __restrict used, v8f* __restrict acc) {
-  static thread_local std::vector<float> exponents;  // [k][V][8]
-  static thread_local std::vector<int> keep;         // [V][k]: members with a used lane kept
-  if (exponents.size() < static_cast<size_t>(k) * V * 8) {
-    exponents.resize(static_cast<size_t>(k) * V * 8);
-    keep.resize(static_cast<size_t>(k) * V);
-  }
-  float* __restrict t_out = exponents.data();
-  int* __restrict kept = keep.data();
+                                            const v8i* __restrict used, float* __restrict t_out,
+                                            int* __restrict kept, v8f* __restrict acc) {
   v8f px[V], py[V], pz[V];
   v8i use[V];
   int n[V];
@@ -85,6 +80,20 @@ __attribute__((noinline)) void patchMixture(const EvalComponentF* __restrict com
 
 // Points per kernel call: two vectors (a 4x4 patch at stride 8 is one call).
 constexpr int kKernelPoints = 16;
+
+// frameLogLikelihood's and noisyEvalComponents' per-thread buffers, looked up by a call of its
+// own (membership.cpp's threadMembershipBuffers says why).
+struct LikelihoodBuffers {
+  std::vector<float> points;     // the frame's points in the map frame: x, y, z rows
+  std::vector<float> exponents;  // patchMixture's scratch
+  std::vector<int> keep;
+  std::vector<float> own_soa, form;  // noisyEvalComponents: componentSoA, noisyFormsAll's rows
+  std::vector<int> ok;
+};
+__attribute__((noinline)) LikelihoodBuffers& threadLikelihoodBuffers() {
+  static thread_local LikelihoodBuffers buffers;
+  return buffers;
+}
 
 }  // namespace
 
@@ -178,8 +187,10 @@ const EvalComponentF* noisyEvalComponents(
   if (!noise.enabled()) return base.data();
   const int m = static_cast<int>(components.size());
   const int stride = componentSoAStride(m);
-  static thread_local std::vector<float> own_soa, form;
-  static thread_local std::vector<int> ok;
+  LikelihoodBuffers& buffers = threadLikelihoodBuffers();
+  std::vector<float>& own_soa = buffers.own_soa;
+  std::vector<float>& form = buffers.form;
+  std::vector<int>& ok = buffers.ok;
   if (!soa) {
     componentSoA(components, &own_soa);
     soa = &own_soa;
@@ -223,7 +234,10 @@ FrameLikelihood frameLogLikelihood(const EvalComponentF* eval, const DepthFrame&
   const int num_patches = frame.grid.count();
   // All points into the map frame at once (one vectorised loop), padded by a kernel call's
   // points so that a call may read past the last patch (the padding lanes are masked out).
-  static thread_local std::vector<float> buf;
+  LikelihoodBuffers& buffers = threadLikelihoodBuffers();
+  std::vector<float>& buf = buffers.points;
+  std::vector<float>& exponents = buffers.exponents;
+  std::vector<int>& keep = buffers.keep;
   const size_t stride = static_cast<size_t>(total) + kKernelPoints;
   buf.resize(3 * stride);
   float* __restrict wx = buf.data();
@@ -265,6 +279,10 @@ FrameLikelihood frameLogLikelihood(const EvalComponentF* eval, const DepthFrame&
       continue;
     }
     const int* members = membership.comps.data() + membership.begin[p];
+    if (keep.size() < 2 * static_cast<size_t>(k)) {
+      exponents.resize(16 * static_cast<size_t>(k));
+      keep.resize(2 * static_cast<size_t>(k));
+    }
     float shift = floor_log_density;
     for (int j = 0; j < k; ++j) shift = maxf(shift, eval[members[j]].log_norm);
     const v8f floor_term = simd::splat(expNonPositive(floor_log_density - shift));
@@ -283,9 +301,11 @@ FrameLikelihood frameLogLikelihood(const EvalComponentF* eval, const DepthFrame&
       v8i used[2];  // lanes holding this patch's pixels
       for (int v = 0; v < vectors; ++v) used[v] = lane < simd::splati(n - 8 * v);
       if (vectors == 2) {
-        patchMixture<2>(eval, members, k, shift, negligible, x, y, z, used, acc);
+        patchMixture<2>(eval, members, k, shift, negligible, x, y, z, used, exponents.data(),
+                        keep.data(), acc);
       } else {
-        patchMixture<1>(eval, members, k, shift, negligible, x, y, z, used, acc);
+        patchMixture<1>(eval, members, k, shift, negligible, x, y, z, used, exponents.data(),
+                        keep.data(), acc);
       }
       for (int v = 0; v < vectors; ++v) {
         const v8f lv =
