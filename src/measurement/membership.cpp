@@ -361,6 +361,7 @@ struct MembershipBuffers {
   std::vector<int> soa_i;          // ProjectedSoA ints: [6][m]
   std::vector<int> hit_patch;      // pass 1's patches, in component order
   std::vector<int> run_begin;      // [m + 1]: component i's run in hit_patch
+  std::vector<int> hit_comp;       // pass 2: each hit's component (+ 16 slack)
   std::vector<int> cursor;         // pass 2's next slot per patch
   std::vector<int> in_view;        // [m]: inViewAll
   std::vector<float> depth_reach;  // depth, dz2_max: [2][m]
@@ -428,6 +429,7 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
   std::vector<int>& soa_i = buffers.soa_i;
   std::vector<int>& hit_patch = buffers.hit_patch;
   std::vector<int>& run_begin = buffers.run_begin;
+  std::vector<int>& hit_comp = buffers.hit_comp;
   std::vector<int>& cursor = buffers.cursor;
   std::vector<int>& in_view = buffers.in_view;
   std::vector<float>& depth_reach = buffers.depth_reach;
@@ -552,16 +554,24 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
   run_begin[m] = static_cast<int>(hits);
   for (int p = 0; p < num_patches; ++p) out->begin[p + 1] = out->begin[p] + count[p];
   out->comps.resize(out->begin[num_patches]);
-  // Pass 2: scatter the runs of pass 1 (components ascending within each patch).
+  // Pass 2: scatter the runs of pass 1 (components ascending within each patch). Each hit's
+  // component first (hit_comp), so that the scatter is one loop over the hits: a loop per
+  // component, whose trip count the branch predictor cannot know, took a quarter of
+  // computeMembership's time.
+  const size_t total_hits = hits;
+  hit_comp.resize(total_hits + 16);
+  int* __restrict hc = hit_comp.data();
+  const int* __restrict rb = run_begin.data();
+  for (int i = 0; i < m; ++i) {  // 16 entries from each run's start; the next run overwrites
+    const int b = rb[i], len = rb[i + 1] - b;
+    for (int k = 0; k < 16; ++k) hc[b + k] = i;
+    for (int k = 16; k < len; ++k) hc[b + k] = i;  // a run of more than 16 patches (rare)
+  }
   cursor.assign(out->begin.begin(), out->begin.end() - 1);
   int* __restrict cur = cursor.data();
   int* __restrict dst = out->comps.data();
   const int* __restrict hp = hit_patch.data();
-  const int* __restrict rb = run_begin.data();
-  for (int i = 0; i < m; ++i) {
-    const int end = rb[i + 1];
-    for (int k = rb[i]; k < end; ++k) dst[cur[hp[k]]++] = i;
-  }
+  for (size_t k = 0; k < total_hits; ++k) dst[cur[hp[k]]++] = hc[k];
 }
 
 int componentSoAStride(int m) {
