@@ -360,7 +360,8 @@ struct MembershipBuffers {
   std::vector<float> soa_f;        // ProjectedSoA floats: [12][m]
   std::vector<int> soa_i;          // ProjectedSoA ints: [6][m]
   std::vector<int> hit_patch;      // pass 1's patches, in component order
-  std::vector<int> run_begin;      // [m + 1]: component i's run in hit_patch
+  std::vector<int> candidates;     // the components pass 1 tests, ascending
+  std::vector<int> run_begin;      // [candidates + 1]: candidate j's run in hit_patch
   std::vector<int> hit_comp;       // pass 2: each hit's component (+ 16 slack)
   std::vector<int> cursor;         // pass 2's next slot per patch
   std::vector<int> in_view;        // [m]: inViewAll
@@ -428,6 +429,7 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
   std::vector<float>& soa_f = buffers.soa_f;
   std::vector<int>& soa_i = buffers.soa_i;
   std::vector<int>& hit_patch = buffers.hit_patch;
+  std::vector<int>& candidates = buffers.candidates;
   std::vector<int>& run_begin = buffers.run_begin;
   std::vector<int>& hit_comp = buffers.hit_comp;
   std::vector<int>& cursor = buffers.cursor;
@@ -437,7 +439,6 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
   const size_t ms = static_cast<size_t>(m);
   soa_f.resize(12 * ms);
   soa_i.resize(6 * ms);
-  run_begin.resize(ms + 1);
   // The components as a structure of arrays: the caller's (componentSoA, kept across poses) or
   // built here.
   const float* in = component_soa;
@@ -479,13 +480,24 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
   // Patches per patch, 8 entries of slack for testBoxVec's masked add.
   counts.assign(static_cast<size_t>(num_patches) + 8, 0);
   int* count = counts.data();
-  size_t hits = 0;
+  // The components to test, ascending: in the view volume (when given), and with a box on the
+  // grid or flagged for projectComponent. Listed without a branch per component (a quarter of
+  // them drop out, in no pattern the branch predictor learns).
+  candidates.resize(ms);
+  int* __restrict cand = candidates.data();
+  int num_cand = 0;
   for (int i = 0; i < m; ++i) {
-    run_begin[i] = static_cast<int>(hits);
-    if (reach && !in_view[i]) continue;
+    const int box = P.ok[i] & (P.col0[i] <= P.col1[i] ? 1 : 0) & (P.row0[i] <= P.row1[i] ? 1 : 0);
+    cand[num_cand] = i;
+    num_cand += (reach ? in_view[i] : 1) & (box | (P.exact[i] != 0 ? 1 : 0));
+  }
+  run_begin.resize(static_cast<size_t>(num_cand) + 1);
+  size_t hits = 0;
+  for (int j = 0; j < num_cand; ++j) {
+    const int i = cand[j];
+    run_begin[j] = static_cast<int>(hits);
     const bool exact = P.exact[i] != 0;
     const int col0 = P.col0[i], col1 = P.col1[i], row0 = P.row0[i], row1 = P.row1[i];
-    if (!exact && (!P.ok[i] || col0 > col1 || row0 > row1)) continue;
     const size_t first = hits;
     bool redo = exact;
     if (!exact) {
@@ -551,7 +563,7 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
     }
     (*valid)[i] = 1;
   }
-  run_begin[m] = static_cast<int>(hits);
+  run_begin[num_cand] = static_cast<int>(hits);
   for (int p = 0; p < num_patches; ++p) out->begin[p + 1] = out->begin[p] + count[p];
   out->comps.resize(out->begin[num_patches]);
   // Pass 2: scatter the runs of pass 1 (components ascending within each patch). Each hit's
@@ -562,8 +574,8 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
   hit_comp.resize(total_hits + 16);
   int* __restrict hc = hit_comp.data();
   const int* __restrict rb = run_begin.data();
-  for (int i = 0; i < m; ++i) {  // 16 entries from each run's start; the next run overwrites
-    const int b = rb[i], len = rb[i + 1] - b;
+  for (int j = 0; j < num_cand; ++j) {  // 16 entries from each run's start; the next overwrites
+    const int b = rb[j], len = rb[j + 1] - b, i = cand[j];
     for (int k = 0; k < 16; ++k) hc[b + k] = i;
     for (int k = 16; k < len; ++k) hc[b + k] = i;  // a run of more than 16 patches (rare)
   }
