@@ -4,8 +4,54 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <unordered_map>
 
 namespace gmm_mcl {
+namespace {
+
+// The places kept so far by the cell (edge: the separation) of their position, so that a
+// candidate is compared with the places of its own and the 26 neighbouring cells only: two
+// poses closer than the separation lie in neighbouring cells. Cells are hashed (a collision
+// only adds places to compare).
+class PlaceCells {
+ public:
+  explicit PlaceCells(double cell_m) : inv_(cell_m > 0.0 ? 1.0 / cell_m : 0.0) {}
+  // Whether same(place) holds for a place added before.
+  template <class Same>
+  bool any(const Particle& p, const std::vector<StartHypotheses::Place>& places, Same same) const {
+    if (inv_ <= 0.0) return false;  // no separation: every place is distinct
+    const long long cx = cell(p.x_m), cy = cell(p.y_m), cz = cell(p.z_m);
+    for (long long dx = -1; dx <= 1; ++dx) {
+      for (long long dy = -1; dy <= 1; ++dy) {
+        for (long long dz = -1; dz <= 1; ++dz) {
+          const auto it = cells_.find(key(cx + dx, cy + dy, cz + dz));
+          if (it == cells_.end()) continue;
+          for (int k : it->second) {
+            if (same(places[k].pose)) return true;
+          }
+        }
+      }
+    }
+    return false;
+  }
+  void add(const Particle& p, int index) {
+    if (inv_ > 0.0) cells_[key(cell(p.x_m), cell(p.y_m), cell(p.z_m))].push_back(index);
+  }
+
+ private:
+  long long cell(double v) const {  // bounded first: no float outside long long's range
+    return static_cast<long long>(std::floor(std::max(-1e15, std::min(1e15, v * inv_))));
+  }
+  static unsigned long long key(long long x, long long y, long long z) {
+    return static_cast<unsigned long long>(x) * 73856093ULL ^
+           static_cast<unsigned long long>(y) * 19349663ULL ^
+           static_cast<unsigned long long>(z) * 83492791ULL;
+  }
+  double inv_;
+  std::unordered_map<unsigned long long, std::vector<int>> cells_;
+};
+
+}  // namespace
 
 StartHypotheses::StartHypotheses(const StartHypothesesParams& params, uint64_t seed)
     : params_(params), rng_(seed) {}
@@ -24,12 +70,15 @@ void StartHypotheses::seed(const std::vector<Particle>& poses, const std::vector
   std::iota(order.begin(), order.end(), size_t{0});
   std::stable_sort(order.begin(), order.end(),
                    [&scores](size_t a, size_t b) { return scores[a] > scores[b]; });
+  PlaceCells cells(params_.separation_m);
   for (size_t i : order) {
     if (static_cast<int>(places_.size()) >= params_.places) break;
     if (!std::isfinite(scores[i])) break;
-    const bool taken = std::any_of(places_.begin(), places_.end(),
-                                   [&](const Place& p) { return samePlace(p.pose, poses[i]); });
-    if (!taken) places_.push_back(Place{poses[i], 0.0, 0.0});
+    if (cells.any(poses[i], places_, [&](const Particle& q) { return samePlace(q, poses[i]); })) {
+      continue;
+    }
+    cells.add(poses[i], static_cast<int>(places_.size()));
+    places_.push_back(Place{poses[i], 0.0, 0.0});
   }
 }
 
@@ -98,11 +147,12 @@ void StartHypotheses::merge() {
                    [](const Place& a, const Place& b) { return a.score > b.score; });
   std::vector<Place> kept;
   kept.reserve(places_.size());
+  PlaceCells cells(params_.separation_m);
   for (const Place& p : places_) {
     if (!std::isfinite(p.score)) continue;
-    const bool taken = std::any_of(kept.begin(), kept.end(),
-                                   [&](const Place& q) { return samePlace(q.pose, p.pose); });
-    if (!taken) kept.push_back(p);
+    if (cells.any(p.pose, kept, [&](const Particle& q) { return samePlace(q, p.pose); })) continue;
+    cells.add(p.pose, static_cast<int>(kept.size()));
+    kept.push_back(p);
   }
   places_.swap(kept);
 }
