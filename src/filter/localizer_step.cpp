@@ -127,13 +127,12 @@ void Localizer::predictStep(const StepInput& in, StepResult* res) {
   } else if (params_.constant_velocity.enabled) {
     // No odometry (or its first message: no delta yet): the filter's own recent motion, its
     // yaw change from the gyro where the input has one.
-    const bool gyro = in.has_gyro_yaw && have_gyro_yaw_ && in.gyro_segment == last_gyro_segment_ &&
-                      std::isfinite(in.gyro_yaw_rad);
+    const bool gyro = in.has_gyro_yaw && have_gyro_yaw_ && in.gyro_segment == last_gyro_segment_;
     const double gyro_delta = gyro ? in.gyro_yaw_rad - last_gyro_yaw_rad_ : 0.0;
     delta = motion_model_.predict(step_dt_s_, params_.filter.sigma_translation_m,
-                                  params_.filter.sigma_yaw_rad, gyro ? &gyro_delta : nullptr);
+                                  params_.filter.sigma_yaw_rad, gyro ? &gyro_delta : nullptr,
+                                  &res->gyro_yaw);
     res->motion = MotionSource::kConstantVelocity;
-    res->gyro_yaw = gyro && params_.constant_velocity.use_gyro;
   } else {
     res->motion = MotionSource::kStatic;
   }

@@ -46,12 +46,14 @@ void ConstantVelocityModel::reset() {
 }
 
 PlanarDelta ConstantVelocityModel::predict(double dt_s, double sigma_translation_m,
-                                           double sigma_yaw_rad, const double* gyro_yaw_delta_rad) {
+                                           double sigma_yaw_rad, const double* gyro_yaw_delta_rad,
+                                           bool* turned_by_gyro) {
   if (!std::isfinite(dt_s) || dt_s < 0.0) dt_s = 0.0;
   if (dt_s > params_.max_gap_s) forgetVelocity();
   PlanarDelta d;
   d.translation_m = velocity_.head<3>() * dt_s;
   const bool gyro = params_.use_gyro && gyro_yaw_delta_rad && std::isfinite(*gyro_yaw_delta_rad);
+  if (turned_by_gyro) *turned_by_gyro = gyro;
   if (gyro && params_.world_velocity) {  // into the last estimate's body frame
     const double c = std::cos(last_pose_.yaw_rad), s = std::sin(last_pose_.yaw_rad);
     const Eigen::Vector3d& w = world_velocity_;

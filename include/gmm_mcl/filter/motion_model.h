@@ -66,9 +66,9 @@ class ConstantVelocityModel {
   // longer than max_gap_s (or a negative or non-finite one) forgets the velocity first. With
   // gyro_yaw_delta_rad (the heading the IMU's gyro turned over dt_s; null: none) and use_gyro,
   // the yaw change is that, with the gyro's noise, and the translation the map-frame velocity's
-  // (world_velocity).
+  // (world_velocity). *turned_by_gyro (when given): whether the gyro's turn was used.
   PlanarDelta predict(double dt_s, double sigma_translation_m, double sigma_yaw_rad,
-                      const double* gyro_yaw_delta_rad = nullptr);
+                      const double* gyro_yaw_delta_rad = nullptr, bool* turned_by_gyro = nullptr);
   // An estimate of the base at stamp_s: a velocity sample against the previous one, smoothed
   // with velocity_smoothing x confidence (in (0, 1]: how far the estimate can be trusted).
   void observe(double stamp_s, const Particle& pose, double confidence = 1.0);
