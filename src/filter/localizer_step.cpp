@@ -88,6 +88,7 @@ void Localizer::takeStepInputs(const StepInput& in, StepResult* res) {
   }
   have_stamp_ = true;
   last_stamp_s_ = in.stamp_s;
+  syncDepthScales(in);  // a scale for each camera the input names
   if (in.has_T_base_cam) {
     if (in.T_base_cam.matrix().allFinite()) {
       params_.T_base_cam = in.T_base_cam;
@@ -409,7 +410,6 @@ void Localizer::estimateAndRefine(const StepInput& in, StepResult* res) {
   }
   have_refined_ = res->refinement.refined;
   if (have_refined_) last_refined_ = res->refinement.pose;
-  syncDepthScales(in);
   reportDepthScales(res);
   observeMotion(in, *res);
 }
@@ -503,7 +503,6 @@ void Localizer::refineEstimate(const StepInput& in, StepResult* res) {
   // The depth scales: each camera's own. Their noise correction draws noise on the frame's points
   // on the host (the sums still run on the backend's evaluator).
   const bool with_scale = params_.refinement.estimate_depth_scale;
-  syncDepthScales(in);
   if (!host_frame_ready_ && sums != nullptr && sums->hasBackendFrame() &&
       (!with_scale ||
        (sums->supportsDepthScale() && !params_.refinement.depth_scale_noise_correction))) {
