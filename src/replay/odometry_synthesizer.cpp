@@ -41,6 +41,21 @@ void OdometrySynthesizer::attitude(const Eigen::Isometry3d& T_world_base, double
   *pitch_rad += noise_.attitude_sigma_rad * gauss_(rng_);
 }
 
+Eigen::Vector3d OdometrySynthesizer::gyroRate(const Eigen::Vector3d& true_rate_rad_s, double dt_s) {
+  if (!rate_started_) {
+    for (int a = 0; a < 3; ++a) {
+      rate_bias_rad_s_[a] = noise_.gyro_bias_sigma_rad_s * gyro_gauss_(gyro_rng_);
+    }
+    rate_started_ = true;
+  }
+  Eigen::Vector3d rate = true_rate_rad_s + rate_bias_rad_s_;
+  if (dt_s > 0.0 && std::isfinite(dt_s)) {
+    const double sigma = noise_.gyro_noise_density_rad_s_sqrt_hz / std::sqrt(dt_s);
+    for (int a = 0; a < 3; ++a) rate[a] += sigma * gyro_gauss_(gyro_rng_);
+  }
+  return rate;
+}
+
 double OdometrySynthesizer::gyroYaw(const Eigen::Isometry3d& T_world_base, double dt_s) {
   double roll, pitch, yaw;
   rpyFromRotation(T_world_base.linear(), &roll, &pitch, &yaw);

@@ -62,7 +62,7 @@ SequenceBagResult writeSequenceBag(const Sequence& seq, const GmmMap* map_world,
       odometry.attitude(truth[f], &roll, &pitch);
       const double yaw = yawFromRotation(truth[f].linear());
       // The gyro: the true body rate over the interval ending at this frame (the first frame's
-      // over the next interval).
+      // over the next interval), with a MEMS gyro's bias and white noise (ProtocolNoise).
       const int a = f > 0 ? f - 1 : 0, b = f > 0 ? f : std::min(1, n - 1);
       Eigen::Vector3d omega = Eigen::Vector3d::Zero();
       const double dt = seq.stampS(b) - seq.stampS(a);
@@ -70,6 +70,7 @@ SequenceBagResult writeSequenceBag(const Sequence& seq, const GmmMap* map_world,
         const Eigen::AngleAxisd turn(truth[a].linear().transpose() * truth[b].linear());
         omega = turn.angle() / dt * turn.axis();
       }
+      omega = odometry.gyroRate(omega, dt);
       writer.writeImu(t, t_before, roll, pitch, yaw, options.noise.attitude_sigma_rad, &omega);
       writer.writeOdometry(t, t_before, T_odom_base);
       writer.writeDepth(t, depth, seq.intrinsics());

@@ -90,5 +90,34 @@ TEST(OdometrySynthesizerTest, AttitudeNoiseAndSeeding) {
   EXPECT_NEAR(std::sqrt(s / kSteps), sigma, sigma * kSigmaRelTol);
 }
 
+// The gyro's rate samples: the true rate plus a constant bias per axis and trial (of the
+// configured spread) and white noise of density / sqrt(dt); seeded.
+TEST(OdometrySynthesizerTest, GyroRatesCarryABiasAndWhiteNoise) {
+  ProtocolNoise noise;
+  const double dt = 1.0 / 30.0, sigma = noise.gyro_noise_density_rad_s_sqrt_hz / std::sqrt(dt);
+  const Eigen::Vector3d truth(0.3, -0.1, 1.2);
+  Eigen::Vector3d bias_sum = Eigen::Vector3d::Zero();
+  for (uint64_t seed = 1; seed <= 3; ++seed) {
+    OdometrySynthesizer a(noise, seed), b(noise, seed);
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero(), sq = Eigen::Vector3d::Zero();
+    for (int i = 0; i < kSteps; ++i) {
+      const Eigen::Vector3d r = a.gyroRate(truth, dt);
+      ASSERT_EQ(r, b.gyroRate(truth, dt));
+      sum += r - truth;
+      sq += (r - truth).cwiseProduct(r - truth);
+    }
+    const Eigen::Vector3d mean = sum / kSteps;
+    for (int k = 0; k < 3; ++k) {
+      const double sd = std::sqrt(sq[k] / kSteps - mean[k] * mean[k]);
+      EXPECT_NEAR(sd, sigma, sigma * kSigmaRelTol) << "seed " << seed << " axis " << k;
+      EXPECT_LT(std::abs(mean[k]), 5.0 * noise.gyro_bias_sigma_rad_s);
+    }
+    bias_sum += mean.cwiseAbs();
+    // dt 0 (no interval): the bias alone.
+    EXPECT_LT((a.gyroRate(truth, 0.0) - truth - mean).norm(), 5.0 * sigma / std::sqrt(kSteps));
+  }
+  EXPECT_GT(bias_sum.sum(), 0.1 * noise.gyro_bias_sigma_rad_s) << "no bias at all";
+}
+
 }  // namespace
 }  // namespace gmm_mcl

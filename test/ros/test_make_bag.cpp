@@ -14,16 +14,19 @@
 #include <sensor_msgs/PointCloud2.h>
 #include <tf2_msgs/TFMessage.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <map>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "gmm_mcl/datasets/sequence_writer.h"
 #include "gmm_mcl/datasets/sim_sequence.h"
 #include "gmm_mcl/map/gmm_map_io.h"
+#include "gmm_mcl/replay/odometry_synthesizer.h"
 #include "gmm_mcl/replay/replay.h"
 #include "gmm_mcl/ros/conversions.h"
 #include "gmm_mcl/ros_tools/bag_writer.h"
@@ -98,6 +101,7 @@ void checkImageLayout(const BagContents& c, const Sequence& seq, int n) {
   EXPECT_EQ(c.count.at("/tf_static"), 1);
   EXPECT_TRUE(c.static_latched);
   const std::vector<Eigen::Isometry3d> truth = alignedBaseTrajectory(seq, n);
+  std::vector<double> gyro_errors;
   for (int f = 0; f < n; ++f) {
     const sensor_msgs::Image& img = c.images[f];
     EXPECT_EQ(img.encoding, "16UC1");
@@ -114,14 +118,22 @@ void checkImageLayout(const BagContents& c, const Sequence& seq, int n) {
         (ros_conv::isometryFromPose(c.truth[f].pose).translation() - truth[f].translation()).norm(),
         kPoseTolM);
     // The gyro: the true body rate over the interval ending at the frame (the first frame's over
-    // the next one), integrating to the true turn.
+    // the next one), plus a bias and white noise (ProtocolNoise): within 5 sigma of each.
     Eigen::Vector3d omega;
     ASSERT_TRUE(ros_conv::angularVelocityFromImu(c.imu[f], &omega)) << "frame " << f;
     const int a = f > 0 ? f - 1 : 0, b = f > 0 ? f : 1;
+    const double dt = seq.stampS(b) - seq.stampS(a);
     const Eigen::AngleAxisd turn(truth[a].linear().transpose() * truth[b].linear());
-    const Eigen::Vector3d rate = turn.angle() / (seq.stampS(b) - seq.stampS(a)) * turn.axis();
-    EXPECT_LT((omega - rate).norm(), 1e-6 + 1e-6 * rate.norm()) << "frame " << f;
+    const Eigen::Vector3d error = omega - turn.angle() / dt * turn.axis();
+    const ProtocolNoise noise;
+    const double bound = 5.0 * (noise.gyro_bias_sigma_rad_s +
+                                noise.gyro_noise_density_rad_s_sqrt_hz / std::sqrt(dt));
+    EXPECT_LT(error.cwiseAbs().maxCoeff(), bound) << "frame " << f;
+    gyro_errors.push_back(error.x());
   }
+  // White noise: the samples' errors differ from frame to frame (a bias alone would not).
+  const auto range = std::minmax_element(gyro_errors.begin(), gyro_errors.end());
+  EXPECT_GT(*range.second - *range.first, 1e-4) << "the IMU's rates carry no noise";
 }
 
 // Odometry increments minus true increments: per-frame sigma about 0.005 m per axis.
@@ -303,7 +315,8 @@ TEST(ReplayBagTest, ImageAndCowAndLadyBagsWithoutAMaster) {
   EXPECT_EQ(test::readText(dir / "img/estimate.tum").size() > 0, true);
 
   // Without odometry (docs/no_odometry.md): the constant-velocity model turned by the gyro's
-  // heading (the bag's IMU carries the true body rates), every frame used.
+  // heading (the bag's IMU carries the body rates with a gyro's bias and noise), every frame
+  // used.
   run(std::string(GMM_MCL_REPLAY_BAG) + " " + (dir / "img.bag") + common +
       " --odometry none --out " + (dir / "none"));
   err = lastError(dir / "none/frames.csv", &rows);

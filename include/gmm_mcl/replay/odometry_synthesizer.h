@@ -39,6 +39,11 @@ class OdometrySynthesizer {
   // call). Its own random numbers: the odometry and attitude sequences of a seed are the same
   // whether or not it is called.
   double gyroYaw(const Eigen::Isometry3d& T_world_base, double dt_s);
+  // The gyro's rate sample (sensor_msgs/Imu angular_velocity, the body frame) for a true body
+  // rate averaged over dt_s: plus a constant bias per axis and trial, N(0,
+  // gyro_bias_sigma_rad_s), and white noise N(0, gyro_noise_density / sqrt(dt_s)) per axis (none
+  // for dt_s <= 0). The same random numbers as gyroYaw: a caller uses one or the other.
+  Eigen::Vector3d gyroRate(const Eigen::Vector3d& true_rate_rad_s, double dt_s);
   // Forget the previous pose: the next call starts a new odometry frame.
   void restart() { started_ = false; }
 
@@ -53,6 +58,8 @@ class OdometrySynthesizer {
   std::normal_distribution<double> gyro_gauss_{0.0, 1.0};
   bool gyro_started_ = false;
   double gyro_bias_rad_s_ = 0.0, gyro_yaw_rad_ = 0.0, gyro_last_true_yaw_rad_ = 0.0;
+  bool rate_started_ = false;
+  Eigen::Vector3d rate_bias_rad_s_ = Eigen::Vector3d::Zero();
 };
 
 }  // namespace gmm_mcl
