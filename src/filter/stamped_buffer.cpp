@@ -138,22 +138,20 @@ void GyroHeading::add(double stamp_s, const Eigen::Vector3d& omega_imu_rad_s, do
 
 bool GyroHeading::at(double t_s, double tolerance_s, double* heading_rad, long long* segment,
                      std::string* why) const {
-  for (int attempt = 0; attempt < 2; ++attempt) {
-    Eigen::Isometry3d T;
-    if (track_.at(t_s, 0.0, &T)) {  // between two samples of a segment, or at one
-      *heading_rad = T.translation().x();
-      *segment = std::llround(T.translation().y());
-      return true;
-    }
-    std::lock_guard<std::mutex> lock(mutex_);
-    const double ahead_s = t_s - last_stamp_s_;
-    if (have_ && ahead_s > 0.0 && ahead_s <= std::min(tolerance_s, max_gap_s_)) {
-      *heading_rad = heading_rad_ + last_rate_rad_s_ * ahead_s;
-      *segment = segment_;
-      return true;
-    }
-    // A sample at or after t arrived between the two looks: look between the samples again.
-    if (!(have_ && ahead_s <= 0.0)) break;
+  // One lock over both looks (add() takes the same one around its track_.add): no sample can
+  // arrive between them.
+  std::lock_guard<std::mutex> lock(mutex_);
+  Eigen::Isometry3d T;
+  if (track_.at(t_s, 0.0, &T)) {  // between two samples of a segment, or at one
+    *heading_rad = T.translation().x();
+    *segment = std::llround(T.translation().y());
+    return true;
+  }
+  const double ahead_s = t_s - last_stamp_s_;
+  if (have_ && ahead_s > 0.0 && ahead_s <= std::min(tolerance_s, max_gap_s_)) {
+    *heading_rad = heading_rad_ + last_rate_rad_s_ * ahead_s;
+    *segment = segment_;
+    return true;
   }
   if (why) {
     std::ostringstream msg;

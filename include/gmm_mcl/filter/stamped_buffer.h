@@ -76,7 +76,7 @@ class GyroHeading {
  private:
   double max_gap_s_;
   StampedPoseBuffer track_;   // heading in translation x, segment in translation y
-  mutable std::mutex mutex_;  // the integration's state below
+  mutable std::mutex mutex_;  // the integration's state below, and track_ kept consistent with it
   bool have_ = false;
   double last_stamp_s_ = 0.0, last_rate_rad_s_ = 0.0, heading_rad_ = 0.0;
   long long segment_ = 0;
