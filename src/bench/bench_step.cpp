@@ -1,5 +1,6 @@
 // gmm_mcl_bench --step: the whole filter step per stage, on the host filter, the device filter
 // (CUDA) and through Localizer::step.
+#include <algorithm>
 #include <cstdio>
 #include <memory>
 #include <random>
@@ -25,6 +26,8 @@ struct StepRow {
   double predict = 0, prep = 0, likelihood = 0, weights = 0, estimate = 0, resample = 0,
          recover = 0, lost = 0, refine = 0, total = 0;
   double first_update = -1;  // ms: the first step from the protocol's uniform start (-1: not run)
+  double redraw = -1;        // ms: a lost redraw at the backend's default particle range
+  int redrawn = 0;           // particles redrawn by it
 };
 
 // Per-stage samples (ms) of the timed steps.
@@ -209,6 +212,29 @@ StepRow runLocalizerStep(const std::string& backend, bool device, const Workload
     Localizer fresh(lp, map);
     row.first_update = fresh.step(input(0, 0.0)).timings.total_ms;
   }
+  // A lost redraw as a run with the backend's defaults makes it: the set at its tracking count
+  // (N) around a pose 1 m and 0.5 rad off, judged lost on its first frame, redrawn up to the
+  // default largest count (16 candidates each: half uniform over the start region against the
+  // blurred map, half around the best of them).
+  {
+    LocalizerParams lost = lp;
+    int lo = 0, hi = 0;
+    defaultParticleRange(backend, &lo, &hi);
+    lost.filter.min_particles = row.particles;
+    lost.filter.num_particles = std::max(hi, row.particles);
+    lost.lost.frames = 1;
+    lost.lost.grace_frames = 0;
+    Localizer kidnapped(lost, map);
+    Particle off = start;
+    off.x_m += 1.0;
+    off.yaw_rad += 0.5;
+    kidnapped.resetToPose(off, Eigen::Vector4d(0.05, 0.05, 0.05, 0.05));
+    const StepResult r = kidnapped.step(input(0, 0.0));
+    if (r.lost_reinitialised > 0) {
+      row.redraw = r.timings.resample_ms;
+      row.redrawn = r.lost_reinitialised;
+    }
+  }
   Localizer loc(lp, map);
   row.what = std::string("Localizer::step, ") + loc.filterName() + " filter, " +
              loc.backend().name() + " backend";
@@ -282,20 +308,28 @@ void runSteps(const std::vector<LikelihoodBackend*>& backends, const BenchData& 
       "\n# filter step: wall-clock medians (ms), each stage synchronised to its end; filter rows "
       "resample on every step (KLD count 1068..N), localizer rows resample when Neff < N/2 "
       "(fixed N) and their likelihood column is the GPU's event time (CPU: the stages' time); "
-      "first update: a localizer's first step from the uniform 4 m cube start (yaw range pi)\n");
+      "first update: a localizer's first step from the uniform 4 m cube start (yaw range pi); "
+      "redraw: a lost redraw from the tracking count up to the backend's default largest count "
+      "(the particles redrawn in brackets)\n");
   std::printf(
       "| step | workload | N | predict | frame prep | likelihood | weights | estimate "
-      "| resample | recover | lost detector | refine | total | N after | timed | first update |\n");
-  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+      "| resample | recover | lost detector | refine | total | N after | timed | first update "
+      "| redraw |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (const StepRow& r : rows) {
+    const std::string first =
+        r.first_update >= 0 ? std::to_string(static_cast<long long>(r.first_update + 0.5)) + " ms"
+                            : std::string("-");
+    const std::string redraw = r.redraw >= 0
+                                   ? std::to_string(static_cast<long long>(r.redraw + 0.5)) +
+                                         " ms (" + std::to_string(r.redrawn) + ")"
+                                   : std::string("-");
     std::printf(
         "| %s | %s | %d | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.4f | %.3f "
-        "| **%.2f** | %d | %d | %s |\n",
+        "| **%.2f** | %d | %d | %s | %s |\n",
         r.what.c_str(), r.workload.c_str(), r.particles, r.predict, r.prep, r.likelihood, r.weights,
         r.estimate, r.resample, r.recover, r.lost, r.refine, r.total, r.resampled_to, r.timed,
-        r.first_update >= 0
-            ? (std::to_string(static_cast<long long>(r.first_update + 0.5)) + " ms").c_str()
-            : "-");
+        first.c_str(), redraw.c_str());
   }
 }
 
