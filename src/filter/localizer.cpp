@@ -61,14 +61,21 @@ Localizer::Localizer(const LocalizerParams& params, GmmMap map,
 
 void Localizer::prepareMap() {
   backend_->setMap(map_);
-  blurred_map_ = GmmMap();
+  blurred_map_ = redraw_map_ = GmmMap();
   if (params_.lost.redraw_blur_m > 0.0 && params_.lost.local_candidate_fraction > 0.0) {
-    std::vector<GaussianComponent> blurred = map_.components();
     const double b2 = params_.lost.redraw_blur_m * params_.lost.redraw_blur_m;
-    for (GaussianComponent& c : blurred) c.cov_m2 += b2 * Eigen::Matrix3d::Identity();
-    // The same surface, blurred: the original's weights (its mapped surface), not the larger
-    // surface the blurred covariances would suggest.
-    blurred_map_ = GmmMap(std::move(blurred), "blurred map", map_.surfaceArea());
+    auto blurred = [&](std::vector<GaussianComponent> components, const char* name) {
+      for (GaussianComponent& c : components) c.cov_m2 += b2 * Eigen::Matrix3d::Identity();
+      // The same surface, blurred: the original's weights (its mapped surface), not the larger
+      // surface the blurred covariances would suggest.
+      return GmmMap(std::move(components), name, map_.surfaceArea());
+    };
+    blurred_map_ = blurred(map_.components(), "blurred map");
+    // A redraw's: merged first (its coarse stage needs no finer map than its blur).
+    if (params_.lost.redraw_merge_m > 0.0) {
+      redraw_map_ = blurred(mergedByCell(map_.components(), params_.lost.redraw_merge_m),
+                            "merged blurred map");
+    }
   }
   map_self_ll_ = gmm_mcl::mapSelfLogDensity(map_, params_.measurement.floor_log_density,
                                             params_.measurement.depth_noise);
@@ -95,6 +102,7 @@ void Localizer::setParams(const LocalizerParams& params) {
       m.depth_noise.b_per_m != m0.depth_noise.b_per_m ||
       m.depth_noise.z0_m != m0.depth_noise.z0_m ||
       params.lost.redraw_blur_m != params_.lost.redraw_blur_m ||
+      params.lost.redraw_merge_m != params_.lost.redraw_merge_m ||
       params.lost.local_candidate_fraction != params_.lost.local_candidate_fraction;
   filter_->setParams(params.filter);
   motion_model_.setParams(params.constant_velocity);
@@ -154,7 +162,8 @@ Eigen::Isometry3d Localizer::meanPose() const {
   return particleToPose(filter_->estimate().mean, roll_rad_, pitch_rad_);
 }
 
-void Localizer::screenCandidates(const MeasurementContext& ctx, int count, bool local_stage) {
+void Localizer::screenCandidates(const MeasurementContext& ctx, int count, bool local_stage,
+                                 bool redraw) {
   filter_->clearCandidates();
   const int per = params_.lost.candidates_per_particle;
   if (count <= 0) return;
@@ -170,14 +179,19 @@ void Localizer::screenCandidates(const MeasurementContext& ctx, int count, bool 
   // Measured on an H100: the first update from the 4 m cube in the map of 10 x 10 rooms took
   // 51 ms in 16 calls and 14-17 ms in one; the building world's whole-map start 10.7 and 4.3 s.
   const int batch = std::max(filter_->size(), params_.filter.num_particles);
-  // The uniform stage of a redraw against the blurred map (a wider basin), then the map again.
+  // The candidates only choose which poses enter the set, and the next frame weighs those on
+  // the full frame: a redraw's are scored on a coarse frame (host filter; the GPU filter scores
+  // on its device frame).
+  const MeasurementContext& scoring = redraw ? coarseContext(ctx) : ctx;
+  // The uniform stage of a redraw against the blurred map (a wider basin; a redraw's merged
+  // too), then the map again.
   const bool blur = local_stage && !blurred_map_.empty();
-  if (blur) backend_->setMap(blurred_map_);
+  if (blur) backend_->setMap(redraw && !redraw_map_.empty() ? redraw_map_ : blurred_map_);
   try {
     for (int done = 0; done < total - local; done += batch) {
       filter_->drawUniformCandidates(region_, std::min(batch, total - local - done));
     }
-    filter_->scoreCandidates(ctx);
+    filter_->scoreCandidates(scoring);
   } catch (...) {
     if (blur) backend_->setMap(map_);
     throw;
@@ -196,10 +210,32 @@ void Localizer::screenCandidates(const MeasurementContext& ctx, int count, bool 
     for (int done = 0; done < n; done += batch) {
       filter_->drawCandidatesAroundCentres(sigma_m, sigma_rad, std::min(batch, n - done));
     }
-    filter_->scoreCandidates(ctx);
+    filter_->scoreCandidates(scoring);
     sigma_m /= 3.0;
     sigma_rad /= 3.0;
   }
+}
+
+const MeasurementContext& Localizer::coarseContext(const MeasurementContext& ctx) {
+  coarse_ctx_ = ctx;
+  if (ctx.frame == nullptr || cam_.depth == nullptr || cam_.frame == nullptr) return ctx;
+  const FrameParams& full = *cam_.frame;
+  const int pixels = params_.lost.coarse_pixels;
+  if (pixels <= 0) return ctx;
+  const double area = static_cast<double>(cam_.depth->width_px) * cam_.depth->height_px;
+  FrameParams coarse = full;
+  // A multiple of the frame's stride: the coarse pixels are some of the frame's own (an image
+  // reduced to the frame's stride still has them).
+  coarse.pixel_stride =
+      full.pixel_stride *
+      std::max(1, static_cast<int>(std::floor(std::sqrt(area / pixels) / full.pixel_stride)));
+  if (coarse.pixel_stride == full.pixel_stride) return ctx;
+  coarse.patch_size_px = std::max(full.patch_size_px, 4 * coarse.pixel_stride);
+  coarse_frame_ = prepareFrame(*cam_.depth, cam_.intrinsics, coarse);
+  // A frame with nothing left at the coarse stride (a few valid pixels) is scored in full.
+  if (coarse_frame_.empty()) return ctx;
+  coarse_ctx_.frame = &coarse_frame_;
+  return coarse_ctx_;
 }
 
 const DepthFrame& Localizer::hostFrame() {

@@ -682,7 +682,7 @@ StepStatus Localizer::resampleAndRecover(const MeasurementContext& ctx, StepResu
     const int keep = n - static_cast<int>(std::floor(params_.lost.reinit_fraction * n));
     const int count = params_.filter.adaptive() ? params_.filter.num_particles - keep : n - keep;
     try {
-      screenCandidates(ctx, count, true);
+      screenCandidates(ctx, count, true, true);
       filter_->replaceWorstByBestCandidates(keep, count);
       res->lost_reinitialised = count;
       res->screened_candidates += count * params_.lost.candidates_per_particle;

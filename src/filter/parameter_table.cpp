@@ -290,6 +290,14 @@ void addLostParams(ParamTable<P>* t) {
                       {0, 2}, kRuntime,
                       "Lost redraw: uniform candidates are scored against the map blurred by this "
                       "much (a wider basin; 0 = the map)"));
+  add(t, paramSpec<P>("lost_redraw_merge_m", GMM_MCL_PARAM_FIELD(P, lost.redraw_merge_m), "m", g,
+                      {0, 5}, kRuntime,
+                      "Lost redraw: the blurred map merges the components within cubes of this "
+                      "edge (fewer components to score; 0 = no merge)"));
+  add(t, paramSpec<P>("lost_coarse_pixels", GMM_MCL_PARAM_FIELD(P, lost.coarse_pixels), "", g,
+                      {0, 1e7}, kRuntime,
+                      "Lost redraw: candidates are scored on a coarse frame of "
+                      "about this many pixels (host particle filter; 0 = the full frame)"));
   add(t, paramSpec<P>("lost_start_local_stage_min_area_m2",
                       GMM_MCL_PARAM_FIELD(P, lost.start_local_stage_min_area_m2), "m^2", g,
                       {0, 1e12}, kRuntime,

@@ -123,6 +123,10 @@ std::string LostDetectionParams::validate() const {
   if (!(redraw_blur_m >= 0.0) || !std::isfinite(redraw_blur_m)) {
     err << "lost.redraw_blur_m must be >= 0 (got " << redraw_blur_m << "); ";
   }
+  if (!(redraw_merge_m >= 0.0) || !std::isfinite(redraw_merge_m)) {
+    err << "lost.redraw_merge_m must be >= 0 (got " << redraw_merge_m << "); ";
+  }
+  if (coarse_pixels < 0) err << "lost.coarse_pixels must be >= 0 (got " << coarse_pixels << "); ";
   if (!(local_sigma_m > 0.0) || !(local_sigma_rad > 0.0)) {
     err << "lost.local_sigma_m and lost.local_sigma_rad must be positive; ";
   }

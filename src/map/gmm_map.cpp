@@ -5,8 +5,10 @@
 #include <Eigen/Geometry>
 #include <Eigen/LU>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <sstream>
 
 namespace gmm_mcl {
@@ -123,6 +125,50 @@ Box3 GmmMap::threeSigmaBox(size_t i) const {
   b.lo = components_[i].mean_m - half_extent_m_[i];
   b.hi = components_[i].mean_m + half_extent_m_[i];
   return b;
+}
+
+std::vector<GaussianComponent> mergedByCell(const std::vector<GaussianComponent>& components,
+                                            double cell_m) {
+  if (!(cell_m > 0.0) || !std::isfinite(cell_m)) return components;
+  // Per cube: the sums of w, w mu and w (Sigma + mu mu^T); then the moments.
+  struct Sums {
+    double w = 0.0;
+    Eigen::Vector3d wm = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d ws = Eigen::Matrix3d::Zero();
+    int count = 0;
+  };
+  std::map<std::array<long long, 3>, int> cube_of;
+  std::vector<Sums> sums;
+  std::vector<int> single;  // the cube's only component while it has one
+  for (size_t i = 0; i < components.size(); ++i) {
+    const GaussianComponent& c = components[i];
+    std::array<long long, 3> key;
+    for (int a = 0; a < 3; ++a) key[a] = static_cast<long long>(std::floor(c.mean_m[a] / cell_m));
+    const auto it = cube_of.emplace(key, static_cast<int>(sums.size())).first;
+    if (it->second == static_cast<int>(sums.size())) {
+      sums.emplace_back();
+      single.push_back(static_cast<int>(i));
+    }
+    Sums& s = sums[it->second];
+    s.w += c.weight;
+    s.wm += c.weight * c.mean_m;
+    s.ws += c.weight * (c.cov_m2 + c.mean_m * c.mean_m.transpose());
+    ++s.count;
+  }
+  std::vector<GaussianComponent> merged(sums.size());
+  for (size_t k = 0; k < sums.size(); ++k) {
+    const Sums& s = sums[k];
+    if (s.count == 1) {  // unchanged, bit for bit
+      merged[k] = components[single[k]];
+      continue;
+    }
+    GaussianComponent& m = merged[k];
+    m.weight = s.w;
+    m.mean_m = s.wm / s.w;
+    m.cov_m2 = s.ws / s.w - m.mean_m * m.mean_m.transpose();
+    m.cov_m2 = 0.5 * (m.cov_m2 + m.cov_m2.transpose());
+  }
+  return merged;
 }
 
 GmmMap tiledMap(const GmmMap& room, int nx, int ny, double spacing_m, const std::string& source) {

@@ -3,8 +3,11 @@
 // pose what it scores in a map of its own, per pixel, at a cost that follows the view.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
+#include <map>
 #include <random>
+#include <vector>
 
 #include "gmm_mcl/backend/cpu_backend.h"
 #include "gmm_mcl/filter/localizer.h"
@@ -71,6 +74,66 @@ TEST(SurfaceAreaTest, GrowsWithTheTilingAndKeepsEveryModelWeight) {
     EXPECT_NEAR(building.modelLogWeight(i), room.modelLogWeight(i), 1e-6);
     EXPECT_NEAR(building.packed()[i].log_norm, room.packed()[i].log_norm, 1e-5);
   }
+}
+
+// A redraw's coarse map: each cube's components become one with the cube's weight, mean and
+// covariance (the second moment of its mixture), a cube of one keeps its component bit for bit,
+// and the merged map is a valid mixture of the same total weight.
+TEST(MergedByCellTest, KeepsEachCubesMassMeanAndCovariance) {
+  const GmmMap& room = test::world().map;
+  const double cell = 0.3;
+  const std::vector<GaussianComponent> merged = mergedByCell(room.components(), cell);
+  ASSERT_LT(merged.size(), room.size());
+  ASSERT_GT(merged.size(), 0u);
+  // The reference: the moments of each cube's components, summed directly.
+  std::map<std::array<long long, 3>, std::vector<size_t>> cubes;
+  std::vector<std::array<long long, 3>> order;
+  for (size_t i = 0; i < room.size(); ++i) {
+    const Eigen::Vector3d& m = room.components()[i].mean_m;
+    const std::array<long long, 3> key = {static_cast<long long>(std::floor(m.x() / cell)),
+                                          static_cast<long long>(std::floor(m.y() / cell)),
+                                          static_cast<long long>(std::floor(m.z() / cell))};
+    if (cubes[key].empty()) order.push_back(key);
+    cubes[key].push_back(i);
+  }
+  ASSERT_EQ(order.size(), merged.size());
+  int singles = 0;
+  double total = 0.0;
+  for (size_t k = 0; k < order.size(); ++k) {
+    const std::vector<size_t>& members = cubes[order[k]];
+    const GaussianComponent& got = merged[k];
+    total += got.weight;
+    if (members.size() == 1) {
+      const GaussianComponent& c = room.components()[members[0]];
+      EXPECT_EQ(got.weight, c.weight);
+      EXPECT_EQ(got.mean_m, c.mean_m);
+      EXPECT_EQ(got.cov_m2, c.cov_m2);
+      ++singles;
+      continue;
+    }
+    double w = 0.0;
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (size_t i : members) {
+      w += room.components()[i].weight;
+      mean += room.components()[i].weight * room.components()[i].mean_m;
+    }
+    mean /= w;
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (size_t i : members) {
+      const GaussianComponent& c = room.components()[i];
+      const Eigen::Vector3d d = c.mean_m - mean;
+      cov += c.weight * (c.cov_m2 + d * d.transpose());
+    }
+    cov /= w;
+    EXPECT_NEAR(got.weight, w, 1e-12);
+    EXPECT_LT((got.mean_m - mean).norm(), 1e-9);
+    EXPECT_LT((got.cov_m2 - cov).norm(), 1e-9 * cov.norm());
+  }
+  EXPECT_GT(singles, 0);
+  EXPECT_NEAR(total, 1.0, 1e-9);
+  EXPECT_NO_THROW(GmmMap(merged, "merged"));
+  // No cell: the components as they are.
+  EXPECT_EQ(mergedByCell(room.components(), 0.0).size(), room.size());
 }
 
 // The same room, the same frame, the true pose and a converged cloud around it: the room's own

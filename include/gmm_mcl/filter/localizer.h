@@ -193,7 +193,10 @@ class Localizer {
   // Fills the filter's candidate pool with count * lost.candidates_per_particle draws scored on
   // the frame in batches of the particle count: uniform from the recovery region, and with
   // local_stage a fraction (lost.local_candidate_fraction) around the best uniform ones instead.
-  void screenCandidates(const MeasurementContext& context, int count, bool local_stage = false);
+  // A lost redraw's (redraw) are scored on the coarse frame (coarseContext) and its uniform
+  // stage against redraw_map_; a wide start's keep the frame and blurred_map_.
+  void screenCandidates(const MeasurementContext& context, int count, bool local_stage = false,
+                        bool redraw = false);
   void stepOnce(const StepInput& input, StepResult* res);
   // The stages of stepOnce in order; those returning a status other than kOk end the step
   // (finishStep) with *why.
@@ -238,6 +241,9 @@ class Localizer {
   // The host frame of this step's first camera (prepared here when the filter prepared it on
   // the device).
   const DepthFrame& hostFrame();
+  // ctx with the step camera's frame at lost.coarse_stride_px / coarse_patch_px (coarse_frame_),
+  // or ctx itself (no host frame, the frame's own stride, or nothing left at the coarse stride).
+  const MeasurementContext& coarseContext(const MeasurementContext& ctx);
   // A backend failure: the status, and with cpu_fallback the switch to the CPU backend.
   void backendFailed(const std::string& what, StepResult* res);
   // What the map and the measurement parameters determine: the backend's map, the blurred map
@@ -246,7 +252,8 @@ class Localizer {
 
   LocalizerParams params_;
   GmmMap map_;
-  GmmMap blurred_map_;  // map_ with lost.redraw_blur_m^2 on every covariance (redraws)
+  GmmMap blurred_map_;  // map_ with lost.redraw_blur_m^2 on every covariance (wide starts)
+  GmmMap redraw_map_;   // the same of map_ merged by lost.redraw_merge_m (lost redraws)
   std::unique_ptr<LikelihoodBackend> backend_;
   std::string backend_warning_;
   std::string backend_fault_;
@@ -269,6 +276,8 @@ class Localizer {
   };
   StepCamera cam_;
   DepthFrame host_frame_;
+  DepthFrame coarse_frame_;  // a redraw's candidates' (LostDetectionParams::coarse_stride_px)
+  MeasurementContext coarse_ctx_;
   // The rig's other cameras this step (indexed like StepResult::cameras): their host frames
   // (an unprepared frame has zero width), their refinement components.
   int first_camera_ = 0;  // the camera measuring first this step (0: StepInput's own)

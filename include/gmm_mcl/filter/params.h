@@ -123,6 +123,17 @@ struct LostDetectionParams {
   // metre, so that far more of the uniform candidates land in the true pose's basin; the local
   // candidates around the best of them are scored against the map itself. 0: no blur.
   double redraw_blur_m = 0.15;
+  // The blurred map of a lost redraw merges the components whose means share a cube of this edge
+  // (moment matching: weight, mean and covariance of the cube's mixture) before the blur: a
+  // coarser map for a coarse stage, fewer components to project per candidate. 0: no merge.
+  double redraw_merge_m = 0.3;
+  // A lost redraw's candidates are scored on a coarse frame of about this many pixels (a
+  // stride of sqrt(width * height / coarse_pixels), rounded down to a multiple of the frame's,
+  // in patches of 4 x 4 of its pixels: 300 is stride 32 and 128 px patches at 640 x 480). They
+  // only choose which poses enter the set; the next frame weighs those on the full frame. Host
+  // particle filter only (the GPU filter scores on its device frame). 0: the frame itself.
+  // A wide start keeps the frame and the unmerged blurred map (docs/building_scale.md).
+  int coarse_pixels = 300;
   // A uniform start over a region of at least this horizontal area (a whole building,
   // ~global_localization) searches as a lost redraw does: the blurred map's uniform stage, then
   // the local candidates. Uniform draws alone rarely land in the true pose's basin there. Smaller

@@ -97,6 +97,14 @@ double estimateSurfaceArea(const std::vector<GaussianComponent>& components);
 GmmMap tiledMap(const GmmMap& room, int nx, int ny, double spacing_m,
                 const std::string& source = "<tiled>");
 
+// The mixture with the components whose means fall in one cube of the grid of edge cell_m
+// (cubes from the origin) merged into one by moment matching: the cube's total weight, and the
+// mean and covariance of its components' mixture. Mass, mean and covariance of every cube are
+// kept; the shape within a cube is lost. A coarser map for a coarse search (a lost redraw's
+// blurred stage). Merged components come in the order of each cube's first component.
+std::vector<GaussianComponent> mergedByCell(const std::vector<GaussianComponent>& components,
+                                            double cell_m);
+
 // Throws MapError if the components do not form a valid mixture (names `source` and the fault).
 void validateComponents(const std::vector<GaussianComponent>& components,
                         const std::string& source);
