@@ -42,19 +42,21 @@ bool decode(const sensor_msgs::CompressedImage& m, DepthImage* depth, std::strin
 }  // namespace
 
 DepthInput::DepthInput(ros::NodeHandle nh, ros::NodeHandle pnh, tf2_ros::Buffer* tf,
-                       const RosOptions& opts, Callbacks callbacks, const std::string& ns)
+                       const RosOptions& opts, Callbacks callbacks, const std::string& ns,
+                       const std::string& topic)
     : cb_(std::move(callbacks)) {
   targets_ = {opts.base_frame};
   if (opts.odometry_source == "tf" && !opts.odom_frame.empty()) targets_.push_back(opts.odom_frame);
   const uint32_t queue = static_cast<uint32_t>(opts.queue_size);
   if (opts.depth_input == "cloud") {
-    depth_topic_ = nh.resolveName(ns + "/points");
-    cloud_sub_.reset(
-        new message_filters::Subscriber<sensor_msgs::PointCloud2>(nh, ns + "/points", queue));
+    const std::string cloud = topic.empty() ? ns + "/points" : topic;
+    depth_topic_ = nh.resolveName(cloud);
+    cloud_sub_.reset(new message_filters::Subscriber<sensor_msgs::PointCloud2>(nh, cloud, queue));
     connectTf(cloud_sub_.get(), tf, nh, queue)->registerCallback(&DepthInput::onCloud, this);
     return;
   }
-  depth_topic_ = nh.resolveName(ns + "/image");
+  const std::string image = topic.empty() ? ns + "/image" : topic;
+  depth_topic_ = nh.resolveName(image);
   info_topic_ = image_transport::getCameraInfoTopic(depth_topic_);
   info_sub_.reset(
       new message_filters::Subscriber<sensor_msgs::CameraInfo>(nh, info_topic_, kSyncQueue));
@@ -71,7 +73,7 @@ DepthInput::DepthInput(ros::NodeHandle nh, ros::NodeHandle pnh, tf2_ros::Buffer*
   } else {
     it_ = std::make_unique<image_transport::ImageTransport>(nh);
     image_sub_ = std::make_unique<image_transport::SubscriberFilter>(
-        *it_, ns + "/image", queue,
+        *it_, image, queue,
         image_transport::TransportHints(opts.image_transport, ros::TransportHints(), pnh));
     connectImage(image_sub_.get(), tf, nh, queue);
   }

@@ -153,8 +153,8 @@ void LocalizationNodelet::advertise() {
     c.note = [this, name](const std::string& note) {
       NODELET_WARN_ONCE("gmm_mcl: camera '%s': %s", name.c_str(), note.c_str());
     };
-    more_inputs_.push_back(
-        std::make_unique<DepthInput>(nh, ros::NodeHandle(pnh, name), tf_.get(), o, c, name));
+    more_inputs_.push_back(std::make_unique<DepthInput>(nh, ros::NodeHandle(pnh, name), tf_.get(),
+                                                        o, c, name, rig_[i].topic));
   }
   health_.set([this](NodeHealth* h) {
     h->depth_topic = input_->depthTopic(), h->camera_info_topic = input_->cameraInfoTopic();

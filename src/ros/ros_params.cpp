@@ -3,6 +3,7 @@
 #include <XmlRpcValue.h>
 #include <dynamic_reconfigure/config_tools.h>
 #include <ros/console.h>
+#include <ros/names.h>
 #include <ros/param.h>
 
 #include <algorithm>
@@ -264,10 +265,17 @@ std::vector<std::string> moreCameraNames(const RosOptions& ros, std::string* err
 }
 
 const std::vector<std::string>& rigCameraParamNames() {
-  static const std::vector<std::string> names = {
-      "depth_input",      "image_transport",           "pixel_stride",    "min_range_m",
-      "max_range_m",      "depth_noise_preset",        "depth_noise_a_m", "depth_noise_b_per_m",
-      "depth_noise_z0_m", "refine_depth_scale_initial"};
+  static const std::vector<std::string> names = {"depth_input",
+                                                 "image_transport",
+                                                 "pixel_stride",
+                                                 "min_range_m",
+                                                 "max_range_m",
+                                                 "depth_noise_preset",
+                                                 "depth_noise_a_m",
+                                                 "depth_noise_b_per_m",
+                                                 "depth_noise_z0_m",
+                                                 "refine_depth_scale_initial",
+                                                 "topic"};
   return names;
 }
 
@@ -299,6 +307,13 @@ std::string loadRigCameras(const ros::NodeHandle& pnh, const LocalizerParams& co
     const std::string v = c.frame.validate() + c.measurement.validate() + c.refinement.validate();
     if (!v.empty()) f += v;
     if (r.image_transport.empty()) f += "~image_transport is empty; ";
+    // ~NAME/topic: the camera's image (or cloud) topic, when not NAME/image (NAME/points).
+    std::string topic, topic_error;
+    if (nh.hasParam("topic") && (!nh.getParam("topic", topic) || topic.empty() ||
+                                 !ros::names::validate(topic, topic_error))) {
+      f += "~topic must be a topic name (a string such as /down/depth/image_raw); ";
+      topic.clear();
+    }
     // "~pixel_stride ..." as "~down/pixel_stride ...".
     for (size_t at = f.find('~'); at != std::string::npos; at = f.find('~', at + name.size() + 2))
       f.insert(at + 1, name + "/");
@@ -307,6 +322,7 @@ std::string loadRigCameras(const ros::NodeHandle& pnh, const LocalizerParams& co
     cam.name = name;
     cam.depth_input = r.depth_input;
     cam.image_transport = r.image_transport;
+    cam.topic = topic;
     cam.frame = c.frame;
     cam.measurement = c.measurement;
     cam.depth_scale_initial = c.refinement.depth_scale_initial;

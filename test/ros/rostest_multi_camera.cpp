@@ -1,7 +1,8 @@
 // rostest node: a rig of two depth cameras (~more_cameras: [down]) in lockstep with a synthetic
 // robot whose clock the test owns (test/ros/synthetic_robot.h): the forward camera on
-// /camera/depth/image_raw, a down-looking one on /down/image, each with its CameraInfo and its
-// own optical frame on /tf_static. Each frame is awaited through the nodelet's ~status.
+// /camera/depth/image_raw, a down-looking one on /rig/down/image (~down/topic), each with its
+// CameraInfo and its own optical frame on /tf_static. Each frame is awaited through the nodelet's
+// ~status.
 //   1. both cameras: one update per frame set, both cameras used, the pose tracked;
 //   2. the down camera stops: the filter goes on with the forward one, ~status and /diagnostics
 //      say it dropped out ("no frame for X s: updating with the others");
@@ -328,8 +329,10 @@ int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "rostest_multi_camera");
   gmm_mcl::lockstep::World world;
-  world.robot.addCamera(world.nh, "/down", gmm_mcl::lockstep::kDownFrame,
-                        gmm_mcl::lockstep::downCamera());
+  // multi_camera.test: the down camera on topics of its own (~down_ns), which the nodelet
+  // finds through ~down/topic, not through its namespace.
+  world.robot.addCamera(world.nh, ros::NodeHandle("~").param<std::string>("down_ns", "/down"),
+                        gmm_mcl::lockstep::kDownFrame, gmm_mcl::lockstep::downCamera());
   // multi_camera_no_tf.test: a side camera without tf as well.
   if (ros::NodeHandle("~").param("camera_without_tf", false)) {
     world.robot.addCamera(world.nh, "/side", "side_camera_optical_frame",

@@ -45,10 +45,11 @@ class DepthInput {
   };
 
   // Subscribes on nh (NS/image + NS/camera_info, or NS/points; NS: depth for the first camera,
-  // a rig camera's name for the others); callbacks run on nh's callback queue. pnh carries the
+  // a rig camera's name for the others; a non-empty topic instead of NS/image or NS/points, its
+  // camera_info beside it); callbacks run on nh's callback queue. pnh carries the
   // image_transport hints.
   DepthInput(ros::NodeHandle nh, ros::NodeHandle pnh, tf2_ros::Buffer* tf, const RosOptions& opts,
-             Callbacks callbacks, const std::string& ns = "depth");
+             Callbacks callbacks, const std::string& ns = "depth", const std::string& topic = "");
   ~DepthInput();
 
   std::string depthTopic() const { return depth_topic_; }

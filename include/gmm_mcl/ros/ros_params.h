@@ -97,6 +97,7 @@ const ParamTable<RosOptions>& rosOptionsTable();
 // parameters, read from ~NAME/ with the first camera's values as defaults.
 struct RigCameraParams {
   std::string name;                  // its namespace: NAME/image + NAME/camera_info, or NAME/points
+  std::string topic;                 // ~NAME/topic: its image (or cloud) topic instead (any name)
   std::string depth_input;           // ~NAME/depth_input: image or cloud
   std::string image_transport;       // ~NAME/image_transport
   FrameParams frame;                 // ~NAME/pixel_stride, min_range_m, max_range_m
