@@ -42,7 +42,8 @@ Localizer::Localizer(const LocalizerParams& params, GmmMap map,
       map_(std::move(map)),
       backend_(std::move(backend)),
       region_(params.init),
-      motion_model_(params.constant_velocity) {
+      motion_model_(params.constant_velocity),
+      rival_rng_(params.filter.seed ^ 0x2545f491u) {
   if (map_.empty()) throw std::invalid_argument("localizer: the map is empty");
   if (!backend_) {
     BackendOptions options;
@@ -119,6 +120,7 @@ void Localizer::setMap(GmmMap map) {
   lost_ = LostDetector(params_.lost, map_self_ll_);
   have_refined_ = false;
   start_places_.stop();
+  rival_pending_ = false;
 }
 
 void Localizer::reset(const InitRegion& region) {
@@ -131,6 +133,7 @@ void Localizer::reset(const InitRegion& region) {
   have_refined_ = false;
   motion_model_.reset();
   start_places_.stop();
+  rival_pending_ = false;
 }
 
 void Localizer::resetToPose(const Particle& pose, const Eigen::Vector4d& sigma) {
@@ -140,6 +143,7 @@ void Localizer::resetToPose(const Particle& pose, const Eigen::Vector4d& sigma) 
   have_refined_ = false;
   motion_model_.reset();
   start_places_.stop();
+  rival_pending_ = false;
 }
 
 InitRegion Localizer::mapBounds() const { return gmm_mcl::mapBounds(map_); }

@@ -63,6 +63,8 @@ void Localizer::stepOnce(const StepInput& in, StepResult* res_out) {
   estimateAndRefine(in, &res);
   status = resampleAndRecover(ctx, &res, &why);
   if (status != StepStatus::kOk) return finishStep(status, why, t_start, &res);
+  // Last: its scoring replaces the backend's frame of this step.
+  if (params_.lost.rival_check_frames > 0) checkRivals(&res);
   res.timings.total_ms = msSince(t_start);
 }
 
@@ -148,6 +150,7 @@ void Localizer::predictStep(const StepInput& in, StepResult* res) {
   last_delta_ = delta;
   // The last refined pose moves like a particle, without noise.
   if (have_refined_) applyDelta(delta, &last_refined_);
+  if (rival_pending_) applyDelta(delta, &rival_);  // a rival awaiting its second check
   res->timings.predict_ms = msSince(t0);
 }
 
@@ -676,6 +679,7 @@ StepStatus Localizer::resampleAndRecover(const MeasurementContext& ctx, StepResu
   if (lost_.update(res->best_loglik_per_pixel)) {
     res->lost = true;
     have_refined_ = false;
+    rival_pending_ = false;
     motion_model_.reset();
     // The worst fraction is redrawn; with an adaptive count the set grows back to its largest.
     const int n = filter_->size();

@@ -313,6 +313,31 @@ void addLostParams(ParamTable<P>* t) {
       paramSpec<P>("lost_start_place_frames", GMM_MCL_PARAM_FIELD(P, lost.start_place_frames),
                    "frames", g, {1, 100000}, kRuntime,
                    "Frames a wide start follows its places before the best seeds the particles"));
+  add(t, paramSpec<P>("lost_rival_check_frames", GMM_MCL_PARAM_FIELD(P, lost.rival_check_frames),
+                      "frames", g, {0, 100000}, kRuntime,
+                      "Every this many frames the estimate is checked against rival places "
+                      "around it; one that scores better on several frames in a row seeds the "
+                      "particles (0 = off)"));
+  add(t, paramSpec<P>("lost_rival_radius_m", GMM_MCL_PARAM_FIELD(P, lost.rival_radius_m), "m", g,
+                      {1e-3, 100}, kRuntime,
+                      "Rival places: searched within this distance of the estimate"));
+  add(t, paramSpec<P>("lost_rival_yaw_rad", GMM_MCL_PARAM_FIELD(P, lost.rival_yaw_rad), "rad", g,
+                      {0, 3.15}, kRuntime,
+                      "Rival places: searched within this yaw of the estimate's"));
+  add(t, paramSpec<P>("lost_rival_candidates", GMM_MCL_PARAM_FIELD(P, lost.rival_candidates), "", g,
+                      {1, 1e6}, kRuntime,
+                      "Rival places: poses scored on a coarse frame against the blurred map"));
+  add(t,
+      paramSpec<P>("lost_rival_places", GMM_MCL_PARAM_FIELD(P, lost.rival_places), "", g, {1, 1000},
+                   kRuntime,
+                   "Rival places: the best this many distinct candidates are refined on the map"));
+  add(t, paramSpec<P>("lost_rival_margin_nats", GMM_MCL_PARAM_FIELD(P, lost.rival_margin_nats),
+                      "nats/px", g, {0, 100}, kRuntime,
+                      "Rival places: a rival's refined log-likelihood must beat the estimate's "
+                      "by this much"));
+  add(t, paramSpec<P>("lost_rival_frames", GMM_MCL_PARAM_FIELD(P, lost.rival_frames), "frames", g,
+                      {1, 1000}, kRuntime,
+                      "Rival places: a rival must win on this many frames in a row"));
 }
 
 // Depth frame.

@@ -126,6 +126,27 @@ std::string LostDetectionParams::validate() const {
   if (!(redraw_merge_m >= 0.0) || !std::isfinite(redraw_merge_m)) {
     err << "lost.redraw_merge_m must be >= 0 (got " << redraw_merge_m << "); ";
   }
+  if (rival_check_frames < 0) {
+    err << "lost.rival_check_frames must be >= 0 (got " << rival_check_frames << "); ";
+  }
+  if (!(rival_radius_m > 0.0) || !std::isfinite(rival_radius_m)) {
+    err << "lost.rival_radius_m must be positive (got " << rival_radius_m << "); ";
+  }
+  if (!(rival_yaw_rad >= 0.0) || !(rival_yaw_rad <= 3.15)) {
+    err << "lost.rival_yaw_rad must be in [0, 3.15] (got " << rival_yaw_rad << "); ";
+  }
+  if (rival_candidates < 1 || rival_candidates > 1000000) {
+    err << "lost.rival_candidates must be in [1, 1000000] (got " << rival_candidates << "); ";
+  }
+  if (rival_places < 1 || rival_places > 1000) {
+    err << "lost.rival_places must be in [1, 1000] (got " << rival_places << "); ";
+  }
+  if (rival_frames < 1 || rival_frames > 1000) {
+    err << "lost.rival_frames must be in [1, 1000] (got " << rival_frames << "); ";
+  }
+  if (!(rival_margin_nats >= 0.0) || !std::isfinite(rival_margin_nats)) {
+    err << "lost.rival_margin_nats must be >= 0 (got " << rival_margin_nats << "); ";
+  }
   if (coarse_pixels < 0) err << "lost.coarse_pixels must be >= 0 (got " << coarse_pixels << "); ";
   if (!(local_sigma_m > 0.0) || !(local_sigma_rad > 0.0)) {
     err << "lost.local_sigma_m and lost.local_sigma_rad must be positive; ";

@@ -184,7 +184,8 @@ void writeFrameCsv(const TrialResult& r, const std::string& path) {
          "beta_fraction,reinitialised,lost_redrawn,status,pixels,frame_prep_ms,membership_ms,"
          "likelihood_ms,resample_ms,refined,refined_error_m,refined_error_yaw_deg,refine_ms,"
          "particles,total_ms,depth_scale,nearest_particle_m,loglik_refined_per_px,"
-         "reference_loglik_per_px,start_places,nearest_place_m,nearest_place_rank\n";
+         "reference_loglik_per_px,start_places,nearest_place_m,nearest_place_rank,"
+         "rival_gain_per_px,rival_chosen,rival_ms\n";
   out.precision(7);
   for (const ReplayFrame& f : r.frames) {
     const StepResult& s = f.step;
@@ -218,7 +219,9 @@ void writeFrameCsv(const TrialResult& r, const std::string& path) {
     if (s.refinement.refined) out << s.refinement.loglik_refined;
     out << ',' << s.reference_loglik_per_pixel << ',' << s.start_places << ',';
     if (std::isfinite(f.nearest_place_m)) out << f.nearest_place_m;
-    out << ',' << f.nearest_place_rank << '\n';
+    out << ',' << f.nearest_place_rank << ',';
+    if (std::isfinite(s.rival_gain_per_pixel)) out << s.rival_gain_per_pixel;
+    out << ',' << (s.rival_chosen ? 1 : 0) << ',' << s.timings.rival_ms << '\n';
   }
 }
 

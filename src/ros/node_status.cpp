@@ -130,6 +130,7 @@ void recordFrame(const StepResult& r, bool gated, bool sent_tf, double now_s,
   if (!gated) {
     c.reinitialised_total += r.reinitialised;
     if (r.lost) ++c.lost_events_total;
+    if (r.rival_chosen) ++c.rival_moves_total;
     h->frames_since_lost = r.lost ? 0 : h->frames_since_lost < 0 ? -1 : h->frames_since_lost + 1;
   }
   fillStatus(r, c, backend, backend_warning, callback_ms, warnings, status);
@@ -184,6 +185,7 @@ const CounterRow kCounterRows[] = {
     {"tf not published", &FrameCounters::tf_skipped},
     {"reinitialised particles (total)", &FrameCounters::reinitialised_total},
     {"lost events (total)", &FrameCounters::lost_events_total},
+    {"moves to a rival place (total)", &FrameCounters::rival_moves_total},
     {"resets", &FrameCounters::resets},
     {"time jumps back", &FrameCounters::time_jumps},
     {"odometry gaps", &FrameCounters::odometry_gaps},

@@ -4,7 +4,9 @@
 
 #include <chrono>
 #include <cstdint>
+#include <limits>
 #include <memory>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -91,7 +93,8 @@ struct CameraStepResult {
 
 struct StepTimings {
   double predict_ms = 0, frame_prep_ms = 0, projection_membership_ms = 0, likelihood_ms = 0,
-         weights_ms = 0, resample_ms = 0, estimate_ms = 0, refine_ms = 0, total_ms = 0;
+         weights_ms = 0, resample_ms = 0, estimate_ms = 0, refine_ms = 0, rival_ms = 0,
+         total_ms = 0;
 };
 
 struct StepResult {
@@ -115,6 +118,13 @@ struct StepResult {
   // whether this step's best of them seeded the particle set.
   int start_places = 0;
   bool start_place_chosen = false;
+  // The estimate was checked against rival places on this step (lost.rival_*): the best rival's
+  // refined per-pixel log-likelihood minus the estimate's, both on the check's coarse frame (NaN:
+  // no rival apart from the estimate's own place), and whether a rival won its last check in a
+  // row (lost.rival_frames) and seeded the particle set.
+  bool rival_checked = false;
+  double rival_gain_per_pixel = std::numeric_limits<double>::quiet_NaN();
+  bool rival_chosen = false;
   double reference_loglik_per_pixel = 0.0;  // the LostDetector's reference level
   PoseEstimate estimate;
   // The estimate refined by local maximisation of the likelihood (pose_refinement.h), when the
@@ -215,6 +225,21 @@ class Localizer {
   StepStatus weighStep(StepResult* res, std::string* why);
   void estimateAndRefine(const StepInput& input, StepResult* res);
   void refineEstimate(const StepInput& input, StepResult* res);  // the converged estimate
+  // The estimate against rival places around it, every lost.rival_check_frames frames while the
+  // set is no wider than lost.rival_radius_m (rival_check.cpp). At the end of a step: it scores
+  // on the step camera's host frame, which replaces the backend's.
+  void checkRivals(StepResult* res);
+  // Poses around `centre` scored on the rival frame against the blurred map: the best distinct
+  // ones, at most lost.rival_places, best first.
+  std::vector<Particle> proposeRivals(const Particle& centre);
+  // Each place moved to the best of its draws around it on the rival frame against the blurred
+  // map.
+  void climbRivals(std::vector<Particle>* places);
+  // A place's local maximum of the likelihood on the rival frame (the pose refinement).
+  RefinementResult refineRival(const Particle& start);
+  // The poses' per-pixel log-likelihoods on rival_frame_ against `map` (the localizer's map, or
+  // a blurred one set on the backend for the call; an empty one: the localizer's).
+  std::vector<double> scoreRivalPoses(const std::vector<Particle>& poses, const GmmMap& map);
   // depth_scales_ for the cameras of `input` (a camera seen first starts at its initial value).
   void syncDepthScales(const StepInput& input);
   // A refined frame's depth-scale estimate (and its information) into camera c's estimate.
@@ -312,6 +337,15 @@ class Localizer {
   // The components the refinement can meet this frame (map indices, packed copies).
   std::vector<int> refine_index_;
   std::vector<ComponentF> refine_components_;
+  // Rival places (checkRivals): frames since the last check, and the rival that won the last
+  // check (moved by each step's motion) until the next frame confirms or drops it.
+  int frames_since_rival_check_ = 0;
+  bool rival_pending_ = false;
+  int rival_wins_ = 0;  // frames in a row the pending rival won
+  Particle rival_;
+  std::mt19937 rival_rng_;
+  DepthFrame rival_frame_;  // the step camera's frame at the rivals' coarser stride
+  std::vector<ComponentF> rival_components_;  // the map's near a place (its refinement)
 };
 
 // The map's 3-sigma bounding box with any yaw: the region of a whole-map (global) start. Needs

@@ -42,6 +42,7 @@ struct FrameCounters {
   long long odometry_received = 0;
   long long odometry_gaps = 0, imu_missing = 0, tf_skipped = 0, time_jumps = 0, resets = 0;
   long long reinitialised_total = 0, lost_events_total = 0;
+  long long rival_moves_total = 0;  // the set moved to a rival place (lost.rival_*)
 
   // A depth message arrived with this header.seq (a publisher's seq grows by one per message).
   void arrived(uint32_t seq);
