@@ -47,6 +47,8 @@ SLOW_CASES+=":LocalizerTest.SetParamsKeepsTheBelief:LocalizerTest.SetMapKeepsThe
 SLOW_CASES+=":LocalizerTest.PerFrameExtrinsicsEnterWithoutTouchingTheBelief"
 SLOW_CASES+=":LocalizerTest.AWideStartSearchesAroundItsBestCandidates"
 SLOW_CASES+=":LocalizerTest.AWideStartFollowsItsPlacesAndTheBestSeedsTheParticles"
+SLOW_CASES+=":LocalizerTest.ARivalPlaceThatScoresBetterTakesTheParticles"
+SLOW_CASES+=":LocalizerTest.ASetAtTheTruthKeepsItsPlaceAgainstRivals"
 # Static archives of what the tests link (libgomp.a comes with the cross compiler, libpng.a and
 # libz.a with libpng-dev:arm64 and zlib1g-dev:arm64).
 GOMP_A="$(aarch64-linux-gnu-g++ -print-file-name=libgomp.a)"
