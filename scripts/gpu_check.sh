@@ -70,55 +70,51 @@ for tool in memcheck racecheck; do
 done
 
 if step ncu; then
-  # Hardware counters of every kernel of one update per workload (NCU_WORKLOADS, after the
-  # warm-up): duration, registers, issue activity, warps active, threads per instruction, DRAM
-  # traffic, shared-memory bank conflicts, and the FP32 instructions actually executed, from
-  # which ncu_flops.txt gives the measured FP32 FLOP rate (FFMA counts 2, FADD and FMUL 1).
-  metrics=gpu__time_duration.sum,sm__inst_executed.sum,smsp__issue_active.avg.pct_of_peak_sustained_active
-  metrics+=,sm__warps_active.avg.pct_of_peak_sustained_active,smsp__thread_inst_executed_per_inst_executed.ratio
-  metrics+=,sm__sass_thread_inst_executed_op_ffma_pred_on.sum,sm__sass_thread_inst_executed_op_fadd_pred_on.sum
-  metrics+=,sm__sass_thread_inst_executed_op_fmul_pred_on.sum,sm__cycles_elapsed.avg.per_second
-  metrics+=,dram__bytes_read.sum,dram__bytes_write.sum,launch__registers_per_thread
-  metrics+=,l1tex__data_bank_conflicts_pipe_lsu_mem_shared.sum
+  # Hardware counters of every kernel of one update per workload (NCU_WORKLOADS; NCU_COUNT
+  # launches after the first NCU_SKIP, i.e. after the warm-up), Nsight Compute's raw page:
+  # duration, registers, issue activity, warps active, threads per instruction, DRAM and L2 traffic, shared-memory bank conflicts, the FP32
+  # instructions actually executed (ncu_flops.txt: the measured FP32 FLOP rate, FFMA counting 2),
+  # the warp instructions per pipe and the pipes' utilisation (scripts/jetson_projection.py
+  # projects each kernel to the Jetsons from these). Counters the profiler does not know on this
+  # chip are left out and listed in ncu_dropped.txt.
+  metrics=(gpu__time_duration.sum sm__inst_executed.sum smsp__inst_executed.sum
+    smsp__issue_active.avg.pct_of_peak_sustained_active sm__warps_active.avg.pct_of_peak_sustained_active
+    smsp__thread_inst_executed_per_inst_executed.ratio sm__sass_thread_inst_executed_op_ffma_pred_on.sum
+    sm__sass_thread_inst_executed_op_fadd_pred_on.sum sm__sass_thread_inst_executed_op_fmul_pred_on.sum
+    sm__cycles_elapsed.avg.per_second sm__cycles_elapsed.max dram__bytes_read.sum dram__bytes_write.sum
+    lts__t_bytes.sum launch__registers_per_thread launch__grid_size launch__block_size
+    launch__shared_mem_per_block_static launch__shared_mem_per_block_dynamic
+    l1tex__data_bank_conflicts_pipe_lsu_mem_shared.sum device__attribute_multiprocessor_count
+    dram__throughput.avg.pct_of_peak_sustained_elapsed)
+  for p in fma fmaheavy alu xu lsu fp16 adu cbu uniform; do
+    metrics+=(smsp__inst_executed_pipe_$p.sum sm__inst_executed_pipe_$p.avg.pct_of_peak_sustained_active)
+  done
+  metrics+=(sm__pipe_fma_cycles_active.avg.pct_of_peak_sustained_active
+    sm__pipe_alu_cycles_active.avg.pct_of_peak_sustained_active
+    sm__pipe_shared_cycles_active.avg.pct_of_peak_sustained_active)
+  ncu --query-metrics > "$LOGS/ncu_query.txt" 2>&1
+  keep=() ; : > "$LOGS/ncu_dropped.txt"
+  for m in "${metrics[@]}"; do
+    # launch__ and device__ attributes are not listed by --query-metrics but always known.
+    if [[ $m == launch__* || $m == device__* ]] || grep -q "^${m%%.*} " "$LOGS/ncu_query.txt"; then
+      keep+=("$m")
+    else
+      echo "$m" >> "$LOGS/ncu_dropped.txt"
+    fi
+  done
+  [[ -s "$LOGS/ncu_dropped.txt" ]] && echo "counters not on this chip: $(tr '\n' ' ' < "$LOGS/ncu_dropped.txt")"
+  list=$(IFS=,; echo "${keep[*]}")
   : > "$LOGS/ncu_flops.txt"
   for wl in ${NCU_WORKLOADS:-paper cpu full scale large}; do
     echo "== ncu ($wl)"
-    args=(--backend cuda --workload "$wl" --frames 2 --warmup 3 --min-timed 1 --exact 0)
+    args=(--backend cuda --workload "$wl" --frames 6 --warmup 3 --min-timed 1 --exact 0 ${NCU_BENCH_ARGS:-})
     [[ -n "${GMM_MCL_MAP:-}" ]] && args+=(--map "$GMM_MCL_MAP")
     [[ -n "${GMM_MCL_LARGE_MAP:-}" ]] && args+=(--large-map "$GMM_MCL_LARGE_MAP")
     [[ -n "${GMM_MCL_7SCENES_FRAMES:-}" ]] && args+=(--frames-raw "$GMM_MCL_7SCENES_FRAMES")
-    timeout 300 ncu --clock-control none \
-      --kernel-name regex:"likelihoodKernel|membershipKernel|reduceKernel|frame" --launch-skip 8 \
-      --launch-count 6 --metrics "$metrics" --csv "$BUILD/gmm_mcl_bench" "${args[@]}" \
+    timeout 300 ncu --clock-control none --kernel-name regex:Kernel --launch-skip "${NCU_SKIP:-24}" \
+      --launch-count "${NCU_COUNT:-16}" --metrics "$list" --page raw --csv "$BUILD/gmm_mcl_bench" "${args[@]}" \
       > "$LOGS/ncu_$wl.csv" 2> "$LOGS/ncu_$wl.err" || { echo "ncu failed"; tail -5 "$LOGS/ncu_$wl.err"; }
-    python3 - "$LOGS/ncu_$wl.csv" "$wl" <<'PY' | tee -a "$LOGS/ncu_flops.txt"
-import csv, sys, collections
-rows = [r for r in csv.reader(open(sys.argv[1])) if len(r) > 10]
-hdr = rows[0]; idx = {h: i for i, h in enumerate(hdr)}
-k = collections.defaultdict(dict)
-for r in rows[1:]:
-    name = r[idx["Kernel Name"]].split("(")[0].split("::")[-1][-32:]
-    unit = r[idx["Metric Unit"]].lower()
-    scale = {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0, "nsecond": 1e-9, "usecond": 1e-6, "msecond": 1e-3, "second": 1.0, "cycle/nsecond": 1e9,
-             "cycle/usecond": 1e6, "cycle/second": 1.0, "ghz": 1e9, "mhz": 1e6, "hz": 1.0, "byte": 1.0, "kbyte": 1e3, "mbyte": 1e6, "gbyte": 1e9}.get(unit, 1.0)
-    try:
-        k[(r[idx["ID"]], name)][r[idx["Metric Name"]]] = float(r[idx["Metric Value"]].replace(",", "")) * scale
-    except ValueError:
-        pass
-for (i, name), m in sorted(k.items(), key=lambda x: int(x[0][0])):
-    t = m["gpu__time_duration.sum"]  # s
-    flops = 2 * m["sm__sass_thread_inst_executed_op_ffma_pred_on.sum"] + \
-        m["sm__sass_thread_inst_executed_op_fadd_pred_on.sum"] + m["sm__sass_thread_inst_executed_op_fmul_pred_on.sum"]
-    clk = m["sm__cycles_elapsed.avg.per_second"]
-    peak = 2 * 128 * 132 * clk  # H100 SXM: 132 SMs x 128 FP32 lanes, at the measured clock
-    print(f"{sys.argv[2]} {name}: {t*1e6:.1f} us, {m['launch__registers_per_thread']:.0f} registers, "
-          f"issue active {m['smsp__issue_active.avg.pct_of_peak_sustained_active']:.1f}%, "
-          f"warps active {m['sm__warps_active.avg.pct_of_peak_sustained_active']:.1f}%, "
-          f"threads/inst {m['smsp__thread_inst_executed_per_inst_executed.ratio']:.1f}, "
-          f"FP32 FLOP executed {flops:.3e} = {flops/t*1e-12:.2f} TFLOP/s = {100*flops/t/peak:.1f}% of peak at {clk*1e-9:.2f} GHz, "
-          f"DRAM read {m['dram__bytes_read.sum']*1e-6:.1f} MB write {m['dram__bytes_write.sum']*1e-6:.1f} MB, "
-          f"shared bank conflicts {m['l1tex__data_bank_conflicts_pipe_lsu_mem_shared.sum']:.3g}")
-PY
+    python3 "$ROOT/scripts/jetson_projection.py" --flops "$LOGS/ncu_$wl.csv" | tee -a "$LOGS/ncu_flops.txt"
   done
 fi
 
