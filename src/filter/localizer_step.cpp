@@ -402,10 +402,17 @@ void Localizer::estimateAndRefine(const StepInput& in, StepResult* res) {
   res->timings.estimate_ms = msSince(t0);
   res->refinement.pose = res->estimate.mean;
   if (params_.refinement.enabled) {
+    // A converged set, or one that widened while the previous frame was refined (its track).
+    const RefinementParams& rp = params_.refinement;
     double position_sigma, yaw_sigma;
     beliefSpread(res->estimate.covariance, &position_sigma, &yaw_sigma);
-    if (position_sigma <= params_.refinement.max_position_sigma_m &&
-        yaw_sigma <= params_.refinement.max_yaw_sigma_rad) {
+    const double max_position_sigma_m =
+        have_refined_ ? std::max(rp.max_position_sigma_m, rp.track_max_position_sigma_m)
+                      : rp.max_position_sigma_m;
+    const double max_yaw_sigma_rad =
+        have_refined_ ? std::max(rp.max_yaw_sigma_rad, rp.track_max_yaw_sigma_rad)
+                      : rp.max_yaw_sigma_rad;
+    if (position_sigma <= max_position_sigma_m && yaw_sigma <= max_yaw_sigma_rad) {
       refineEstimate(in, res);
     } else {
       res->refinement.why = "not converged";
@@ -438,15 +445,18 @@ void Localizer::reportDepthScales(StepResult* res) const {
 }
 
 void Localizer::observeMotion(const StepInput& in, const StepResult& res) {
-  // The constant-velocity model learns from the refined pose, else from a particle mean up to
-  // twice as spread as refinement allows, trusted by (refinement's limit / spread)^2: the
-  // velocity builds up while the filter converges, which in turn narrows the prediction. A more
-  // spread belief restarts it from zero.
+  // The constant-velocity model learns from the refined pose of a set within refinement's
+  // convergence limits, else from the particle mean up to twice as spread, trusted by (limit /
+  // spread)^2: the velocity builds up while the filter converges, which in turn narrows the
+  // prediction. A more spread belief restarts it from zero. A pose refined on a set beyond the
+  // limits (refinement's tracking limits) is reported but not learned from: where a view leaves
+  // a direction open the refined pose can slide along it, and a velocity learned from the slide
+  // would move the particles after it.
   double position_sigma, yaw_sigma;
   beliefSpread(res.estimate.covariance, &position_sigma, &yaw_sigma);
   const double limit_m = params_.refinement.max_position_sigma_m;
   const double limit_rad = params_.refinement.max_yaw_sigma_rad;
-  if (res.refinement.refined) {
+  if (res.refinement.refined && position_sigma <= limit_m && yaw_sigma <= limit_rad) {
     motion_model_.observe(in.stamp_s, res.refinement.pose);
   } else if (position_sigma <= 2.0 * limit_m && yaw_sigma <= 2.0 * limit_rad) {
     const double confidence = std::min({1.0, std::pow(limit_m / std::max(position_sigma, 1e-9), 2),

@@ -414,6 +414,16 @@ void addRefinementParams(ParamTable<P>* t) {
       paramSpec<P>("refine_max_yaw_sigma_rad", GMM_MCL_PARAM_FIELD(P, refinement.max_yaw_sigma_rad),
                    "rad", g, {1e-3, 3.15}, kRuntime,
                    "Refinement runs only while the particles' yaw spread is below this"));
+  add(t, paramSpec<P>("refine_track_max_position_sigma_m",
+                      GMM_MCL_PARAM_FIELD(P, refinement.track_max_position_sigma_m), "m", g,
+                      {1e-3, 10}, kRuntime,
+                      "While the previous frame was refined, refinement runs while the position "
+                      "spread is below this (or refine_max_position_sigma_m if larger)"));
+  add(t, paramSpec<P>("refine_track_max_yaw_sigma_rad",
+                      GMM_MCL_PARAM_FIELD(P, refinement.track_max_yaw_sigma_rad), "rad", g,
+                      {1e-3, 3.15}, kRuntime,
+                      "While the previous frame was refined, refinement runs while the yaw spread "
+                      "is below this (or refine_max_yaw_sigma_rad if larger)"));
   add(t,
       paramSpec<P>("refine_max_correction_m", GMM_MCL_PARAM_FIELD(P, refinement.max_correction_m),
                    "m", g, {1e-3, 10}, kRuntime,

@@ -34,7 +34,8 @@ LocalizerParams trackingParams(const Eigen::Isometry3d& start) {
 struct Track {
   double worst_last_m = 0.0;  // worst refined-or-mean error over the last `last` frames
   double worst_last_yaw_rad = 0.0;
-  int within_last = 0;  // of the last frames, those within kTrackedErrorM
+  int within_last = 0;   // of the last frames, those within kTrackedErrorM
+  int refined_last = 0;  // of the last frames, those refined
   int constant_velocity_steps = 0;
   int odometry_steps = 0;
   int gyro_steps = 0;  // constant-velocity steps turned by the gyro (StepResult::gyro_yaw)
@@ -106,6 +107,7 @@ Track run(const LocalizerParams& params, int frames, int step, int odometry_from
           std::hypot(std::hypot(est.x_m - gt.x_m, est.y_m - gt.y_m), est.z_m - gt.z_m);
       t.worst_last_m = std::max(t.worst_last_m, error_m);
       t.within_last += error_m < kTrackedErrorM ? 1 : 0;
+      t.refined_last += res.refinement.refined ? 1 : 0;
       t.worst_last_yaw_rad =
           std::max(t.worst_last_yaw_rad, std::abs(wrapAngle(est.yaw_rad - gt.yaw_rad)));
       t.roll_error_rad = std::abs(loc.rollRad() - roll);
@@ -135,6 +137,25 @@ TEST(LocalizerNoOdometryTest, TracksAtTenHertz) {
       t.worst_last_m, t.worst_last_yaw_rad * 180 / M_PI);
   EXPECT_LT(t.worst_last_m, kTrackedErrorM);
   EXPECT_LT(t.worst_last_yaw_rad, 0.05);
+}
+
+// 300 particles at 10 Hz: the set widens past the refinement's convergence limit (0.1 m, 0.1
+// rad) on some frames; with tracking limits of 0.3 m and 0.3 rad, refinement goes on while the
+// previous frame was refined, so the refined track holds where the mean drifts.
+TEST(LocalizerNoOdometryTest, TheRefinedTrackHoldsWhereTheSetWidens) {
+  LocalizerParams params = trackingParams(sim::makeTrajectory(1)[0]);
+  const Track without = run(params, 300, 3, -1, false, 60);  // the defaults: no tracking limits
+  params.refinement.track_max_position_sigma_m = 0.3;
+  params.refinement.track_max_yaw_sigma_rad = 0.3;
+  const Track with = run(params, 300, 3, -1, false, 60);
+  std::printf(
+      "[ measured ] 10 Hz, no odometry, 300 particles, last 60 frames: with the tracking limits "
+      "%d refined, worst %.3f m; without %d refined, worst %.3f m\n",
+      with.refined_last, with.worst_last_m, without.refined_last, without.worst_last_m);
+  EXPECT_EQ(with.refined_last, 60);
+  EXPECT_GT(with.refined_last, without.refined_last);
+  EXPECT_LT(with.worst_last_m, 0.02);
+  EXPECT_LT(with.worst_last_m, without.worst_last_m);
 }
 
 // A fast turn at 10 Hz: the constant-velocity yaw rate lags the swing by several degrees per
