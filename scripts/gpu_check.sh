@@ -72,11 +72,12 @@ done
 if step ncu; then
   # Hardware counters of every kernel of one update per workload (NCU_WORKLOADS; NCU_COUNT
   # launches after the first NCU_SKIP, i.e. after the warm-up), Nsight Compute's raw page:
-  # duration, registers, issue activity, warps active, threads per instruction, DRAM and L2 traffic, shared-memory bank conflicts, the FP32
-  # instructions actually executed (ncu_flops.txt: the measured FP32 FLOP rate, FFMA counting 2),
-  # the warp instructions per pipe and the pipes' utilisation (scripts/jetson_projection.py
-  # projects each kernel to the Jetsons from these). Counters the profiler does not know on this
-  # chip are left out and listed in ncu_dropped.txt.
+  # duration, registers, issue activity, warps active, threads per instruction, DRAM and L2
+  # traffic, shared-memory bank conflicts, the FP32 instructions actually executed
+  # (ncu_flops.txt: the measured FP32 FLOP rate, FFMA counting 2), the warp instructions per pipe
+  # and the pipes' utilisation (scripts/jetson_projection.py projects each kernel to the Jetsons
+  # from these). Counters the profiler does not know on this chip are left out and listed in
+  # ncu_dropped.txt. NCU_BENCH_ARGS: more gmm_mcl_bench options (--no-depth-noise).
   metrics=(gpu__time_duration.sum sm__inst_executed.sum smsp__inst_executed.sum
     smsp__issue_active.avg.pct_of_peak_sustained_active sm__warps_active.avg.pct_of_peak_sustained_active
     smsp__thread_inst_executed_per_inst_executed.ratio sm__sass_thread_inst_executed_op_ffma_pred_on.sum

@@ -10,7 +10,7 @@ that bound, and the time each Jetson would take at the same fraction of its own 
     scripts/jetson_projection.py build-gpu/logs/ncu_paper.csv build-gpu/logs/ncu_cpu.csv
     scripts/jetson_projection.py --flops ncu_paper.csv     # the measured FP32 rate per kernel
 
-The model and its assumptions are written out in docs/tx2.md (Projected to the Jetsons).
+The model and its assumptions are written out in docs/tx2.md ("What the Jetsons would run").
 """
 import argparse
 import csv

@@ -150,7 +150,7 @@ void Localizer::predictStep(const StepInput& in, StepResult* res) {
   last_delta_ = delta;
   // The last refined pose moves like a particle, without noise.
   if (have_refined_) applyDelta(delta, &last_refined_);
-  if (rival_pending_) applyDelta(delta, &rival_);  // a rival awaiting its second check
+  if (rival_pending_) applyDelta(delta, &rival_);  // a rival awaiting its next check
   res->timings.predict_ms = msSince(t0);
 }
 
