@@ -18,17 +18,13 @@ namespace {
 // wrong place in the Replica office scored 2.7 nats below, a pose 10-20 cm off 1.5).
 constexpr double kDepthScaleFitNats = 1.0;
 
-// The particle set a wide start's chosen place seeds: x, y, z, yaw sigmas (the places' own
-// local draws, start_hypotheses.h).
-const Eigen::Vector4d kStartPlaceSigma(0.05, 0.05, 0.01, 0.03);
+}  // namespace
 
-// The belief's spread: the largest position standard deviation and the yaw's.
-void beliefSpread(const Eigen::Matrix<double, 6, 6>& C, double* position_sigma, double* yaw_sigma) {
+void Localizer::beliefSpread(const Eigen::Matrix<double, 6, 6>& C, double* position_sigma,
+                             double* yaw_sigma) {
   *position_sigma = std::sqrt(std::max({C(0, 0), C(1, 1), C(2, 2)}));
   *yaw_sigma = std::sqrt(C(5, 5));
 }
-
-}  // namespace
 
 void Localizer::stepOnce(const StepInput& in, StepResult* res_out) {
   StepResult& res = *res_out;
@@ -652,7 +648,7 @@ void Localizer::followStartPlaces(StepResult* res) {
         std::abs(wrapAngle(e.mean.yaw_rad - best.pose.yaw_rad)) <
             params_.refinement.max_correction_rad;
     if (!settled_there) {
-      filter_->initialiseGaussian(best.pose, kStartPlaceSigma);
+      filter_->initialiseGaussian(best.pose, placeSigma());
       lost_.restart();
       have_refined_ = false;
       motion_model_.reset();

@@ -35,8 +35,6 @@ constexpr double kRivalClimbSigmaRad = 0.05;
 constexpr double kRivalOwnSlackNats = 0.5;
 // A rival must score at least the lost detector's reference minus this (nats per pixel).
 constexpr double kRivalFitNats = 1.0;
-// The particle set a winning rival seeds: x, y, z, yaw sigmas (as a wide start's chosen place).
-const Eigen::Vector4d kRivalSigma(0.05, 0.05, 0.01, 0.03);
 
 double distanceM(const Particle& a, const Particle& b) {
   return std::hypot(std::hypot(a.x_m - b.x_m, a.y_m - b.y_m), a.z_m - b.z_m);
@@ -149,9 +147,8 @@ void Localizer::checkRivals(StepResult* res) {
   rival_pending_ = false;
   // A set spread over more than the search's reach (a start, a redraw), or over several
   // headings, is not settled anywhere.
-  const Eigen::Matrix<double, 6, 6>& C = res->estimate.covariance;
-  const double position_sigma = std::sqrt(std::max({C(0, 0), C(1, 1), C(2, 2)}));
-  const double yaw_sigma = std::sqrt(C(5, 5));
+  double position_sigma, yaw_sigma;
+  beliefSpread(res->estimate.covariance, &position_sigma, &yaw_sigma);
   if (res->lost || !(position_sigma <= lp.rival_radius_m) ||
       !(yaw_sigma <= std::max(lp.rival_yaw_rad, params_.refinement.max_yaw_sigma_rad)) ||
       cam_.depth == nullptr) {
@@ -215,7 +212,7 @@ void Localizer::checkRivals(StepResult* res) {
       const Particle& r = best.pose;
       if (rival_wins_ >= lp.rival_frames) {
         // The lost detector goes on judging (no grace period): the reference level stays.
-        filter_->initialiseGaussian(r, kRivalSigma);
+        filter_->initialiseGaussian(r, placeSigma());
         have_refined_ = false;  // nothing of the old place carries over
         motion_model_.reset();
         res->rival_chosen = true;

@@ -200,6 +200,12 @@ class Localizer {
   const StartHypotheses& startPlaces() const { return start_places_; }
 
  private:
+  // The belief's spread: the largest position standard deviation and the yaw's.
+  static void beliefSpread(const Eigen::Matrix<double, 6, 6>& covariance, double* position_sigma,
+                           double* yaw_sigma);
+  // The particle set a chosen place seeds (a wide start's best place, a winning rival): x, y, z,
+  // yaw sigmas.
+  static Eigen::Vector4d placeSigma() { return Eigen::Vector4d(0.05, 0.05, 0.01, 0.03); }
   // Fills the filter's candidate pool with count * lost.candidates_per_particle draws scored on
   // the frame in batches of the particle count: uniform from the recovery region, and with
   // local_stage a fraction (lost.local_candidate_fraction) around the best uniform ones instead.
