@@ -482,16 +482,8 @@ void Localizer::refineComponents(const Particle& mean, const RefinementFrame& rf
                                     rf.grid.rows, patchInflation(rf.grid.patch_size_px),
                                     frame.max_range_m, mp.sigma_bound, mp.depth_noise);
   const Eigen::Isometry3d T_map_cam = particleToPose(mean, roll_rad_, pitch_rad_) * T_base_cam;
-  Box3 box = viewBox(toRigidF(T_map_cam), rf.intrinsics, reach);
-  constexpr double kAttitudeSlackRad = 0.1;
-  const double grow = params_.refinement.max_correction_m +
-                      static_cast<double>(reach.far_m) *
-                          (params_.refinement.max_correction_rad + kAttitudeSlackRad);
-  box.lo.array() -= grow;
-  box.hi.array() += grow;
-  map_.grid().query(box, &refine_index_);
-  out->resize(refine_index_.size());
-  for (size_t k = 0; k < refine_index_.size(); ++k) (*out)[k] = map_.packed()[refine_index_[k]];
+  viewComponents(map_, toRigidF(T_map_cam), rf.intrinsics, reach,
+                 refinementReach(params_.refinement, reach), &refine_index_, out);
 }
 
 void Localizer::refineEstimate(const StepInput& in, StepResult* res) {

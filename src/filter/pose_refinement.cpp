@@ -515,4 +515,10 @@ RefinementResult refinePose(const std::vector<ComponentF>& components, const Ref
   return r;
 }
 
+double refinementReach(const RefinementParams& refinement, const ViewReach& reach) {
+  constexpr double kAttitudeSlackRad = 0.1;
+  return refinement.max_correction_m +
+         static_cast<double>(reach.far_m) * (refinement.max_correction_rad + kAttitudeSlackRad);
+}
+
 }  // namespace gmm_mcl

@@ -92,6 +92,17 @@ Box3 viewBox(const RigidTransformF& T_map_cam, const Intrinsics& K, const ViewRe
   return box;
 }
 
+void viewComponents(const GmmMap& map, const RigidTransformF& T_map_cam, const Intrinsics& K,
+                    const ViewReach& reach, double grow_m, std::vector<int>* index,
+                    std::vector<ComponentF>* out) {
+  Box3 box = viewBox(T_map_cam, K, reach);
+  box.lo.array() -= grow_m;
+  box.hi.array() += grow_m;
+  map.grid().query(box, index);
+  out->resize(index->size());
+  for (size_t k = 0; k < index->size(); ++k) (*out)[k] = map.packed()[(*index)[k]];
+}
+
 void groupPosesByPlace(const std::vector<RigidTransformF>& T_map_cam, double cell_m,
                        std::vector<int>* order, std::vector<int>* begin) {
   const int n = static_cast<int>(T_map_cam.size());

@@ -22,6 +22,7 @@
 #include "gmm_mcl/filter/pose_refinement.h"
 #include "gmm_mcl/map/gmm_map_io.h"
 #include "gmm_mcl/measurement/likelihood.h"
+#include "gmm_mcl/measurement/membership.h"
 #include "gmm_mcl/replay/replay.h"
 
 namespace gmm_mcl {
@@ -60,6 +61,20 @@ RefinementFrame scaledFrame(const DepthFrame& frame, const RefinementParams& rp)
   return f;
 }
 
+// The components a pose's view can meet (grown by the refinement's reach when it refines): the
+// pose's sums over them equal those over the whole map, at a cost that follows the view.
+std::vector<ComponentF> componentsNear(const GmmMap& map, const DepthFrame& frame,
+                                       const Eigen::Isometry3d& T_map_cam,
+                                       const MeasurementParams& measurement,
+                                       const RefinementParams* rp) {
+  const ViewReach reach = viewReach(frame, measurement);
+  std::vector<int> index;
+  std::vector<ComponentF> out;
+  viewComponents(map, toRigidF(T_map_cam), frame.intrinsics, reach,
+                 rp ? refinementReach(*rp, reach) : 0.0, &index, &out);
+  return out;
+}
+
 // Every step-th frame of first..last at its ground truth: the frame's log-likelihood there and,
 // with refine, where the likelihood's maximum near it lies. CSV on stdout, summary on stderr.
 int scoreRange(const Sequence& seq, const GmmMap& map, const Eigen::Isometry3d& T_base_cam,
@@ -87,9 +102,11 @@ int scoreRange(const Sequence& seq, const GmmMap& map, const Eigen::Isometry3d& 
     double roll, pitch, yaw;
     rpyFromRotation(truth[i].linear(), &roll, &pitch, &yaw);
     const Particle p = poseToParticle(truth[i]);
-    const FrameLikelihood l = poseLogLikelihood(
-        map.packed(), frame, toRigidF(particleToPose(p, roll, pitch) * T_base_cam), measurement,
-        &scratch);
+    const Eigen::Isometry3d T_map_cam = particleToPose(p, roll, pitch) * T_base_cam;
+    const std::vector<ComponentF> near =
+        componentsNear(map, frame, T_map_cam, measurement, refine ? &rp : nullptr);
+    const FrameLikelihood l =
+        poseLogLikelihood(near, frame, toRigidF(T_map_cam), measurement, &scratch);
     const double px = frame.size();
     lls.push_back(l.log_likelihood / px);
     std::printf("%d,%d,%.5f,%.4f", i, static_cast<int>(px), l.log_likelihood / px,
@@ -104,8 +121,8 @@ int scoreRange(const Sequence& seq, const GmmMap& map, const Eigen::Isometry3d& 
         roll_in += g(rng);
         pitch_in += g(rng);
       }
-      const RefinementResult r = refinePose(map.packed(), scaledFrame(frame, rp), p, roll_in,
-                                            pitch_in, T_base_cam, measurement, rp);
+      const RefinementResult r = refinePose(near, scaledFrame(frame, rp), p, roll_in, pitch_in,
+                                            T_base_cam, measurement, rp);
       const Eigen::Vector3d d(r.pose.x_m - p.x_m, r.pose.y_m - p.y_m, r.pose.z_m - p.z_m);
       const double dyaw = wrapAngle(r.pose.yaw_rad - p.yaw_rad);
       std::printf(",%d,%.5f,%.5f,%.5f,%.5f,%.5f,%.4f,%.4f,%.4f,%d,%.5f,%.4g", r.refined ? 1 : 0,
@@ -212,8 +229,10 @@ void printRefinement(const GmmMap& map, const DepthFrame& frame, const Particle&
                      double pitch, const Eigen::Isometry3d& T_base_cam,
                      const MeasurementParams& measurement, const RefinementParams& rp,
                      const Eigen::Isometry3d& truth) {
+  const std::vector<ComponentF> near =
+      componentsNear(map, frame, particleToPose(p, roll, pitch) * T_base_cam, measurement, &rp);
   const RefinementResult r =
-      refinePose(map.packed(), scaledFrame(frame, rp), p, roll, pitch, T_base_cam, measurement, rp);
+      refinePose(near, scaledFrame(frame, rp), p, roll, pitch, T_base_cam, measurement, rp);
   const Particle truth_p = poseToParticle(truth);
   std::printf(
       "refined: %s, x %.4f y %.4f z %.4f yaw %.5f roll %.5f pitch %.5f, %.4f nats/px "
@@ -260,7 +279,8 @@ void scoreFrame(const Sequence& seq, const GmmMap& map, const Eigen::Isometry3d&
     throw std::runtime_error("frame " + std::to_string(frame_index) + " has no usable pixel");
   LikelihoodScratch scratch;
   const FrameLikelihood approx =
-      poseLogLikelihood(map.packed(), frame, toRigidF(T_map_cam), measurement, &scratch);
+      poseLogLikelihood(componentsNear(map, frame, T_map_cam, measurement, nullptr), frame,
+                        toRigidF(T_map_cam), measurement, &scratch);
   std::vector<double> per_pixel;
   const FrameLikelihood exact = exactFrameLogLikelihood(
       map, frame, T_map_cam, measurement, o.per_pixel_path.empty() ? nullptr : &per_pixel);

@@ -13,6 +13,8 @@
 #include "gmm_mcl/filter/localizer.h"
 #include "gmm_mcl/map/component_grid.h"
 #include "gmm_mcl/map/gmm_map.h"
+#include "gmm_mcl/measurement/likelihood.h"
+#include "gmm_mcl/measurement/membership.h"
 #include "gmm_mcl/sim/step_input.h"
 #include "test_utils/synthetic_fixtures.h"
 
@@ -136,6 +138,28 @@ TEST(MergedByCellTest, KeepsEachCubesMassMeanAndCovariance) {
   EXPECT_EQ(mergedByCell(room.components(), 0.0).size(), room.size());
 }
 
+// The reference frame of the synthetic room and camera poses around its truth: the truth first,
+// then perturbed ones (seeded), with the frame's true roll and pitch.
+struct RoomView {
+  DepthFrame frame;
+  std::vector<RigidTransformF> poses;
+};
+RoomView roomView(int poses, uint64_t seed) {
+  const Eigen::Isometry3d T_map_base = test::referenceBasePose();
+  RoomView v;
+  v.frame = test::renderFrame(T_map_base, test::smallCamera(), test::frameParams(4));
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  const Particle truth = poseToParticle(T_map_base);
+  double roll_rad = 0.0, pitch_rad = 0.0, yaw_rad = 0.0;
+  rpyFromRotation(T_map_base.linear(), &roll_rad, &pitch_rad, &yaw_rad);
+  for (int i = 0; i < poses; ++i) {
+    const Particle p = i == 0 ? truth : test::perturbed(truth, n01, rng);
+    v.poses.push_back(toRigidF(particleToPose(p, roll_rad, pitch_rad) * test::world().T_base_cam));
+  }
+  return v;
+}
+
 // The same room, the same frame, the true pose and a converged cloud around it: the room's own
 // map and the room as one of 100 in a 10 x 10 building. Without the surface normalisation the
 // building would score ln(100) = 4.6 nats per pixel lower wherever a pixel's density is above
@@ -143,21 +167,10 @@ TEST(MergedByCellTest, KeepsEachCubesMassMeanAndCovariance) {
 TEST(BuildingScaleTest, RoomInsideAHundredRoomMapScoresAsTheRoomAlone) {
   const GmmMap& room = test::world().map;
   const GmmMap building = tiledMap(room, 10, 10, 14.0);
-  const Intrinsics K = test::smallCamera();
-  const FrameParams fp = test::frameParams(4);
-  const Eigen::Isometry3d T_map_base = test::referenceBasePose();
-  const DepthFrame frame = test::renderFrame(T_map_base, K, fp);
+  const RoomView v = roomView(16, 3);
+  const DepthFrame& frame = v.frame;
+  const std::vector<RigidTransformF>& poses = v.poses;
   ASSERT_GT(frame.size(), 1000u);
-  std::mt19937_64 rng(3);
-  std::normal_distribution<double> n01(0.0, 1.0);
-  const Particle truth = poseToParticle(T_map_base);
-  double roll_rad = 0.0, pitch_rad = 0.0, yaw_rad = 0.0;
-  rpyFromRotation(T_map_base.linear(), &roll_rad, &pitch_rad, &yaw_rad);
-  std::vector<RigidTransformF> poses;
-  for (int i = 0; i < 16; ++i) {
-    const Particle p = i == 0 ? truth : test::perturbed(truth, n01, rng);
-    poses.push_back(toRigidF(particleToPose(p, roll_rad, pitch_rad) * test::world().T_base_cam));
-  }
   MeasurementParams params;
   CpuBackend cpu(2);
   BackendOutput own, inside;
@@ -175,6 +188,36 @@ TEST(BuildingScaleTest, RoomInsideAHundredRoomMapScoresAsTheRoomAlone) {
   // the parts of its neighbours within the frame's depth, not the map.
   EXPECT_LE(inside.visible_components, 3 * own.visible_components);
   EXPECT_LT(inside.visible_components, static_cast<int>(room.size()) * 3);
+}
+
+// A pose's sums over the components near its view (viewComponents: gmm_mcl_score, the
+// refinement) are its sums over the whole building, and the list is about the room's view, not
+// the map's 100 rooms.
+TEST(BuildingScaleTest, APoseScoresOverItsViewsComponentsAsOverTheMap) {
+  const GmmMap& room = test::world().map;
+  const GmmMap building = tiledMap(room, 10, 10, 14.0);
+  const RoomView v = roomView(4, 5);
+  const DepthFrame& frame = v.frame;
+  ASSERT_GT(frame.size(), 1000u);
+  const MeasurementParams params;
+  const ViewReach reach = viewReach(frame, params);
+  std::vector<int> index;
+  std::vector<ComponentF> near, grown;
+  for (size_t i = 0; i < v.poses.size(); ++i) {
+    const RigidTransformF& T = v.poses[i];
+    LikelihoodScratch s_all, s_near;
+    const FrameLikelihood all = poseLogLikelihood(building.packed(), frame, T, params, &s_all);
+    viewComponents(building, T, frame.intrinsics, reach, 0.0, &index, &near);
+    const FrameLikelihood view = poseLogLikelihood(near, frame, T, params, &s_near);
+    EXPECT_NEAR(view.log_likelihood, all.log_likelihood, 1e-9 * std::abs(all.log_likelihood))
+        << "pose " << i;
+    EXPECT_EQ(view.floor_hits, all.floor_hits) << "pose " << i;
+    EXPECT_LT(near.size(), 2 * room.size()) << "pose " << i;
+    viewComponents(building, T, frame.intrinsics, reach, refinementReach(RefinementParams(), reach),
+                   &index, &grown);
+    EXPECT_GE(grown.size(), near.size());
+    EXPECT_LT(grown.size(), 4 * room.size()) << "pose " << i;
+  }
 }
 
 // Odd maps and views (the building issue's bad input): two copies of the room 1 km apart, a map

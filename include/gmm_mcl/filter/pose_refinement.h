@@ -17,6 +17,7 @@
 #include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/measurement/measurement_params.h"
 #include "gmm_mcl/measurement/normal_equations.h"
+#include "gmm_mcl/measurement/projection.h"
 
 namespace gmm_mcl {
 
@@ -153,5 +154,10 @@ inline RefinementResult refinePose(const std::vector<ComponentF>& components,
   return refinePose(components, RefinementFrame::of(frame), start, roll_rad, pitch_rad, T_base_cam,
                     params, refinement, sums);
 }
+
+// How far the components a refinement may need lie beyond the view of its start (view volume
+// `reach`): its largest correction, and the far end of the view swept by its largest turn with
+// some attitude slack. viewComponents grown by this gives a refinement its components.
+double refinementReach(const RefinementParams& refinement, const ViewReach& reach);
 
 }  // namespace gmm_mcl

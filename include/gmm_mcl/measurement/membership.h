@@ -6,6 +6,7 @@
 
 #include "gmm_mcl/camera/depth_frame.h"
 #include "gmm_mcl/map/component_grid.h"
+#include "gmm_mcl/map/gmm_map.h"
 #include "gmm_mcl/measurement/measurement_params.h"
 #include "gmm_mcl/measurement/projection.h"
 
@@ -120,6 +121,15 @@ Box3 groupViewBox(const std::vector<RigidTransformF>& T_map_cam, const int* memb
 void viewCandidates(const ComponentGrid& grid, const std::vector<RigidTransformF>& T_map_cam,
                     const std::vector<int>& order, const std::vector<int>& begin,
                     const Intrinsics& K, const ViewReach& reach, std::vector<int>* candidates);
+
+// The components (in the map's order) that the map's grid places near the view of a camera at
+// T_map_cam with the view volume `reach`, the view's box grown by grow_m (the view of a pose up
+// to that far from it). A pose's likelihood over them equals its likelihood over the whole map
+// (test_building_scale), at a cost that follows the view, not the map (docs/building_scale.md).
+// `index` is scratch (the components' map indices on return).
+void viewComponents(const GmmMap& map, const RigidTransformF& T_map_cam, const Intrinsics& K,
+                    const ViewReach& reach, double grow_m, std::vector<int>* index,
+                    std::vector<ComponentF>* out);
 
 // Brute-force reference: tests every (patch, component) pair with ellipseContains.
 void computeMembershipBruteForce(const std::vector<ComponentF>& components,
