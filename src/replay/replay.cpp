@@ -185,7 +185,7 @@ void writeFrameCsv(const TrialResult& r, const std::string& path) {
          "likelihood_ms,resample_ms,refined,refined_error_m,refined_error_yaw_deg,refine_ms,"
          "particles,total_ms,depth_scale,nearest_particle_m,loglik_refined_per_px,"
          "reference_loglik_per_px,start_places,nearest_place_m,nearest_place_rank,"
-         "rival_gain_per_px,rival_chosen,rival_ms\n";
+         "rival_gain_per_px,rival_chosen,rival_ms,position_sigma_m,yaw_sigma_rad\n";
   out.precision(7);
   for (const ReplayFrame& f : r.frames) {
     const StepResult& s = f.step;
@@ -221,7 +221,10 @@ void writeFrameCsv(const TrialResult& r, const std::string& path) {
     if (std::isfinite(f.nearest_place_m)) out << f.nearest_place_m;
     out << ',' << f.nearest_place_rank << ',';
     if (std::isfinite(s.rival_gain_per_pixel)) out << s.rival_gain_per_pixel;
-    out << ',' << (s.rival_chosen ? 1 : 0) << ',' << s.timings.rival_ms << '\n';
+    double position_sigma, yaw_sigma;
+    Localizer::beliefSpread(s.estimate.covariance, &position_sigma, &yaw_sigma);
+    out << ',' << (s.rival_chosen ? 1 : 0) << ',' << s.timings.rival_ms << ',' << position_sigma
+        << ',' << yaw_sigma << '\n';
   }
 }
 

@@ -33,6 +33,23 @@ foreach(f summary.md summary.csv trial_1_estimate.tum trial_1_truth.tum trial_1.
     message(FATAL_ERROR "missing output ${f}")
   endif()
 endforeach()
+# The per-frame file: the spread columns last, one row per frame, each as many fields as the
+# header.
+file(STRINGS ${WORK}/out/trial_1.csv rows)
+list(GET rows 0 header)
+if(NOT header MATCHES ",position_sigma_m,yaw_sigma_rad$")
+  message(FATAL_ERROR "trial_1.csv: no spread columns at the end of its header: ${header}")
+endif()
+string(REGEX REPLACE "[^,]" "" header_commas "${header}")
+list(LENGTH rows row_count)
+if(NOT row_count EQUAL 91)
+  message(FATAL_ERROR "trial_1.csv: ${row_count} lines, expected a header and 90 frames")
+endif()
+list(GET rows 90 last_row)
+string(REGEX REPLACE "[^,]" "" last_commas "${last_row}")
+if(NOT last_commas STREQUAL header_commas)
+  message(FATAL_ERROR "trial_1.csv: the last frame's fields do not match the header's")
+endif()
 
 # The same with the odometry withheld (the constant-velocity model predicts) at 15 Hz (every
 # second frame): it must still succeed, write one pose per replayed frame and say what it did

@@ -198,11 +198,12 @@ class Localizer {
   const ConstantVelocityModel& motionModel() const { return motion_model_; }
   // A wide start's places while they are followed (start_hypotheses.h; inactive otherwise).
   const StartHypotheses& startPlaces() const { return start_places_; }
-
- private:
-  // The belief's spread: the largest position standard deviation and the yaw's.
+  // The belief's spread: the largest position standard deviation and the yaw's (what the
+  // refinement's limits compare, PoseEstimate::covariance).
   static void beliefSpread(const Eigen::Matrix<double, 6, 6>& covariance, double* position_sigma,
                            double* yaw_sigma);
+
+ private:
   // The particle set a chosen place seeds (a wide start's best place, a winning rival): x, y, z,
   // yaw sigmas.
   static Eigen::Vector4d placeSigma() { return Eigen::Vector4d(0.05, 0.05, 0.01, 0.03); }
