@@ -27,6 +27,8 @@ std::string ConstantVelocityParams::validate() const {
     err << "cv_sigma_speed_m_s must be finite and >= 0; ";
   if (!(sigma_yaw_rate_rad_s >= 0.0) || !std::isfinite(sigma_yaw_rate_rad_s))
     err << "cv_sigma_yaw_rate_rad_s must be finite and >= 0; ";
+  if (!(vertical_time_constant_s >= 0.0) || !std::isfinite(vertical_time_constant_s))
+    err << "cv_vertical_time_constant_s must be finite and >= 0; ";
   if (!(max_gap_s > 0.0)) err << "cv_max_gap_s must be positive; ";
   if (!(max_speed_m_s > 0.0)) err << "cv_max_speed_m_s must be positive; ";
   if (!(gyro_sigma_yaw_rate_rad_s >= 0.0) || !std::isfinite(gyro_sigma_yaw_rate_rad_s))
@@ -94,8 +96,13 @@ void ConstantVelocityModel::observe(double stamp_s, const Particle& pose, double
   // From zero at the first sample: one noisy sample (the frame the filter converged) moves the
   // prediction only by the smoothing weight.
   const double gain = params_.velocity_smoothing * std::min(1.0, std::max(0.0, confidence));
-  velocity_ += gain * (sample - velocity_);
-  world_velocity_ += gain * (Eigen::Vector3d(dx, dy, pose.z_m - prev.z_m) / dt - world_velocity_);
+  const double tau = params_.vertical_time_constant_s;
+  const double gain_z =
+      tau > 0.0 ? (1.0 - std::exp(-dt / tau)) * std::min(1.0, std::max(0.0, confidence)) : gain;
+  const Eigen::Vector4d gains(gain, gain, gain_z, gain);  // forward, left, up, yaw rate
+  velocity_ += gains.cwiseProduct(sample - velocity_);
+  world_velocity_ += gains.head<3>().cwiseProduct(
+      Eigen::Vector3d(dx, dy, pose.z_m - prev.z_m) / dt - world_velocity_);
   have_velocity_ = true;
 }
 

@@ -148,6 +148,11 @@ void addMotionParams(ParamTable<P>* t) {
                       {1e-3, 1}, kRuntime,
                       "Constant-velocity model: weight of the newest velocity sample (exponential "
                       "smoothing; 1 = the last sample alone)"));
+  add(t, paramSpec<P>("cv_vertical_time_constant_s",
+                      GMM_MCL_PARAM_FIELD(P, constant_velocity.vertical_time_constant_s), "s", g,
+                      {0, 100}, kRuntime,
+                      "Constant-velocity model: the vertical speed learns over this time (each "
+                      "sample by 1 - exp(-dt / this); 0: as the other axes)"));
   add(t,
       paramSpec<P>("cv_sigma_speed_m_s", GMM_MCL_PARAM_FIELD(P, constant_velocity.sigma_speed_m_s),
                    "m/s", g, {0, 10}, kRuntime,

@@ -25,6 +25,13 @@ struct ConstantVelocityParams {
   bool enabled = true;
   // Weight of the newest velocity sample in the exponential smoothing (1 = the last one alone).
   double velocity_smoothing = 0.5;
+  // The vertical speed learns over this time instead: each sample moves it by
+  // 1 - exp(-dt / vertical_time_constant_s) (x the sample's confidence), dt the time since the
+  // previous estimate; 0: velocity_smoothing as the other axes. A forward-looking camera pins its
+  // height least (walls are vertical), and a climb read from the set's own slide, learned with a
+  // per-frame weight, moves the set further: at 30 Hz it swung 1.1-1.3 m up and down on Replica
+  // (docs/no_odometry.md). A time constant damps that loop at every frame rate.
+  double vertical_time_constant_s = 0.5;
   // Process noise: sigma = sigma_translation_m + sigma_speed_m_s * dt (and sigma_yaw_rad +
   // sigma_yaw_rate_rad_s * dt), dt the time since the previous step; twice the growth while no
   // velocity is known (the first frames, after a reset).
