@@ -95,10 +95,10 @@ void ConstantVelocityModel::observe(double stamp_s, const Particle& pose, double
   }
   // From zero at the first sample: one noisy sample (the frame the filter converged) moves the
   // prediction only by the smoothing weight.
-  const double gain = params_.velocity_smoothing * std::min(1.0, std::max(0.0, confidence));
+  const double trust = std::min(1.0, std::max(0.0, confidence));
+  const double gain = params_.velocity_smoothing * trust;
   const double tau = params_.vertical_time_constant_s;
-  const double gain_z =
-      tau > 0.0 ? (1.0 - std::exp(-dt / tau)) * std::min(1.0, std::max(0.0, confidence)) : gain;
+  const double gain_z = tau > 0.0 ? (1.0 - std::exp(-dt / tau)) * trust : gain;
   const Eigen::Vector4d gains(gain, gain, gain_z, gain);  // forward, left, up, yaw rate
   velocity_ += gains.cwiseProduct(sample - velocity_);
   world_velocity_ += gains.head<3>().cwiseProduct(
