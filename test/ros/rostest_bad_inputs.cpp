@@ -53,8 +53,17 @@ TEST(BadInputsTest, NodeSaysWhatIsWrongAndRecovers) {
   robot.publishStaticExtrinsics();
   double step = 0;
   int k = 0;
+  // The next frame's stamp, never behind the clock: the diagnostics ticks move the clock on by as
+  // many periods as the nodelet took to say a thing (more on a loaded machine), and a frame
+  // stamped in the past would leave the times the checks below depend on (the CameraInfo's age
+  // against the last frame's) to that count.
+  auto nextStamp = [&] {
+    while (robot.stamp(step) < clock.now()) ++step;
+    return robot.stamp(step);
+  };
   auto send = [&](const SyntheticRobot::Frame& f) {
-    const ros::Time t = robot.stamp(step++);
+    const ros::Time t = nextStamp();
+    ++step;
     robot.send(t, robot.truth(k++), f);
     return t;
   };
@@ -136,7 +145,7 @@ TEST(BadInputsTest, NodeSaysWhatIsWrongAndRecovers) {
   const ros::Time t_gap = send(f);
   ASSERT_TRUE(diagUntil(
       [&](const lockstep::Diag& d) { return d.number("frames received") > received_before_gap; }));
-  const ros::Time t_next = robot.stamp(step);
+  const ros::Time t_next = nextStamp();
   robot.publishOdometry(t_next, robot.truth(k));
   s = obs.statusAt(t_gap);
   ASSERT_NE(s, nullptr);
