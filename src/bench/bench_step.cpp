@@ -26,6 +26,7 @@ struct StepRow {
   double predict = 0, prep = 0, likelihood = 0, weights = 0, estimate = 0, resample = 0,
          recover = 0, lost = 0, refine = 0, total = 0;
   double first_update = -1;  // ms: the first step from the protocol's uniform start (-1: not run)
+  StepTimings first_stages;  // its stages (the screening of its candidates among them)
   double redraw = -1;        // ms: a lost redraw at the backend's default particle range
   int redrawn = 0;           // particles redrawn by it
 };
@@ -210,7 +211,8 @@ StepRow runLocalizerStep(const std::string& backend, bool device, const Workload
   // scored on the first frame.
   {
     Localizer fresh(lp, map);
-    row.first_update = fresh.step(input(0, 0.0)).timings.total_ms;
+    row.first_stages = fresh.step(input(0, 0.0)).timings;
+    row.first_update = row.first_stages.total_ms;
   }
   // A lost redraw as a run with the backend's defaults makes it: the set at its tracking count
   // (N) around a pose 1 m and 0.5 rad off, judged lost on its first frame, redrawn up to the
@@ -308,7 +310,8 @@ void runSteps(const std::vector<LikelihoodBackend*>& backends, const BenchData& 
       "\n# filter step: wall-clock medians (ms), each stage synchronised to its end; filter rows "
       "resample on every step (KLD count 1068..N), localizer rows resample when Neff < N/2 "
       "(fixed N) and their likelihood column is the GPU's event time (CPU: the stages' time); "
-      "first update: a localizer's first step from the uniform 4 m cube start (yaw range pi); "
+      "first update: a localizer's first step from the uniform 4 m cube start (yaw range pi): "
+      "its candidates screened, the set that replaced them evaluated, the estimate refined; "
       "redraw: a lost redraw from the tracking count up to the backend's default largest count "
       "(the particles redrawn in brackets)\n");
   std::printf(
@@ -317,9 +320,15 @@ void runSteps(const std::vector<LikelihoodBackend*>& backends, const BenchData& 
       "| redraw |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (const StepRow& r : rows) {
-    const std::string first =
-        r.first_update >= 0 ? std::to_string(static_cast<long long>(r.first_update + 0.5)) + " ms"
-                            : std::string("-");
+    std::string first = "-";
+    if (r.first_update >= 0) {
+      const StepTimings& t = r.first_stages;
+      char text[160];
+      std::snprintf(text, sizeof(text), "%.0f ms (screen %.1f, set %.1f, refine %.1f)",
+                    r.first_update, t.screen_ms, t.projection_membership_ms + t.likelihood_ms,
+                    t.refine_ms);
+      first = text;
+    }
     const std::string redraw = r.redraw >= 0
                                    ? std::to_string(static_cast<long long>(r.redraw + 0.5)) +
                                          " ms (" + std::to_string(r.redrawn) + ")"

@@ -339,8 +339,10 @@ StepStatus Localizer::evaluateStep(const MeasurementContext& ctx, long long patc
     if (screen_pending_ && params_.lost.candidates_per_particle > 1) {
       const double area_m2 = 4.0 * region_.half_extent_m.x() * region_.half_extent_m.y();
       const bool wide = area_m2 >= params_.lost.start_local_stage_min_area_m2;
+      const Clock::time_point t0 = Clock::now();
       screenCandidates(ctx, filter_->size(), wide);
       filter_->replaceAllByBestCandidates();
+      res->timings.screen_ms = msSince(t0);
       seed_start_places_ = wide && params_.lost.start_places > 0;
       res->screened_candidates = filter_->size() * params_.lost.candidates_per_particle;
     }

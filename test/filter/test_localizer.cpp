@@ -84,7 +84,19 @@ RunResult runSynthetic(const LocalizerParams& params, int frames, uint64_t noise
 TEST(LocalizerTest, ConvergesFromAUniformFourMetreCube) {
   const std::vector<Eigen::Isometry3d> truth = sim::makeTrajectory(1);
   const LocalizerParams params = syntheticParams(truth[0]);
-  const RunResult r = runSynthetic(params, kConvergenceFrames, 11);
+  // The first step screens the start's candidates (a stage of its own in the step's time); no
+  // later step starts over (a lost redraw's screening is part of its resampling).
+  const RunResult r =
+      runSynthetic(params, kConvergenceFrames, 11, [](int f, const StepResult& s, const Particle&) {
+        const StepTimings& t = s.timings;
+        if (f == 0) {
+          EXPECT_GT(s.screened_candidates, 0);
+          EXPECT_GT(t.screen_ms, 0.0);
+          EXPECT_LE(t.screen_ms + t.projection_membership_ms + t.likelihood_ms, t.total_ms);
+        } else {
+          EXPECT_EQ(t.screen_ms, 0.0) << "frame " << f;
+        }
+      });
   std::printf("[ measured ] final error %.3f m, yaw %.2f deg, worst of last 30 frames %.3f m\n",
               r.final_error_m, r.final_yaw_error_rad * 180 / M_PI, r.max_error_last_30_m);
   EXPECT_LT(r.max_error_last_30_m, kConvergedErrorM);

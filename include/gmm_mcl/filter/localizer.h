@@ -95,6 +95,9 @@ struct StepTimings {
   double predict_ms = 0, frame_prep_ms = 0, projection_membership_ms = 0, likelihood_ms = 0,
          weights_ms = 0, resample_ms = 0, estimate_ms = 0, refine_ms = 0, rival_ms = 0,
          total_ms = 0;
+  // Part of total_ms and of no other stage: the start's screening (after a uniform
+  // (re)initialisation, its candidates drawn and scored and the best kept; 0 on other steps).
+  double screen_ms = 0;
 };
 
 struct StepResult {
