@@ -400,16 +400,21 @@ void Localizer::estimateAndRefine(const StepInput& in, StepResult* res) {
   res->timings.estimate_ms = msSince(t0);
   res->refinement.pose = res->estimate.mean;
   if (params_.refinement.enabled) {
-    // A converged set, or one that widened while the previous frame was refined (its track).
+    // A converged set, or one that widened while the previous frame was refined (its track; a
+    // step predicted without odometry has tracking limits of its own).
     const RefinementParams& rp = params_.refinement;
     double position_sigma, yaw_sigma;
     beliefSpread(res->estimate.covariance, &position_sigma, &yaw_sigma);
-    const double max_position_sigma_m =
-        have_refined_ ? std::max(rp.max_position_sigma_m, rp.track_max_position_sigma_m)
-                      : rp.max_position_sigma_m;
+    const bool odometry = res->motion == MotionSource::kOdometry;
+    const double track_position_m =
+        odometry ? rp.track_max_position_sigma_m : rp.cv_track_max_position_sigma_m;
+    const double track_yaw_rad =
+        odometry ? rp.track_max_yaw_sigma_rad : rp.cv_track_max_yaw_sigma_rad;
+    const double max_position_sigma_m = have_refined_
+                                            ? std::max(rp.max_position_sigma_m, track_position_m)
+                                            : rp.max_position_sigma_m;
     const double max_yaw_sigma_rad =
-        have_refined_ ? std::max(rp.max_yaw_sigma_rad, rp.track_max_yaw_sigma_rad)
-                      : rp.max_yaw_sigma_rad;
+        have_refined_ ? std::max(rp.max_yaw_sigma_rad, track_yaw_rad) : rp.max_yaw_sigma_rad;
     if (position_sigma <= max_position_sigma_m && yaw_sigma <= max_yaw_sigma_rad) {
       refineEstimate(in, res);
     } else {

@@ -429,6 +429,14 @@ void addRefinementParams(ParamTable<P>* t) {
                       {1e-3, 3.15}, kRuntime,
                       "While the previous frame was refined, refinement runs while the yaw spread "
                       "is below this (or refine_max_yaw_sigma_rad if larger)"));
+  add(t, paramSpec<P>("refine_cv_track_max_position_sigma_m",
+                      GMM_MCL_PARAM_FIELD(P, refinement.cv_track_max_position_sigma_m), "m", g,
+                      {1e-3, 10}, kRuntime,
+                      "refine_track_max_position_sigma_m on a step predicted without odometry"));
+  add(t, paramSpec<P>("refine_cv_track_max_yaw_sigma_rad",
+                      GMM_MCL_PARAM_FIELD(P, refinement.cv_track_max_yaw_sigma_rad), "rad", g,
+                      {1e-3, 3.15}, kRuntime,
+                      "refine_track_max_yaw_sigma_rad on a step predicted without odometry"));
   add(t,
       paramSpec<P>("refine_max_correction_m", GMM_MCL_PARAM_FIELD(P, refinement.max_correction_m),
                    "m", g, {1e-3, 10}, kRuntime,

@@ -188,6 +188,12 @@ std::string RefinementParams::validate() const {
   if (!(track_max_yaw_sigma_rad > 0.0)) {
     err << "refinement track_max_yaw_sigma_rad must be positive; ";
   }
+  if (!(cv_track_max_position_sigma_m > 0.0)) {
+    err << "refinement cv_track_max_position_sigma_m must be positive; ";
+  }
+  if (!(cv_track_max_yaw_sigma_rad > 0.0)) {
+    err << "refinement cv_track_max_yaw_sigma_rad must be positive; ";
+  }
   if (!(max_correction_m > 0.0)) err << "refinement max_correction_m must be positive; ";
   if (!(max_correction_rad > 0.0)) err << "refinement max_correction_rad must be positive; ";
   if (!(tolerance_m > 0.0)) err << "refinement tolerance_m must be positive; ";

@@ -140,14 +140,16 @@ TEST(LocalizerNoOdometryTest, TracksAtTenHertz) {
 }
 
 // 300 particles at 10 Hz: the set widens past the refinement's convergence limit (0.1 m, 0.1
-// rad) on some frames; with tracking limits of 0.3 m and 0.3 rad, refinement goes on while the
-// previous frame was refined, so the refined track holds where the mean drifts.
+// rad) on some frames; with the tracking limits of steps without odometry (0.3 m and 0.3 rad by
+// default), refinement goes on while the previous frame was refined, so the refined track holds
+// where the mean drifts. Without them (the limits of steps with odometry, 0.1 and 0.1) it does
+// not.
 TEST(LocalizerNoOdometryTest, TheRefinedTrackHoldsWhereTheSetWidens) {
   LocalizerParams params = trackingParams(sim::makeTrajectory(1)[0]);
-  const Track without = run(params, 300, 3, -1, false, 60);  // the defaults: no tracking limits
-  params.refinement.track_max_position_sigma_m = 0.3;
-  params.refinement.track_max_yaw_sigma_rad = 0.3;
-  const Track with = run(params, 300, 3, -1, false, 60);
+  const Track with = run(params, 300, 3, -1, false, 60);  // the defaults
+  params.refinement.cv_track_max_position_sigma_m = params.refinement.track_max_position_sigma_m;
+  params.refinement.cv_track_max_yaw_sigma_rad = params.refinement.track_max_yaw_sigma_rad;
+  const Track without = run(params, 300, 3, -1, false, 60);
   std::printf(
       "[ measured ] 10 Hz, no odometry, 300 particles, last 60 frames: with the tracking limits "
       "%d refined, worst %.3f m; without %d refined, worst %.3f m\n",
@@ -156,6 +158,34 @@ TEST(LocalizerNoOdometryTest, TheRefinedTrackHoldsWhereTheSetWidens) {
   EXPECT_GT(with.refined_last, without.refined_last);
   EXPECT_LT(with.worst_last_m, 0.02);
   EXPECT_LT(with.worst_last_m, without.worst_last_m);
+}
+
+// The tracking limits of steps without odometry leave steps with odometry alone: there the
+// refinement keeps to refine_track_max_*. A set made wide by the odometry's noise (0.05 m and
+// 0.03 rad per step where the odometry is exact) is refined on more frames with wider odometry
+// limits (53 of the last 60 against 11), and on the same frames, to the same error, whatever the
+// limits without odometry.
+TEST(LocalizerNoOdometryTest, StepsWithOdometryKeepTheirOwnTrackingLimits) {
+  LocalizerParams params = trackingParams(sim::makeTrajectory(1)[0]);
+  params.filter.sigma_translation_m = 0.05;
+  params.filter.sigma_yaw_rad = 0.03;
+  const Track defaults = run(params, 300, 3, 0, false, 60);
+  LocalizerParams narrow = params;
+  narrow.refinement.cv_track_max_position_sigma_m = narrow.refinement.track_max_position_sigma_m;
+  narrow.refinement.cv_track_max_yaw_sigma_rad = narrow.refinement.track_max_yaw_sigma_rad;
+  const Track cv_narrow = run(narrow, 300, 3, 0, false, 60);
+  LocalizerParams wide = narrow;
+  wide.refinement.track_max_position_sigma_m = 0.3;
+  wide.refinement.track_max_yaw_sigma_rad = 0.3;
+  const Track odometry_wide = run(wide, 300, 3, 0, false, 60);
+  std::printf(
+      "[ measured ] 10 Hz, noisy odometry, last 60 frames refined: %d (defaults), %d (limits "
+      "without odometry 0.1), %d (limits with odometry 0.3)\n",
+      defaults.refined_last, cv_narrow.refined_last, odometry_wide.refined_last);
+  EXPECT_EQ(defaults.odometry_steps, 99);
+  EXPECT_EQ(defaults.refined_last, cv_narrow.refined_last);
+  EXPECT_EQ(defaults.worst_last_m, cv_narrow.worst_last_m);
+  EXPECT_GT(odometry_wide.refined_last, defaults.refined_last);
 }
 
 // A fast turn at 10 Hz: the constant-velocity yaw rate lags the swing by several degrees per

@@ -36,6 +36,11 @@ struct RefinementParams {
   // docs/no_odometry.md (0.3 and 0.3: better at 10 Hz, and at 30 Hz two drifts in 24 trials).
   double track_max_position_sigma_m = 0.10;
   double track_max_yaw_sigma_rad = 0.10;
+  // The same on a step predicted without odometry (the constant-velocity model, or no motion),
+  // where the prediction is wider than odometry's and the set widens with it while the refined
+  // track holds (docs/no_odometry.md: every rate better on both backends).
+  double cv_track_max_position_sigma_m = 0.30;
+  double cv_track_max_yaw_sigma_rad = 0.30;
   // A refined pose farther than this from the particle mean is rejected (a local optimum of the
   // likelihood that the particles do not support).
   double max_correction_m = 0.15;
