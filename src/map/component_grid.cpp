@@ -142,6 +142,107 @@ void ComponentGrid::query(const Box3& region, std::vector<int>* out, Scratch* sc
              out->end());
 }
 
+void ComponentGrid::query(const std::vector<Box3>& regions, std::vector<int>* out,
+                          Scratch* scratch) const {
+  out->clear();
+  std::vector<const Box3*> live;
+  for (const Box3& r : regions) {
+    if (!r.empty()) live.push_back(&r);
+  }
+  if (live.empty() || boxes_.empty()) return;
+  Scratch own;
+  if (!scratch) scratch = &own;
+  if (live.size() == 1) {
+    query(*live[0], out, scratch);
+    return;
+  }
+  // The regions' cells; the columns (x, y) of their bounding rectangle, each with the regions
+  // that cover it.
+  const int num = static_cast<int>(live.size());
+  std::vector<Eigen::Vector3i> lo(num), hi(num);
+  Eigen::Vector3i all_lo = Eigen::Vector3i::Constant(kKeyHalf);
+  Eigen::Vector3i all_hi = Eigen::Vector3i::Constant(-kKeyHalf);
+  double covered = 0.0;  // columns summed over the regions
+  for (int r = 0; r < num; ++r) {
+    lo[r] = cellOf(live[r]->lo);
+    hi[r] = cellOf(live[r]->hi);
+    all_lo = all_lo.cwiseMin(lo[r]);
+    all_hi = all_hi.cwiseMax(hi[r]);
+    covered += (static_cast<double>(hi[r].x()) - lo[r].x() + 1) * (hi[r].y() - lo[r].y() + 1);
+  }
+  const double nx = static_cast<double>(all_hi.x()) - all_lo.x() + 1;
+  const double ny = static_cast<double>(all_hi.y()) - all_lo.y() + 1;
+  // Regions spread far apart, or so large that a list per column would not pay (a region of
+  // all space): each on its own.
+  if (nx * ny > 4.0 * covered + 4096.0 || covered > 4e6) {
+    std::vector<int> one;
+    for (const Box3* r : live) {
+      query(*r, &one, nullptr);
+      out->insert(out->end(), one.begin(), one.end());
+    }
+    std::sort(out->begin(), out->end());
+    out->erase(std::unique(out->begin(), out->end()), out->end());
+    return;
+  }
+  const int cols_x = static_cast<int>(nx), cols = static_cast<int>(nx * ny);
+  // Regions per column, compressed rows.
+  std::vector<int> begin(static_cast<size_t>(cols) + 1, 0);
+  for (int r = 0; r < num; ++r) {
+    for (int y = lo[r].y(); y <= hi[r].y(); ++y) {
+      for (int x = lo[r].x(); x <= hi[r].x(); ++x) {
+        ++begin[(y - all_lo.y()) * cols_x + (x - all_lo.x()) + 1];
+      }
+    }
+  }
+  for (int c = 0; c < cols; ++c) begin[c + 1] += begin[c];
+  std::vector<int> at(begin.begin(), begin.end() - 1), covering(begin[cols]);
+  for (int r = 0; r < num; ++r) {
+    for (int y = lo[r].y(); y <= hi[r].y(); ++y) {
+      for (int x = lo[r].x(); x <= hi[r].x(); ++x) {
+        covering[at[(y - all_lo.y()) * cols_x + (x - all_lo.x())]++] = r;
+      }
+    }
+  }
+  if (scratch->mark.size() != boxes_.size() || ++scratch->epoch == 0) {
+    scratch->mark.assign(boxes_.size(), 0);
+    scratch->epoch = 1;
+  }
+  // A component is taken once (marked), when its box meets a region that covers a cell of it.
+  auto take = [&](int32_t i, const int* rs, int count) {
+    if (scratch->mark[i] == scratch->epoch) return;
+    for (int k = 0; k < count; ++k) {
+      if (boxes_[i].intersects(*live[rs[k]])) {
+        scratch->mark[i] = scratch->epoch;
+        out->push_back(i);
+        return;
+      }
+    }
+  };
+  for (int c = 0; c < cols; ++c) {
+    const int b = begin[c], count = begin[c + 1] - b;
+    if (count == 0) continue;
+    const int x = all_lo.x() + c % cols_x, y = all_lo.y() + c / cols_x;
+    int z0 = kKeyHalf, z1 = -kKeyHalf;
+    for (int k = b; k < b + count; ++k) {
+      z0 = std::min(z0, lo[covering[k]].z());
+      z1 = std::max(z1, hi[covering[k]].z());
+    }
+    const uint64_t key_lo = key(Eigen::Vector3i(x, y, z0));
+    const uint64_t key_hi = key(Eigen::Vector3i(x, y, z1));
+    for (auto it = std::lower_bound(keys_.begin(), keys_.end(), key_lo);
+         it != keys_.end() && *it <= key_hi; ++it) {
+      const size_t cell = static_cast<size_t>(it - keys_.begin());
+      for (uint32_t e = begin_[cell]; e < begin_[cell + 1]; ++e) {
+        take(entries_[e], covering.data() + b, count);
+      }
+    }
+  }
+  std::vector<int> all(num);
+  for (int r = 0; r < num; ++r) all[r] = r;
+  for (int32_t i : large_) take(i, all.data(), num);
+  std::sort(out->begin(), out->end());
+}
+
 size_t ComponentGrid::memoryBytes() const {
   return boxes_.capacity() * sizeof(Box3) + keys_.capacity() * sizeof(uint64_t) +
          begin_.capacity() * sizeof(uint32_t) + entries_.capacity() * sizeof(int32_t) +

@@ -3,14 +3,17 @@
 // pose what it scores in a map of its own, per pixel, at a cost that follows the view.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <random>
 #include <vector>
 
 #include "gmm_mcl/backend/cpu_backend.h"
 #include "gmm_mcl/filter/localizer.h"
+#include "gmm_mcl/filter/pose.h"
 #include "gmm_mcl/map/component_grid.h"
 #include "gmm_mcl/map/gmm_map.h"
 #include "gmm_mcl/measurement/likelihood.h"
@@ -55,6 +58,135 @@ TEST(ComponentGridTest, QueryEqualsBruteForce) {
   }
   grid.query(Box3{}, &got);  // an empty region
   EXPECT_TRUE(got.empty());
+}
+
+// A query of several regions (the view boxes of a spread cloud's groups) finds what the regions'
+// own queries find together, once each and ascending.
+TEST(ComponentGridTest, QueryOfSeveralRegionsIsTheUnionOfTheirQueries) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> pos(-20.0, 20.0), size(0.01, 1.0), near(-1.0, 1.0);
+  std::vector<Box3> boxes;
+  for (int i = 0; i < 3000; ++i) {
+    const Eigen::Vector3d c(pos(rng), pos(rng), 0.1 * pos(rng));
+    const Eigen::Vector3d h(size(rng), size(rng), size(rng));
+    boxes.push_back(Box3{c - h, c + h});
+  }
+  boxes.push_back(Box3{Eigen::Vector3d(-25, -25, -0.05), Eigen::Vector3d(25, 25, 0.05)});
+  boxes.push_back(Box3{Eigen::Vector3d(1000, 0, 0), Eigen::Vector3d(1000.2, 0.2, 0.2)});
+  const ComponentGrid grid(boxes);
+  ComponentGrid::Scratch scratch;
+  for (int q = 0; q < 100; ++q) {
+    // Overlapping boxes around one place (a start's groups), sometimes spread over the map, an
+    // empty one, the far component's, one of all space.
+    const int count = 1 + q % 40;
+    const Eigen::Vector3d centre(pos(rng), pos(rng), pos(rng) * 0.1);
+    std::vector<Box3> regions;
+    for (int r = 0; r < count; ++r) {
+      const Eigen::Vector3d c =
+          q % 3 == 0 ? Eigen::Vector3d(pos(rng), pos(rng), pos(rng) * 0.1)
+                     : Eigen::Vector3d(centre + 3.0 * Eigen::Vector3d(near(rng), near(rng), 0.0));
+      const Eigen::Vector3d h = 4.0 * Eigen::Vector3d(size(rng), size(rng), size(rng));
+      regions.push_back(Box3{c - h, c + h});
+    }
+    if (q % 7 == 1) regions.push_back(Box3{});
+    if (q == 2) regions.push_back(Box3{Eigen::Vector3d(999, -1, -1), Eigen::Vector3d(1001, 1, 1)});
+    if (q == 4) {
+      regions.push_back(Box3{Eigen::Vector3d::Constant(-2000), Eigen::Vector3d::Constant(2000)});
+    }
+    std::vector<int> want, one;
+    for (const Box3& region : regions) {
+      grid.query(region, &one);
+      want.insert(want.end(), one.begin(), one.end());
+    }
+    std::sort(want.begin(), want.end());
+    want.erase(std::unique(want.begin(), want.end()), want.end());
+    std::vector<int> got;
+    grid.query(regions, &got, &scratch);
+    ASSERT_EQ(got, want) << "query " << q << " of " << regions.size() << " regions";
+    grid.query(regions, &got, nullptr);
+    ASSERT_EQ(got, want) << "query " << q << " without marks";
+  }
+  std::vector<int> got = {1, 2};
+  grid.query(std::vector<Box3>{}, &got, &scratch);
+  EXPECT_TRUE(got.empty());
+}
+
+// The poses grouped by the cell of their camera centre: each group one cell's poses in ascending
+// order, the groups in the order of their cells (x, then y, then z), a pose that is not finite
+// or lies far away in a cell of its own.
+TEST(ViewGroupsTest, PosesAreGroupedByTheCellOfTheirCentre) {
+  std::mt19937_64 rng(5);
+  for (int trial = 0; trial < 20; ++trial) {
+    const double cell = trial % 2 == 0 ? 2.0 : 0.7;
+    const double extent = trial < 5 ? 1.5 : (trial < 15 ? 8.0 : 60.0);
+    std::uniform_real_distribution<double> pos(-extent, extent);
+    const int n = 50 + 400 * trial;
+    std::vector<RigidTransformF> poses(n);
+    for (int i = 0; i < n; ++i) {
+      for (int a = 0; a < 3; ++a)
+        poses[i].t[a] = static_cast<float>(a == 2 ? 0.2 * pos(rng) : pos(rng));
+    }
+    if (trial == 7) poses[3].t[0] = std::numeric_limits<float>::quiet_NaN();
+    if (trial == 8) poses[5].t[1] = 3e37f;
+    if (trial == 9) poses[9].t[2] = -std::numeric_limits<float>::infinity();
+    std::map<std::array<long long, 3>, std::vector<int>> cells;
+    for (int i = 0; i < n; ++i) {
+      std::array<long long, 3> key;
+      for (int a = 0; a < 3; ++a) {
+        const double c = std::floor(static_cast<double>(poses[i].t[a]) / cell);
+        key[a] = std::isfinite(c) ? static_cast<long long>(std::max(-1e15, std::min(1e15, c))) : 0;
+      }
+      cells[key].push_back(i);
+    }
+    std::vector<int> order, begin;
+    groupPosesByPlace(poses, cell, &order, &begin);
+    ASSERT_EQ(begin.front(), 0);
+    ASSERT_EQ(begin.back(), n);
+    ASSERT_EQ(order.size(), static_cast<size_t>(n));
+    // A cloud within one cell's extent is one group wherever it lies.
+    Box3 centres;
+    for (const RigidTransformF& T : poses) centres.extend(Eigen::Vector3d(T.t[0], T.t[1], T.t[2]));
+    if (((centres.hi - centres.lo).array() <= cell).all()) {
+      ASSERT_EQ(begin.size(), 2u) << "trial " << trial;
+      for (int i = 0; i < n; ++i) ASSERT_EQ(order[i], i);
+      continue;
+    }
+    ASSERT_EQ(begin.size(), cells.size() + 1) << "trial " << trial;
+    size_t g = 0;
+    for (const auto& kv : cells) {
+      const std::vector<int> got(order.begin() + begin[g], order.begin() + begin[g + 1]);
+      ASSERT_EQ(got, kv.second) << "trial " << trial << " group " << g;
+      ++g;
+    }
+  }
+}
+
+// A group's view box is the union of its poses' view boxes, to the bit.
+TEST(ViewGroupsTest, AGroupsViewBoxIsTheUnionOfItsPosesBoxes) {
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> pos(-30.0, 30.0), angle(-3.2, 3.2);
+  const Intrinsics K = test::vgaCamera();
+  const ViewReach reach = viewReach(K, 32, 20, 15, patchInflation(32), 4.f, 3.f, DepthNoiseModel());
+  for (int trial = 0; trial < 50; ++trial) {
+    const int n = 1 + trial * 7;
+    std::vector<RigidTransformF> poses(n);
+    std::vector<int> members(n);
+    for (int i = 0; i < n; ++i) {
+      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+      T.translation() = Eigen::Vector3d(pos(rng), pos(rng), 0.1 * pos(rng));
+      T.linear() = (Eigen::AngleAxisd(angle(rng), Eigen::Vector3d::UnitZ()) *
+                    Eigen::AngleAxisd(0.3 * angle(rng), Eigen::Vector3d::UnitY()) *
+                    Eigen::AngleAxisd(0.3 * angle(rng), Eigen::Vector3d::UnitX()))
+                       .toRotationMatrix();
+      poses[i] = toRigidF(T);
+      members[i] = n - 1 - i;
+    }
+    Box3 want;
+    for (int i = 0; i < n; ++i) want.extend(viewBox(poses[i], K, reach));
+    const Box3 got = groupViewBox(poses, members.data(), n, K, reach);
+    ASSERT_EQ(got.lo, want.lo) << "trial " << trial;
+    ASSERT_EQ(got.hi, want.hi) << "trial " << trial;
+  }
 }
 
 TEST(SurfaceAreaTest, FlatComponentIsItsDisc) {

@@ -54,6 +54,10 @@ class ComponentGrid {
   // Sets *out to the components (ascending index) whose box intersects `region`.
   void query(const Box3& region, std::vector<int>* out) const;
   void query(const Box3& region, std::vector<int>* out, Scratch* scratch) const;
+  // The union of the regions' queries (ascending, each component once): the view boxes of a
+  // cloud's groups of poses. Each cell that some region covers is looked up once, not once per
+  // region (a start's groups overlap: 27 boxes in a 4 m cube).
+  void query(const std::vector<Box3>& regions, std::vector<int>* out, Scratch* scratch) const;
 
   size_t size() const { return boxes_.size(); }
   double cellSize() const { return cell_m_; }
