@@ -208,6 +208,40 @@ TEST_F(CudaBackendTest, CloudSpreadOverABuildingMatchesCpu) {
   EXPECT_LT(b.visible_components, static_cast<int>(building.size()));
 }
 
+// The same with the default tuning (the groups' candidates in one call, the cull's flags over
+// the candidates only), for a tracking cloud and for the spread cloud: the sums of the CPU
+// backend, and the set of a tracking cloud is what its views reach, not the map.
+TEST_F(CudaBackendTest, CloudsInABuildingMatchCpuWithTheDefaultTuning) {
+  const auto& w = test::world();
+  const GmmMap building = tiledMap(w.map, 5, 5, 14.0);
+  ASSERT_GE(building.size(), 20000u);
+  gpu = std::make_unique<CudaBackend>(0, CudaTuningParams());
+  CpuBackend cpu;
+  cpu.setMap(building);
+  gpu->setMap(building);
+  const Eigen::Isometry3d T_map_base = test::referenceBasePose();
+  const DepthFrame frame = test::renderFrame(T_map_base, test::smallCamera(), test::frameParams(8));
+  const std::vector<RigidTransformF> tracking = perturbedPoses(T_map_base * w.T_base_cam, 256, 5u);
+  expectSameLikelihood(building, frame, tracking, &cpu, gpu.get(), "building, tracking cloud");
+  BackendOutput a, b;
+  const MeasurementParams mp;
+  cpu.evaluate(frame, tracking, mp, &a);
+  gpu->evaluate(frame, tracking, mp, &b);
+  std::printf("[ measured ] building, tracking cloud: visible components cpu %d cuda %d of %zu\n",
+              a.visible_components, b.visible_components, building.size());
+  EXPECT_NEAR(b.visible_components, a.visible_components, 0.01 * a.visible_components + 2);
+  EXPECT_LT(b.visible_components, static_cast<int>(w.map.size()) * 2);
+  std::vector<RigidTransformF> poses = tracking;
+  const std::vector<RigidTransformF> far = posesOverTiles(T_map_base, w.T_base_cam, 448, 13u);
+  for (size_t i = 0; i < far.size(); ++i) {
+    poses.insert(poses.begin() + (i * 7) % (poses.size() + 1), far[i]);
+  }
+  expectSameLikelihood(building, frame, poses, &cpu, gpu.get(), "building, spread cloud");
+  cpu.evaluate(frame, poses, mp, &a);
+  gpu->evaluate(frame, poses, mp, &b);
+  EXPECT_NEAR(b.visible_components, a.visible_components, 0.01 * a.visible_components + 2);
+}
+
 // Each pose's own list of the components it can see (local lists), built over the view cull's
 // set of the map held in Z order, chunk by chunk (the chunks whose bounding ball lies outside
 // the pose's view skipped), holds the members that the bitmask over the whole map in its own

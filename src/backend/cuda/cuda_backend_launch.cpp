@@ -160,11 +160,12 @@ CudaBackend::Impl::ComponentSet CudaBackend::Impl::cullCandidates(
   const int* candidates = nullptr;
   int num_candidates = 0;
   if (host_list && !map_to_device.empty()) {
-    // The grid's map indices in the device's order (the cull flags them and compacts the flags
-    // in index order: the list's own order does not matter).
+    // The grid's map indices in the device's order, ascending (the cull compacts its flags in
+    // the list's order: the set comes out in the device's order).
     device_candidates.resize(host_list->size());
     for (size_t k = 0; k < host_list->size(); ++k)
       device_candidates[k] = map_to_device[(*host_list)[k]];
+    std::sort(device_candidates.begin(), device_candidates.end());
     host_list = &device_candidates;
   }
   if (host_list) {

@@ -467,9 +467,10 @@ __global__ void combineShiftKernel(int count, int patches, int passes,
   shift[i] = s;
 }
 
-// Per-update view cull: visible[i] = 1 when componentMayTouchGrid holds for component i and
-// some particle. One thread per component, blockIdx.y a slice of kCullParticles particles;
-// a component already found visible stops testing.
+// Per-update view cull: visible[t] = 1 when componentMayTouchGrid holds for the t-th tested
+// component (candidates[t], or component t without candidates) and some particle. One thread per
+// component, blockIdx.y a slice of kCullParticles particles; a component already found visible
+// stops testing.
 constexpr int kCullThreads = 128;
 constexpr int kCullParticles = 16;
 // At most this many blocks per component range: more particles are taken in turns, so that a
@@ -493,14 +494,14 @@ __global__ void __launch_bounds__(kCullThreads)
     __syncthreads();  // the previous slice's poses are no longer read
     for (int k = threadIdx.x; k < count; k += blockDim.x) s_T[k] = T_cam_map[first + k];
     __syncthreads();
-    if (i < 0 || *reinterpret_cast<volatile int*>(visible + i)) continue;
+    if (i < 0 || *reinterpret_cast<volatile int*>(visible + t)) continue;
     const ComponentF c = components[i];
     for (int k = 0; k < count; ++k) {
       if (componentInView(c, s_T[k], cfg.cam.K, cfg.reach, cfg.sigma_bound) &&
           componentMayTouchGrid(c, s_T[k], cfg.cam.K, cfg.cam.patch_size_px, cfg.cam.patch_cols,
                                 cfg.cam.patch_rows, cfg.min_depth_m, cfg.sigma_bound,
                                 cfg.inflate_px)) {
-        visible[i] = 1;
+        visible[t] = 1;
         break;
       }
     }
@@ -508,19 +509,21 @@ __global__ void __launch_bounds__(kCullThreads)
 }
 
 // The visible components in ascending order: index list and count. One block; rounds of
-// blockDim.x components with a block-wide exclusive scan.
+// blockDim.x flags with a block-wide exclusive scan. Flag t is component candidates[t]
+// (ascending), or t without candidates.
 constexpr int kCompactThreads = 1024;
 
 __global__ void __launch_bounds__(kCompactThreads)
-    compactKernel(int num_components, const int* __restrict__ visible, int* __restrict__ index_out,
+    compactKernel(int num_tested, const int* __restrict__ visible,
+                  const int* __restrict__ candidates, int* __restrict__ index_out,
                   int* __restrict__ count_out) {
   __shared__ BlockScan scan;
   blockScanBegin(&scan);
-  for (int r = 0; r < num_components; r += blockDim.x) {
-    const int i = r + threadIdx.x;
-    const bool keep = i < num_components && visible[i] != 0;
+  for (int r = 0; r < num_tested; r += blockDim.x) {
+    const int t = r + threadIdx.x;
+    const bool keep = t < num_tested && visible[t] != 0;
     const int at = blockScanRound(keep ? 1 : 0, &scan);
-    if (keep) index_out[at] = i;
+    if (keep) index_out[at] = candidates ? candidates[t] : t;
   }
   if (threadIdx.x == 0) *count_out = scan.carry;
 }
@@ -650,21 +653,23 @@ cudaError_t launchViewCull(int num_particles, int num_components, const Membersh
                            const ComponentF* components, const EvalComponentF* eval,
                            const RigidTransformF* T_cam_map, const int* candidates,
                            int num_candidates, const ViewCullBuffers& b, cudaStream_t stream) {
-  cudaError_t err = cudaMemsetAsync(b.visible, 0, sizeof(int) * (num_components + 1), stream);
-  if (err != cudaSuccess) return err;
+  // Flags, compaction, copies and chunk balls over the tested components only (the visible
+  // ones are among them).
   const int tested = candidates ? num_candidates : num_components;
+  cudaError_t err = cudaMemsetAsync(b.visible, 0, sizeof(int) * (tested + 1), stream);
+  if (err != cudaSuccess) return err;
   if (num_particles > 0 && tested > 0) {
     const dim3 grid((tested + kCullThreads - 1) / kCullThreads,
                     min((num_particles + kCullParticles - 1) / kCullParticles, kCullSlices));
     viewCullKernel<<<grid, kCullThreads, 0, stream>>>(num_particles, tested, cfg, components,
                                                       T_cam_map, candidates, b.visible);
   }
-  compactKernel<<<1, kCompactThreads, 0, stream>>>(num_components, b.visible, b.index, b.count);
-  if (num_components > 0) {
-    gatherKernel<<<(num_components + 255) / 256, 256, 0, stream>>>(b.index, b.count, components,
-                                                                   eval, b.components, b.eval);
-    chunkSpheresKernel<<<chunkCount(num_components), kComponentChunk, 0, stream>>>(
-        num_components, b.count, b.components, cfg.sigma_bound, b.chunks);
+  compactKernel<<<1, kCompactThreads, 0, stream>>>(tested, b.visible, candidates, b.index, b.count);
+  if (tested > 0) {
+    gatherKernel<<<(tested + 255) / 256, 256, 0, stream>>>(b.index, b.count, components, eval,
+                                                           b.components, b.eval);
+    chunkSpheresKernel<<<chunkCount(tested), kComponentChunk, 0, stream>>>(
+        tested, b.count, b.components, cfg.sigma_bound, b.chunks);
   }
   return cudaGetLastError();
 }
