@@ -70,7 +70,7 @@ void CpuBackend::evaluate(const DepthFrame& frame, const std::vector<RigidTransf
         const double t1 = omp_get_wtime();
         const RigidTransformF& T_cam_map = T_cam_map_[i];
         computeMembership(view_components_, T_cam_map, frame.intrinsics, frame.grid, params,
-                          &s.projected, &s.valid, &s.membership, &reach, &prune, view_soa_.data());
+                          nullptr, &s.valid, &s.membership, &reach, &prune, view_soa_.data());
         const EvalComponentF* eval =
             noisyEvalComponents(view_components_, view_eval_, s.valid, T_cam_map,
                                 params.depth_noise, &s.noisy, &view_soa_);

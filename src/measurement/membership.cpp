@@ -420,7 +420,7 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
   const float inflate = patchInflation(grid.patch_size_px);
   const float ps = static_cast<float>(grid.patch_size_px);
   const float c0 = 0.5f * (ps - 1.f);  // centre of patch 0
-  projected->resize(m);
+  if (projected) projected->resize(m);
   valid->assign(m, 0);
   out->begin.assign(num_patches + 1, 0);
   // Per-thread buffers, reused across calls (no allocation once warm).
@@ -523,7 +523,8 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
         hits = first;
       }
     }
-    ProjectedComponent& p = (*projected)[i];
+    ProjectedComponent scratch;
+    ProjectedComponent& p = projected ? (*projected)[i] : scratch;
     if (redo) {
       if (!projectComponent(components[i], T_cam_map, K, params.min_component_depth_m,
                             params.sigma_bound, inflate, &p)) {
@@ -548,7 +549,12 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
       if (hits == first) continue;
     } else {
       if (hits == first) continue;
-      // projectComponent's result to within float rounding (scratch output).
+      // projectComponent's result to within float rounding (scratch output), for a caller that
+      // keeps it.
+      if (!projected) {
+        (*valid)[i] = 1;
+        continue;
+      }
       p.u_px = P.u[i];
       p.v_px = P.v[i];
       p.cov_uu = P.cuu[i];

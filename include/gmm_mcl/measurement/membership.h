@@ -71,12 +71,12 @@ int componentSoAStride(int m);
 void componentSoA(const std::vector<ComponentF>& components, std::vector<float>* soa);
 
 // Projects every component for one camera pose and fills the membership table.
-// `projected` and `valid` are scratch (resized here); T_cam_map maps map points into the camera.
-// With `reach`, a component outside the pose's view volume (projection.h's componentInView) is
-// no member, as in the CUDA membership kernel: the likelihood's members (the backends); without
-// it, every component whose ellipse reaches a patch centre (the brute-force reference's table).
-// With `prune`, a pair that MemberDepthPrune rules out is no member either. `component_soa`:
-// componentSoA(components) when the caller keeps it (else built here).
+// `projected` (may be null: not kept) and `valid` are scratch (resized here); T_cam_map maps map
+// points into the camera. With `reach`, a component outside the pose's view volume (projection.h's
+// componentInView) is no member, as in the CUDA membership kernel: the likelihood's members (the
+// backends); without it, every component whose ellipse reaches a patch centre (the brute-force
+// reference's table). With `prune`, a pair that MemberDepthPrune rules out is no member either.
+// `component_soa`: componentSoA(components) when the caller keeps it (else built here).
 void computeMembership(const std::vector<ComponentF>& components, const RigidTransformF& T_cam_map,
                        const Intrinsics& K, const PatchGrid& grid, const MeasurementParams& params,
                        std::vector<ProjectedComponent>* projected, std::vector<char>* valid,
