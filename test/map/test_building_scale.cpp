@@ -24,18 +24,24 @@
 namespace gmm_mcl {
 namespace {
 
-TEST(ComponentGridTest, QueryEqualsBruteForce) {
-  std::mt19937_64 rng(7);
+// 3000 component boxes over 40 x 40 m, a ground plane of 50 m and a component 1 km away.
+std::vector<Box3> testBoxes(std::mt19937_64* rng) {
   std::uniform_real_distribution<double> pos(-20.0, 20.0), size(0.01, 1.0);
   std::vector<Box3> boxes;
   for (int i = 0; i < 3000; ++i) {
-    const Eigen::Vector3d c(pos(rng), pos(rng), 0.1 * pos(rng));
-    const Eigen::Vector3d h(size(rng), size(rng), size(rng));
+    const Eigen::Vector3d c(pos(*rng), pos(*rng), 0.1 * pos(*rng));
+    const Eigen::Vector3d h(size(*rng), size(*rng), size(*rng));
     boxes.push_back(Box3{c - h, c + h});
   }
-  // A ground plane of 50 m, a component 1 km away.
   boxes.push_back(Box3{Eigen::Vector3d(-25, -25, -0.05), Eigen::Vector3d(25, 25, 0.05)});
   boxes.push_back(Box3{Eigen::Vector3d(1000, 0, 0), Eigen::Vector3d(1000.2, 0.2, 0.2)});
+  return boxes;
+}
+
+TEST(ComponentGridTest, QueryEqualsBruteForce) {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> pos(-20.0, 20.0), size(0.01, 1.0);
+  const std::vector<Box3> boxes = testBoxes(&rng);
   const ComponentGrid grid(boxes);
   EXPECT_EQ(grid.largeCount(), 1u);
   std::vector<int> got;
@@ -65,15 +71,7 @@ TEST(ComponentGridTest, QueryEqualsBruteForce) {
 TEST(ComponentGridTest, QueryOfSeveralRegionsIsTheUnionOfTheirQueries) {
   std::mt19937_64 rng(11);
   std::uniform_real_distribution<double> pos(-20.0, 20.0), size(0.01, 1.0), near(-1.0, 1.0);
-  std::vector<Box3> boxes;
-  for (int i = 0; i < 3000; ++i) {
-    const Eigen::Vector3d c(pos(rng), pos(rng), 0.1 * pos(rng));
-    const Eigen::Vector3d h(size(rng), size(rng), size(rng));
-    boxes.push_back(Box3{c - h, c + h});
-  }
-  boxes.push_back(Box3{Eigen::Vector3d(-25, -25, -0.05), Eigen::Vector3d(25, 25, 0.05)});
-  boxes.push_back(Box3{Eigen::Vector3d(1000, 0, 0), Eigen::Vector3d(1000.2, 0.2, 0.2)});
-  const ComponentGrid grid(boxes);
+  const ComponentGrid grid(testBoxes(&rng));
   ComponentGrid::Scratch scratch;
   for (int q = 0; q < 100; ++q) {
     // Overlapping boxes around one place (a start's groups), sometimes spread over the map, an
