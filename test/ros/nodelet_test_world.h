@@ -9,6 +9,7 @@
 #include <std_srvs/Empty.h>
 
 #include <cmath>
+#include <cstdio>
 #include <functional>
 #include <map>
 #include <string>
@@ -57,23 +58,52 @@ inline double errorOfFrame(const ros::Time& t, int k) {
   return p ? positionError(*p, w->robot.truth(k)) : 1e9;
 }
 
+// Calls a service of the nodelet. A call that fails in transport (the client's connection to the
+// manager, which a loaded machine can drop: seen once in CI, 6 ms into a case, between two calls
+// that worked) is tried again, up to three times, each failure printed; a service that answers
+// false fails at once.
+template <typename Service>
+inline bool callService(const std::string& name, Service* srv) {
+  for (int attempt = 1; attempt <= 3; ++attempt) {
+    if (!ros::service::waitForService(name, 60000)) {
+      std::printf("[ service ] %s not advertised within 60 s\n", name.c_str());
+      return false;
+    }
+    ros::ServiceClient client = ros::NodeHandle().serviceClient<Service>(name);
+    if (client.call(*srv)) return true;
+    if (client.isValid() && client.exists()) {
+      std::printf("[ service ] %s: call %d failed\n", name.c_str(), attempt);
+    } else {
+      std::printf("[ service ] %s: call %d failed, the service gone\n", name.c_str(), attempt);
+    }
+    ros::WallDuration(0.1).sleep();
+  }
+  return false;
+}
+
 // Resets the filter to the robot's true pose (the service answers once it is applied) and
-// tracks a few frames: the precondition of most cases.
+// tracks a few frames: the precondition of most cases. Says which step failed.
 inline bool ensureTracking() {
-  if (!w->robot.waitForNodelet() || !w->obs.waitConnected()) return false;
+  if (!w->robot.waitForNodelet() || !w->obs.waitConnected()) {
+    std::printf("[ tracking ] the nodelet or its outputs not connected\n");
+    return false;
+  }
   w->robot.publishStaticExtrinsics();  // latched; the first case sends its first frame without
   ResetToPose srv;
   srv.request.pose.header.frame_id = "map";
   srv.request.pose.pose.pose = ros_conv::poseFromIsometry(w->robot.truth(w->k));
   for (int i : {0, 7, 14, 35}) srv.request.pose.pose.covariance[i] = 0.02 * 0.02;
-  if (!ros::service::waitForService("/gmm_mcl/reset_to_pose", 60000) ||
-      !ros::service::call("/gmm_mcl/reset_to_pose", srv)) {
-    return false;
+  if (!callService("/gmm_mcl/reset_to_pose", &srv)) return false;
+  if (!srv.response.success) {  // the frames below show whether it tracks anyway
+    std::printf("[ tracking ] reset refused: %s\n", srv.response.message.c_str());
   }
   double err = 1e9;
   for (int i = 0; i < 8; ++i) {
     ros::Time t;
-    if (!sendFrame(++w->k, SyntheticRobot::Frame(), &t)) return false;
+    if (!sendFrame(++w->k, SyntheticRobot::Frame(), &t)) {
+      std::printf("[ tracking ] no status for frame %d\n", w->k);
+      return false;
+    }
     err = errorOfFrame(t, w->k);
   }
   std::printf("[ tracking ] error %.3f m at pose %d\n", err, w->k);
@@ -92,7 +122,7 @@ inline bool reconfigure(const std::map<std::string, double>& doubles,
     dynamic_reconfigure::ConfigTools::appendParameter(srv.request.config, kv.first, kv.second);
   for (const auto& kv : bools)
     dynamic_reconfigure::ConfigTools::appendParameter(srv.request.config, kv.first, kv.second);
-  if (!ros::service::call("/gmm_mcl/set_parameters", srv)) return false;
+  if (!callService("/gmm_mcl/set_parameters", &srv)) return false;
   if (out) *out = srv.response.config;
   return true;
 }
