@@ -143,8 +143,8 @@ void groupPosesByPlace(const std::vector<RigidTransformF>& T_map_cam, double cel
     }
   }
   // One 64-bit word per pose where the cells' ranges and the index fit: the cell's coordinates
-  // from the lowest, then the index (a sort of words, about four times faster than of the
-  // triples: 17,088 start candidates took 3 ms to group on a 2-core x86-64).
+  // from the lowest, then the index. Measured on a 2-core x86-64 for 17,088 start candidates:
+  // the sort of triples 3.1 ms, of words 1.3 ms, counted into their cells (below) 0.27 ms.
   int bits[3], index_bits = 1;
   while (index_bits < 63 && (1ll << index_bits) < n) ++index_bits;
   int total = index_bits;
