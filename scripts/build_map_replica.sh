@@ -8,6 +8,7 @@
 #   OUTPUT_MAP    default $GMM_MCL_MAP_DIR/replica_office0_m1000.gmm (GMM_MCL_MAP_DIR defaults
 #                 to build/maps)
 #   GMM_FIT       the gmm_mcl_fit binary (default: build-fit/gmm_fit, build/gmm_fit, or on PATH)
+# Extra options replace the defaults they name (-m 4000: M = 4000).
 #
 # With GMM_MCL_REPLICA_SEQUENCE=DIR it also renders a depth sequence from the same mesh along
 # Replica's traj.txt with cam_params.json (1200x680) into DIR, in TUM RGB-D layout, with the
@@ -22,7 +23,8 @@ shift "$MAP_ARGS_USED"
 MESH="$DATASETS/replica_office0/office0_mesh.ply"
 require_input "$MESH" "Replica office0 mesh"
 mkdir -p "$(dirname "$OUT")"
-"$GMM_FIT" "$MESH" --mesh-samples 250000 -m 1000 --seed 1 -o "$OUT" "$@"
+fit_options --mesh-samples 250000 -m 1000 --seed 1 -- "$@"
+"$GMM_FIT" "$MESH" -o "$OUT" "${FIT_OPTIONS[@]}"
 "$GMM_INSPECT" "$OUT"
 
 if [[ -n "${GMM_MCL_REPLICA_SEQUENCE:-}" ]]; then

@@ -85,6 +85,36 @@ map_builder_args() {
   GMM_INSPECT="$(find_tool gmm_mcl_inspect GMM_INSPECT)"
 }
 
+# fit_options DEFAULT... -- EXTRA...: FIT_OPTIONS = the map-building scripts' default gmm_mcl_fit
+# options (each an option and its value) that EXTRA (the user's extra options) does not give
+# itself, then EXTRA: a user's `-m 4000` replaces the default `-m 1000` (gmm_mcl_fit refuses an
+# option given twice). -m and --components are one option, as are --name VALUE and --name=VALUE.
+fit_options() {
+  local -a defaults=()
+  while [[ $# -gt 0 && "$1" != "--" ]]; do
+    defaults+=("$1")
+    shift
+  done
+  [[ $# -gt 0 ]] && shift
+  FIT_OPTIONS=()
+  local i a given
+  for ((i = 0; i < ${#defaults[@]}; i += 2)); do
+    given=0
+    for a in "$@"; do
+      [[ "$(fit_option_name "${a%%=*}")" == "$(fit_option_name "${defaults[i]}")" ]] && given=1
+    done
+    [[ $given == 1 ]] || FIT_OPTIONS+=("${defaults[i]}" "${defaults[i + 1]}")
+  done
+  FIT_OPTIONS+=("$@")
+}
+fit_option_name() {
+  case "$1" in
+    -m) echo --components ;;
+    -o) echo --output ;;
+    *) echo "$1" ;;
+  esac
+}
+
 # require_input FILE WHAT [WHERE]: exits with an error naming WHAT and WHERE (default FILE)
 # unless FILE exists.
 require_input() {
