@@ -6,13 +6,7 @@
 #   depth_noise_preset_test.sh PATH_TO_gmm_mcl_replay
 set -u
 tool="$1"
-work="$(mktemp -d)"
-trap 'rm -rf "$work"' EXIT
-failed=0
-fail() {
-  echo "[ FAILED  ] $*"
-  failed=1
-}
+source "$(dirname "${BASH_SOURCE[0]}")/cli_test_common.sh"
 
 "$tool" --help | grep -q -- "--depth-noise-preset" || fail "--help does not list --depth-noise-preset"
 

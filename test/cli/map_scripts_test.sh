@@ -7,13 +7,7 @@
 #   map_scripts_test.sh PACKAGE_ROOT
 set -u
 root="$1"
-work="$(mktemp -d)"
-trap 'rm -rf "$work"' EXIT
-failed=0
-fail() {
-  echo "[ FAILED  ] $*"
-  failed=1
-}
+source "$(dirname "${BASH_SOURCE[0]}")/cli_test_common.sh"
 printf '#!/usr/bin/env bash\nprintf "%%s\\n" "$@" > "$FIT_ARGS_OUT"\n' > "$work/fit"
 printf '#!/bin/sh\nexit 0\n' > "$work/inspect"
 chmod +x "$work/fit" "$work/inspect"
