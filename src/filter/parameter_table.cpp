@@ -545,8 +545,9 @@ void addCudaParams(ParamTable<P>* t) {
                       "(particle, component) pairs per update on (0: always)"));
   add(t, paramSpec<P>("cuda_membership_pass_words",
                       GMM_MCL_PARAM_FIELD(P, cuda.membership_pass_words), "", g, {0, 1e6}, kStartup,
-                      "Bitmask words per pass of the cuda backend's membership kernel where the "
-                      "visible components need more (0: always one pass)"));
+                      "About this many bitmask words per pass of the cuda backend's membership "
+                      "kernel where the visible components need more: the nearest number of "
+                      "passes, all of one size (0: always one pass)"));
   add(t, paramSpec<P>("cuda_place_groups", GMM_MCL_PARAM_FIELD(P, cuda.place_groups), "", g, {},
                       kStartup,
                       "The cuda backend evaluates a cloud spread over a large map (20,000 "

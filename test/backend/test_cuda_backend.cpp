@@ -14,6 +14,7 @@
 
 #include "backend/cuda_backend_test_utils.h"
 #include "cuda/cuda_backend.h"
+#include "cuda/kernels.cuh"
 #include "gmm_mcl/backend/cpu_backend.h"
 #include "gmm_mcl/bench/frame_set.h"
 #include "gmm_mcl/filter/pose.h"
@@ -195,6 +196,32 @@ TEST_F(CudaBackendTest, SyntheticSceneMatchesCpu) {
                            (label + ", no depth noise").c_str(), noise_off);
       const std::vector<RigidTransformF> some(poses.begin(), poses.begin() + 32);
       expectSameMembership(w.map, frame, some, &cpu, gpu.get(), label.c_str());
+    }
+  }
+}
+
+// The membership kernel's passes (cuda::balancedPassWords): about pass_words words each, all of
+// one size but the last, which differs by fewer words than there are passes, so that no pass is
+// left with a few words; one pass below 1.5 times pass_words.
+TEST(MembershipPassesTest, PassesAreOfOneSizeAndNearTheTuning) {
+  EXPECT_EQ(cuda::balancedPassWords(42, 32), 42);  // one pass, not 32 + 10
+  EXPECT_EQ(cuda::balancedPassWords(96, 32), 32);  // three passes of 32
+  EXPECT_EQ(cuda::balancedPassWords(48, 32), 24);
+  EXPECT_EQ(cuda::balancedPassWords(100, 32), 34);
+  EXPECT_EQ(cuda::balancedPassWords(20, 32), 20);
+  EXPECT_EQ(cuda::balancedPassWords(420, 0), 420);  // 0: one pass
+  for (int pass_words : {1, 8, 32}) {
+    for (int words = 1; words <= 400; ++words) {
+      const int nw = cuda::balancedPassWords(words, pass_words);
+      const int passes = cuda::membershipPasses(words, nw);
+      const int last = words - (passes - 1) * nw;
+      const std::string at = std::to_string(words) + " words, " + std::to_string(pass_words);
+      EXPECT_GE(last, 1) << at;
+      EXPECT_LE(last, nw) << at;
+      EXPECT_GE(last, nw - passes + 1) << at;
+      EXPECT_LE(2 * nw, 3 * pass_words) << at;
+      if (passes > 1) EXPECT_GE(3 * nw, 2 * pass_words) << at;
+      if (2 * words < 3 * pass_words) EXPECT_EQ(passes, 1) << at;
     }
   }
 }

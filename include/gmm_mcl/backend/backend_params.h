@@ -25,8 +25,9 @@ struct CudaTuningParams {
   // products: `large` (1068 x 4000) and `scale` (100,000 x 1000) gain, `paper` (1068 x 1000)
   // would lose 8%.
   long long view_cull_min_pairs = 2000000;
-  // Membership bitmask words per pass where the visible components need more (one pass below;
-  // 0: always one pass).
+  // About this many membership bitmask words per pass where the visible components need more:
+  // the nearest number of passes, all of one size (one pass up to 1.5 times this; 0: always one
+  // pass).
   int membership_pass_words = 32;
   // A cloud spread over several places of a map of 20,000 components or more (a start from a
   // uniform cloud, a lost detector's redraw) evaluated group by group of poses by place, each

@@ -188,6 +188,9 @@ struct CudaBackend::Impl {
 
   // Raises the membership kernel's shared-memory limit for this grid and bitmask; throws when
   // the device cannot hold it.
+  // The membership kernel's bitmask words per pass for `words` words (cuda::balancedPassWords
+  // of tuning.membership_pass_words, where the block's shared memory holds them).
+  int membershipPassWords(int patches, int words, bool local, bool chunked) const;
   void ensureMembershipShared(int patches, int words, int visible, bool local = false,
                               bool chunked = false);
 

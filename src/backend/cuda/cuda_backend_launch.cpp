@@ -214,6 +214,19 @@ void CudaBackend::Impl::ensureMembershipShared(int patches, int words, int visib
   }
 }
 
+int CudaBackend::Impl::membershipPassWords(int patches, int words, bool local, bool chunked) const {
+  const int pass_words = tuning.membership_pass_words;
+  const int balanced = cuda::balancedPassWords(words, pass_words);
+  // Balanced passes are at most half as large again as pass_words: where such a bitmask would
+  // not fit a block's shared memory, passes of pass_words words.
+  if (balanced > pass_words && pass_words > 0 &&
+      cuda::membershipSharedBytes(patches, balanced, local, chunked) >
+          info.shared_per_block_bytes) {
+    return pass_words;
+  }
+  return balanced;
+}
+
 int CudaBackend::Impl::launchBatches(const DeviceFrameView& f, int n,
                                      const MeasurementParams& params, int max_patch_pixels,
                                      double* ll, int* hits, long long* evals, long long* pairs) {
@@ -333,7 +346,7 @@ int CudaBackend::Impl::launchSet(const DeviceFrameView& f, int n, const RigidTra
   }
   const bool local = local_stride > 0;
   const int words = local ? local_stride / 32 : std::max((m + 31) / 32, 1);
-  const int pass_words = tuning.membership_pass_words;
+  const int pass_words = membershipPassWords(patches, words, local, chunks != nullptr);
   const int passes = cuda::membershipPasses(words, pass_words);
   ensureMembershipShared(patches, passes == 1 ? words : pass_words, m, local, chunks != nullptr);
   // Particles in batches whose masks (and per-particle evaluation forms) fit the budget.
@@ -411,7 +424,7 @@ void CudaBackend::membership(const DepthFrame& frame, const RigidTransformF& T_m
   cfg.reach = viewReach(frame, params);
   const Impl::ComponentSet set = d.cullView(cfg, pose.data(), 1);
   const int words = std::max((set.count + 31) / 32, 1);
-  const int pass_words = d.tuning.membership_pass_words;
+  const int pass_words = d.membershipPassWords(patches, words, false, false);
   const int passes = cuda::membershipPasses(words, pass_words);
   d.ensureMembershipShared(patches, passes == 1 ? words : pass_words, set.count);
   cuda::DeviceBuffer<uint32_t> mask(size_t(patches) * words);

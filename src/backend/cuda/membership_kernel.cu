@@ -3,6 +3,7 @@
 // atomicOr and written out coalesced. Same math as the CPU (gmm_mcl/measurement/projection.h).
 #include <math.h>
 
+#include <algorithm>
 #include <mutex>
 
 #include "cuda/block_scan.cuh"
@@ -588,6 +589,12 @@ cudaError_t preferSharedMemoryForMembership() {
   return cudaFuncSetAttribute(membershipKernel<true>,
                               cudaFuncAttributePreferredSharedMemoryCarveout,
                               static_cast<int>(cudaSharedmemCarveoutMaxShared));
+}
+
+int balancedPassWords(int words, int pass_words) {
+  if (pass_words <= 0 || words <= pass_words) return words;
+  const int passes = std::max(1, (words + pass_words / 2) / pass_words);  // nearest
+  return (words + passes - 1) / passes;
 }
 
 int membershipPasses(int words, int pass_words) {
