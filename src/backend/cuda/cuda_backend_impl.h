@@ -186,11 +186,11 @@ struct CudaBackend::Impl {
                 const cuda::MembershipConfig& cfg, int max_patch_pixels, const ComponentSet& set,
                 int first_batch, double* ll, int* hits, long long* evals, long long* pairs);
 
-  // Raises the membership kernel's shared-memory limit for this grid and bitmask; throws when
-  // the device cannot hold it.
   // The membership kernel's bitmask words per pass for `words` words (cuda::balancedPassWords
   // of tuning.membership_pass_words, where the block's shared memory holds them).
   int membershipPassWords(int patches, int words, bool local, bool chunked) const;
+  // Raises the membership kernel's shared-memory limit for this grid and bitmask; throws when
+  // the device cannot hold it.
   void ensureMembershipShared(int patches, int words, int visible, bool local = false,
                               bool chunked = false);
 
