@@ -354,6 +354,97 @@ inline bool testBoxVec(const PatchGrid& grid, int col0, int col1, int row0, int 
 }
 #endif
 
+#if defined(__AVX512F__) && defined(__AVX512VL__) && defined(__FMA__)
+#define GMM_MCL_BOX_TILES 1
+// testBox (with the margin check) over tiles of 4 x 4 patch centres, AVX-512: the same form
+// and FMA arithmetic per centre as testBoxVec, lane by lane. A box is 3.3 rows of 3-4 patches on
+// the `cpu` workload, so one tile holds most boxes where testBoxVec took a vector (and a
+// branch) per row. The tile's hits are written compressed at hp[hits] (hp needs 16 entries of
+// slack past the box's cells), each counted in count. With kPrune, a centre also needs
+// depthReaches (testBox); zlo, zhi need 3 entries of slack past the last patch.
+template <bool kPrune>
+inline bool testBoxTiles(const PatchGrid& grid, int col0, int col1, int row0, int row1, float pu,
+                         float pv, float quu, float quv, float qvv, float margin,
+                         int* __restrict hp, size_t* hits_io, int* __restrict count,
+                         const float* zlo = nullptr, const float* zhi = nullptr, float z = 0.f,
+                         float dz2_max = 0.f) {
+  const int cols = grid.cols;
+  const float ps = static_cast<float>(grid.patch_size_px);
+  // Lane 4 i + j: row i, column j of the tile.
+  const __m512 tile_col = _mm512_setr_ps(0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3);
+  const __m512 tile_row = _mm512_setr_ps(0, 0, 0, 0, 1, 1, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3);
+  const __m512i lane_col = _mm512_setr_epi32(0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3);
+  const __m512i lane_row = _mm512_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3);
+  const __m512i patch_offset =
+      _mm512_add_epi32(_mm512_mullo_epi32(lane_row, _mm512_set1_epi32(cols)), lane_col);
+  const __m512 vps = _mm512_set1_ps(ps);
+  const __m512 vquu = _mm512_set1_ps(quu), vq2uv = _mm512_set1_ps(2.f * quv);
+  const __m512 vqvv = _mm512_set1_ps(qvv), one = _mm512_set1_ps(1.f);
+  const __m512 vmargin = _mm512_set1_ps(margin), vpu = _mm512_set1_ps(pu);
+  const __m512 vz = _mm512_set1_ps(z), vdz2 = _mm512_set1_ps(dz2_max);
+  size_t hits = *hits_io;
+  __mmask16 near = 0;
+  for (int r = row0; r <= row1; r += 4) {
+    const int nr = row1 - r + 1 < 4 ? row1 - r + 1 : 4;
+    const __mmask16 live_rows = _mm512_cmplt_epi32_mask(lane_row, _mm512_set1_epi32(nr));
+    // Centres are integers + 0.5 (or integers): exact, as centreV(r + i).
+    const __m512 v = _mm512_fmadd_ps(tile_row, vps, _mm512_set1_ps(grid.centreV(r)));
+    const __m512 dv = _mm512_sub_ps(v, _mm512_set1_ps(pv));
+    const __m512 dvv = _mm512_mul_ps(vqvv, dv);
+    for (int c = col0; c <= col1; c += 4) {
+      const int nc = col1 - c + 1 < 4 ? col1 - c + 1 : 4;
+      const __mmask16 live = live_rows & _mm512_cmplt_epi32_mask(lane_col, _mm512_set1_epi32(nc));
+      const __m512 u = _mm512_fmadd_ps(tile_col, vps, _mm512_set1_ps(grid.centreU(c)));
+      const __m512 du = _mm512_sub_ps(u, vpu);
+      const __m512 t = _mm512_mul_ps(_mm512_mul_ps(vq2uv, du), dv);
+      const __m512 s = _mm512_fmadd_ps(dv, dvv, _mm512_fmadd_ps(du, _mm512_mul_ps(vquu, du), t));
+      __mmask16 in = _mm512_mask_cmp_ps_mask(live, s, one, _CMP_LE_OQ);
+      near |=
+          _mm512_mask_cmp_ps_mask(live, _mm512_abs_ps(_mm512_sub_ps(s, one)), vmargin, _CMP_NGT_UQ);
+      const int base = r * cols + c;
+      if (kPrune && in != 0) {  // depthReaches: the tile's rows (the last box row repeated)
+        const float* lo_row[4];
+        const float* hi_row[4];
+        for (int i = 0; i < 4; ++i) {
+          const int at = base + (i < nr ? i : nr - 1) * cols;
+          lo_row[i] = zlo + at;
+          hi_row[i] = zhi + at;
+        }
+        const __m512 lo = _mm512_insertf32x4(
+            _mm512_insertf32x4(_mm512_insertf32x4(_mm512_zextps128_ps512(_mm_loadu_ps(lo_row[0])),
+                                                  _mm_loadu_ps(lo_row[1]), 1),
+                               _mm_loadu_ps(lo_row[2]), 2),
+            _mm_loadu_ps(lo_row[3]), 3);
+        const __m512 hi = _mm512_insertf32x4(
+            _mm512_insertf32x4(_mm512_insertf32x4(_mm512_zextps128_ps512(_mm_loadu_ps(hi_row[0])),
+                                                  _mm_loadu_ps(hi_row[1]), 1),
+                               _mm_loadu_ps(hi_row[2]), 2),
+            _mm_loadu_ps(hi_row[3]), 3);
+        // (maskz_max: GCC 12's _mm512_max_ps warns of its own undefined source operand.)
+        const __m512 gap = _mm512_maskz_max_ps(
+            0xffff, _mm512_setzero_ps(),
+            _mm512_maskz_max_ps(0xffff, _mm512_sub_ps(lo, vz), _mm512_sub_ps(vz, hi)));
+        in = _mm512_mask_cmp_ps_mask(in, _mm512_mul_ps(gap, gap), vdz2, _CMP_LE_OQ);
+      }
+      if (in == 0) continue;
+      const __m512i patch = _mm512_add_epi32(_mm512_set1_epi32(base), patch_offset);
+      _mm512_storeu_si512(hp + hits, _mm512_maskz_compress_epi32(in, patch));
+      hits += static_cast<size_t>(__builtin_popcount(in));
+      // Each tile row's 4 counts with one masked add (count needs 3 entries of slack).
+      const __m128i ones = _mm_set1_epi32(1);
+      for (int i = 0; i < nr; ++i) {
+        __m128i* cp = reinterpret_cast<__m128i*>(count + base + i * cols);
+        const __m128i x = _mm_loadu_si128(cp);
+        _mm_storeu_si128(
+            cp, _mm_mask_add_epi32(x, static_cast<__mmask8>((in >> (4 * i)) & 0xf), x, ones));
+      }
+    }
+  }
+  *hits_io = hits;
+  return near != 0;
+}
+#endif
+
 // computeMembership's per-thread buffers.
 struct MembershipBuffers {
   std::vector<float> soa_in;       // mean x, y, z, covariance 0..5: [9][m]
@@ -501,9 +592,16 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
     const size_t first = hits;
     bool redo = exact;
     if (!exact) {
-      const size_t cells = static_cast<size_t>(row1 - row0 + 1) * (col1 - col0 + 1) + 8;
+      const size_t cells = static_cast<size_t>(row1 - row0 + 1) * (col1 - col0 + 1) + 16;
       if (hit_patch.size() < hits + cells) hit_patch.resize(2 * (hits + cells));
-#if defined(__AVX2__) && defined(__FMA__)
+#if defined(GMM_MCL_BOX_TILES)
+      redo = prune ? testBoxTiles<true>(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i],
+                                        P.quv[i], P.qvv[i], P.margin[i], hit_patch.data(), &hits,
+                                        count, zlo, zhi, comp_z[i], comp_dz2[i])
+                   : testBoxTiles<false>(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i],
+                                         P.quv[i], P.qvv[i], P.margin[i], hit_patch.data(), &hits,
+                                         count);
+#elif defined(__AVX2__) && defined(__FMA__)
       redo = prune ? testBoxVec<true>(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i],
                                       P.quv[i], P.qvv[i], P.margin[i], hit_patch.data(), &hits,
                                       count, zlo, zhi, comp_z[i], comp_dz2[i])

@@ -279,6 +279,73 @@ TEST(MembershipTest, DepthPruneKeepsTheSums) {
   }
 }
 
+// The pruned table is the full one less exactly the pairs that MemberDepthPrune's test rules
+// out (computed here in double from the component's camera depth and depth variance), pair for
+// pair, at patch sizes whose boxes span one or several of the box tests' tiles (4 x 4 patches
+// with AVX-512, a row of 8 with AVX2); a pair may differ only where the gap's square is within
+// 1e-4 of its bound (float rounding).
+TEST(MembershipTest, DepthPruneDropsExactlyThePairsOutOfReach) {
+  const auto& w = test::world();
+  std::vector<EvalComponentF> base;
+  makeEvalComponents(w.map.packed(), &base);
+  std::vector<float> log_norm;
+  for (const EvalComponentF& e : base) log_norm.push_back(e.log_norm);
+  const MeasurementParams mp;
+  const DepthNoiseModel& noise = mp.depth_noise;
+  long long full_pairs = 0, pruned_pairs = 0, borderline = 0;
+  for (int patch : {32, 16, 8}) {
+    FrameParams fp = test::frameParams(4);
+    fp.patch_size_px = patch;
+    const DepthFrame frame = test::renderFrame(test::referenceBasePose(), test::vgaCamera(), fp);
+    std::vector<float> min_z, max_z;
+    patchDepthRanges(frame, &min_z, &max_z);
+    const MemberDepthPrune prune = memberDepthPrune(min_z, max_z, log_norm.data(), mp);
+    const ViewReach reach = viewReach(frame, mp);
+    std::vector<RigidTransformF> poses = spreadCameraPoses(8, false, 7);
+    for (const RigidTransformF& T : spreadCameraPoses(8, true, 8)) poses.push_back(T);
+    for (const RigidTransformF& T_cam_map : poses) {
+      std::vector<ProjectedComponent> projected;
+      std::vector<char> valid;
+      PatchMembership full, pruned;
+      computeMembership(w.map.packed(), T_cam_map, frame.intrinsics, frame.grid, mp, &projected,
+                        &valid, &full, &reach);
+      computeMembership(w.map.packed(), T_cam_map, frame.intrinsics, frame.grid, mp, &projected,
+                        &valid, &pruned, &reach, &prune);
+      const double a0 = T_cam_map.R[6], a1 = T_cam_map.R[7], a2 = T_cam_map.R[8];
+      for (int p = 0; p < frame.grid.count(); ++p) {
+        const auto pb = pruned.comps.begin() + pruned.begin[p];
+        const auto pe = pruned.comps.begin() + pruned.begin[p + 1];
+        for (int k = full.begin[p]; k < full.begin[p + 1]; ++k) {
+          const ComponentF& c = w.map.packed()[full.comps[k]];
+          const double z = a0 * c.mean_m[0] + a1 * c.mean_m[1] + a2 * c.mean_m[2] + T_cam_map.t[2];
+          const float* S = c.cov_m2;  // xx xy xz yy yz zz
+          const double var = a0 * a0 * S[0] + 2 * a0 * a1 * S[1] + 2 * a0 * a2 * S[2] +
+                             a1 * a1 * S[3] + 2 * a1 * a2 * S[4] + a2 * a2 * S[5];
+          const double sigma = noise.a_m + noise.b_per_m * (z - noise.z0_m) * (z - noise.z0_m);
+          const double dz2_max = 2.0 * (var + sigma * sigma) *
+                                 (log_norm[full.comps[k]] + kDepthPruneNats - mp.floor_log_density);
+          const double gap = std::max(0.0, std::max(min_z[p] - z, z - max_z[p]));
+          const bool expected = gap * gap <= dz2_max;
+          const bool kept = std::binary_search(pb, pe, full.comps[k]);
+          if (kept != expected) {
+            ++borderline;
+            EXPECT_LT(std::abs(gap * gap - dz2_max), 1e-4 * std::abs(dz2_max))
+                << "patch size " << patch << ", patch " << p << ", component " << full.comps[k]
+                << (kept ? " kept" : " pruned");
+          }
+        }
+        full_pairs += full.countFor(p);
+        pruned_pairs += pruned.countFor(p);
+      }
+    }
+  }
+  std::printf(
+      "[ measured ] depth prune at patch sizes 32, 16, 8 (16 poses each): %lld pairs pruned to "
+      "%lld, %lld borderline pairs decided otherwise than in double\n",
+      full_pairs, pruned_pairs, borderline);
+  EXPECT_LT(pruned_pairs, full_pairs);
+}
+
 // The vectorisable helpers of the membership projection (fast_math.h).
 TEST(MembershipTest, VectorisableHelpersMatchLibm) {
   int worst_ulp = 0;
