@@ -366,8 +366,7 @@ template <bool kPrune>
 inline bool testBoxTiles(const PatchGrid& grid, int col0, int col1, int row0, int row1, float pu,
                          float pv, float quu, float quv, float qvv, float margin,
                          int* __restrict hp, size_t* hits_io, int* __restrict count,
-                         const float* zlo = nullptr, const float* zhi = nullptr, float z = 0.f,
-                         float dz2_max = 0.f) {
+                         const float* zlo, const float* zhi, float z, float dz2_max) {
   const int cols = grid.cols;
   const float ps = static_cast<float>(grid.patch_size_px);
   // Lane 4 i + j: row i, column j of the tile.
@@ -444,6 +443,26 @@ inline bool testBoxTiles(const PatchGrid& grid, int col0, int col1, int row0, in
   return near != 0;
 }
 #endif
+
+// The fastest of the box tests this build has (the same outcome from each): testBoxTiles with
+// AVX-512, testBoxVec with AVX2, else testBox.
+template <bool kPrune>
+inline bool testBoxFastest(const PatchGrid& grid, int col0, int col1, int row0, int row1, float pu,
+                           float pv, float quu, float quv, float qvv, float margin,
+                           int* __restrict hp, size_t* hits_io, int* __restrict count,
+                           const float* zlo = nullptr, const float* zhi = nullptr, float z = 0.f,
+                           float dz2_max = 0.f) {
+#if defined(GMM_MCL_BOX_TILES)
+  return testBoxTiles<kPrune>(grid, col0, col1, row0, row1, pu, pv, quu, quv, qvv, margin, hp,
+                              hits_io, count, zlo, zhi, z, dz2_max);
+#elif defined(__AVX2__) && defined(__FMA__)
+  return testBoxVec<kPrune>(grid, col0, col1, row0, row1, pu, pv, quu, quv, qvv, margin, hp,
+                            hits_io, count, zlo, zhi, z, dz2_max);
+#else
+  return testBox<kPrune>(grid, col0, col1, row0, row1, pu, pv, quu, quv, qvv, margin, hp, hits_io,
+                         count, zlo, zhi, z, dz2_max);
+#endif
+}
 
 // computeMembership's per-thread buffers.
 struct MembershipBuffers {
@@ -594,28 +613,12 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
     if (!exact) {
       const size_t cells = static_cast<size_t>(row1 - row0 + 1) * (col1 - col0 + 1) + 16;
       if (hit_patch.size() < hits + cells) hit_patch.resize(2 * (hits + cells));
-#if defined(GMM_MCL_BOX_TILES)
-      redo = prune ? testBoxTiles<true>(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i],
-                                        P.quv[i], P.qvv[i], P.margin[i], hit_patch.data(), &hits,
-                                        count, zlo, zhi, comp_z[i], comp_dz2[i])
-                   : testBoxTiles<false>(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i],
-                                         P.quv[i], P.qvv[i], P.margin[i], hit_patch.data(), &hits,
-                                         count);
-#elif defined(__AVX2__) && defined(__FMA__)
-      redo = prune ? testBoxVec<true>(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i],
-                                      P.quv[i], P.qvv[i], P.margin[i], hit_patch.data(), &hits,
-                                      count, zlo, zhi, comp_z[i], comp_dz2[i])
-                   : testBoxVec<false>(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i],
-                                       P.quv[i], P.qvv[i], P.margin[i], hit_patch.data(), &hits,
-                                       count);
-#else
-      redo = prune
-                 ? testBox<true>(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i], P.quv[i],
-                                 P.qvv[i], P.margin[i], hit_patch.data(), &hits, count, zlo, zhi,
-                                 comp_z[i], comp_dz2[i])
-                 : testBox<false>(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i], P.quv[i],
-                                  P.qvv[i], P.margin[i], hit_patch.data(), &hits, count);
-#endif
+      redo = prune ? testBoxFastest<true>(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i],
+                                          P.quv[i], P.qvv[i], P.margin[i], hit_patch.data(), &hits,
+                                          count, zlo, zhi, comp_z[i], comp_dz2[i])
+                   : testBoxFastest<false>(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i],
+                                           P.quv[i], P.qvv[i], P.margin[i], hit_patch.data(), &hits,
+                                           count);
       if (redo) {  // undo this component's hits
         for (size_t k = first; k < hits; ++k) --count[hit_patch[k]];
         hits = first;
