@@ -89,7 +89,8 @@ struct LikelihoodBuffers {
   std::vector<int> keep;
   std::vector<float> own_soa, form;  // noisyEvalComponents: componentSoA, noisyFormsAll's rows
   std::vector<int> ok;
-  std::vector<int> members;  // noisyEvalComponents: the valid components
+  std::vector<int> members;       // noisyEvalComponents: the valid components
+  std::vector<float> member_soa;  // noisyEvalComponents: their rows of the structure of arrays
 };
 __attribute__((noinline)) LikelihoodBuffers& threadLikelihoodBuffers() {
   static thread_local LikelihoodBuffers buffers;
@@ -196,12 +197,7 @@ const EvalComponentF* noisyEvalComponents(
     componentSoA(components, &own_soa);
     soa = &own_soa;
   }
-  form.resize(11 * static_cast<size_t>(stride));
-  ok.resize(stride);
-  noisyFormsAll(soa->data(), stride, T_cam_map, noise, kEvalScaleNats, form.data(), ok.data());
   out->resize(m);
-  const float* f = form.data();
-  const int ms = stride;
   // Only members are read: their indices first, without a branch each (about half the
   // components are members, in no pattern the branch predictor learns).
   std::vector<int>& members = buffers.members;
@@ -211,24 +207,40 @@ const EvalComponentF* noisyEvalComponents(
     members[num_members] = i;
     num_members += valid[i] ? 1 : 0;
   }
+  // The members' rows of the structure of arrays gathered (padded with copies of the last
+  // member to whole blocks), and their forms only: each lane's form is the same wherever it
+  // sits in the list (noisyFormsAll).
+  const int ms = componentSoAStride(num_members);
+  std::vector<float>& msoa = buffers.member_soa;
+  msoa.resize(kComponentSoARows * static_cast<size_t>(ms));
+  for (int r = 0; r < kComponentSoARows; ++r) {
+    const float* __restrict src = soa->data() + static_cast<size_t>(r) * stride;
+    float* __restrict dst = msoa.data() + static_cast<size_t>(r) * ms;
+    for (int t = 0; t < num_members; ++t) dst[t] = src[members[t]];
+    for (int t = num_members; t < ms; ++t) dst[t] = num_members > 0 ? dst[num_members - 1] : 0.f;
+  }
+  form.resize(11 * static_cast<size_t>(ms));
+  ok.resize(ms);
+  noisyFormsAll(msoa.data(), ms, T_cam_map, noise, kEvalScaleNats, form.data(), ok.data());
+  const float* f = form.data();
   for (int t = 0; t < num_members; ++t) {
     const int i = members[t];
     EvalComponentF& e = (*out)[i];
-    if (!ok[i]) {
+    if (!ok[t]) {
       e = base[i];
       continue;
     }
-    e.c[0] = f[i];
-    e.c[1] = f[ms + i];
-    e.c[2] = f[2 * ms + i];
-    e.base = f[3 * ms + i];
-    e.u00 = f[4 * ms + i];
-    e.u01 = f[5 * ms + i];
-    e.u02 = f[6 * ms + i];
-    e.u11 = f[7 * ms + i];
-    e.u12 = f[8 * ms + i];
-    e.u22 = f[9 * ms + i];
-    e.log_norm = f[10 * ms + i];
+    e.c[0] = f[t];
+    e.c[1] = f[ms + t];
+    e.c[2] = f[2 * ms + t];
+    e.base = f[3 * ms + t];
+    e.u00 = f[4 * ms + t];
+    e.u01 = f[5 * ms + t];
+    e.u02 = f[6 * ms + t];
+    e.u11 = f[7 * ms + t];
+    e.u12 = f[8 * ms + t];
+    e.u22 = f[9 * ms + t];
+    e.log_norm = f[10 * ms + t];
     e.pad = 0.f;
   }
   return out->data();
