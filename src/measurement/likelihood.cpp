@@ -217,7 +217,7 @@ const EvalComponentF* noisyEvalComponents(
     const float* __restrict src = soa->data() + static_cast<size_t>(r) * stride;
     float* __restrict dst = msoa.data() + static_cast<size_t>(r) * ms;
     for (int t = 0; t < num_members; ++t) dst[t] = src[members[t]];
-    for (int t = num_members; t < ms; ++t) dst[t] = num_members > 0 ? dst[num_members - 1] : 0.f;
+    for (int t = num_members; t < ms; ++t) dst[t] = dst[num_members - 1];  // ms = 0 if none
   }
   form.resize(11 * static_cast<size_t>(ms));
   ok.resize(ms);

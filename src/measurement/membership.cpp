@@ -450,8 +450,7 @@ template <bool kPrune>
 inline bool testBoxFastest(const PatchGrid& grid, int col0, int col1, int row0, int row1, float pu,
                            float pv, float quu, float quv, float qvv, float margin,
                            int* __restrict hp, size_t* hits_io, int* __restrict count,
-                           const float* zlo = nullptr, const float* zhi = nullptr, float z = 0.f,
-                           float dz2_max = 0.f) {
+                           const float* zlo, const float* zhi, float z, float dz2_max) {
 #if defined(GMM_MCL_BOX_TILES)
   return testBoxTiles<kPrune>(grid, col0, col1, row0, row1, pu, pv, quu, quv, qvv, margin, hp,
                               hits_io, count, zlo, zhi, z, dz2_max);
@@ -618,7 +617,7 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
                                           count, zlo, zhi, comp_z[i], comp_dz2[i])
                    : testBoxFastest<false>(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i],
                                            P.quv[i], P.qvv[i], P.margin[i], hit_patch.data(), &hits,
-                                           count);
+                                           count, nullptr, nullptr, 0.f, 0.f);
       if (redo) {  // undo this component's hits
         for (size_t k = first; k < hits; ++k) --count[hit_patch[k]];
         hits = first;
