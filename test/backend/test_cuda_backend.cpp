@@ -220,8 +220,12 @@ TEST(MembershipPassesTest, PassesAreOfOneSizeAndNearTheTuning) {
       EXPECT_LE(last, nw) << at;
       EXPECT_GE(last, nw - passes + 1) << at;
       EXPECT_LE(2 * nw, 3 * pass_words) << at;
-      if (passes > 1) EXPECT_GE(3 * nw, 2 * pass_words) << at;
-      if (2 * words < 3 * pass_words) EXPECT_EQ(passes, 1) << at;
+      if (passes > 1) {
+        EXPECT_GE(3 * nw, 2 * pass_words) << at;
+      }
+      if (2 * words < 3 * pass_words) {
+        EXPECT_EQ(passes, 1) << at;
+      }
     }
   }
 }
