@@ -237,16 +237,15 @@ __attribute__((noinline)) void projectAll(const float* __restrict in, int m, int
 // contraction written out (the same bits as the compiled ellipseContains: with FMA,
 // fma(du, q_uu du, 2 q_uv du dv), then fma(dv, q_vv dv, .); without, as written), without a
 // branch per test (the outcome is hard to
-// predict): every tested patch is written at hp[hits], hits advances by the outcome and
-// count[patch] by the same. Returns true when some centre's form is within `margin` of 1 (or
-// not a number): then the outcome may depend on the last bits of the projection. margin < 0:
-// no check.
-// With kPrune, a centre also needs depthReaches(zlo[patch], zhi[patch], z, dz2_max).
+// predict): every tested patch is written at hp[hits] and hits advances by the outcome. Returns
+// true when some centre's form is within `margin` of 1 (or not a number): then the outcome may
+// depend on the last bits of the projection. margin < 0: no check. With kPrune, a centre also needs
+// depthReaches(zlo[patch], zhi[patch], z, dz2_max).
 template <bool kPrune>
 inline bool testBox(const PatchGrid& grid, int col0, int col1, int row0, int row1, float pu,
                     float pv, float quu, float quv, float qvv, float margin, int* __restrict hp,
-                    size_t* hits_io, int* __restrict count, const float* zlo = nullptr,
-                    const float* zhi = nullptr, float z = 0.f, float dz2_max = 0.f) {
+                    size_t* hits_io, const float* zlo = nullptr, const float* zhi = nullptr,
+                    float z = 0.f, float dz2_max = 0.f) {
   const float ps = static_cast<float>(grid.patch_size_px);
   const float q2uv = 2.f * quv;
   size_t hits = *hits_io;
@@ -271,7 +270,6 @@ inline bool testBox(const PatchGrid& grid, int col0, int col1, int row0, int row
       near |= !(std::fabs(s - 1.f) > margin);
       if (kPrune) in_ellipse &= depthReaches(zlo[patch], zhi[patch], z, dz2_max) ? 1 : 0;
       hp[hits] = patch;
-      count[patch] += in_ellipse;
       hits += static_cast<size_t>(in_ellipse);
     }
   }
@@ -283,14 +281,14 @@ inline bool testBox(const PatchGrid& grid, int col0, int col1, int row0, int row
 // testBox (with the margin check) 8 patch centres of a row at a time, AVX2: the same form and
 // FMA arithmetic per centre, lane by lane. The centres inside form a run of the row's patches
 // (the ellipse is convex; a mask that is not one run, only conceivable through rounding, takes
-// the per-bit path): one store of 8 patch indices at hp[hits] and one masked add to count
-// (hp needs 8 entries of slack past the box's cells, count 8 past the last patch).
+// the per-bit path): one store of 8 patch indices at hp[hits] (hp needs 8 entries of slack past
+// the box's cells).
 // With kPrune, a centre also needs depthReaches (testBox).
 template <bool kPrune>
 inline bool testBoxVec(const PatchGrid& grid, int col0, int col1, int row0, int row1, float pu,
                        float pv, float quu, float quv, float qvv, float margin, int* __restrict hp,
-                       size_t* hits_io, int* __restrict count, const float* zlo = nullptr,
-                       const float* zhi = nullptr, float z = 0.f, float dz2_max = 0.f) {
+                       size_t* hits_io, const float* zlo = nullptr, const float* zhi = nullptr,
+                       float z = 0.f, float dz2_max = 0.f) {
   const float ps = static_cast<float>(grid.patch_size_px);
   const __m256 lane = _mm256_setr_ps(0.f, 1.f, 2.f, 3.f, 4.f, 5.f, 6.f, 7.f);
   const __m256i lane_i = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
@@ -335,16 +333,11 @@ inline bool testBoxVec(const PatchGrid& grid, int col0, int col1, int row0, int 
         const int len = __builtin_popcount(run);
         _mm256_storeu_si256(reinterpret_cast<__m256i*>(hp + hits),
                             _mm256_add_epi32(_mm256_set1_epi32(patch0), lane_i));
-        __m256i* cp = reinterpret_cast<__m256i*>(count + patch0);
-        const __m256i add = _mm256_srli_epi32(_mm256_cmpgt_epi32(_mm256_set1_epi32(len), lane_i),
-                                              31);  // 1 in the first len lanes
-        _mm256_storeu_si256(cp, _mm256_add_epi32(_mm256_loadu_si256(cp), add));
         hits += static_cast<size_t>(len);
       } else {
         for (unsigned b = bits; b != 0; b &= b - 1) {
           const int patch = row_base + c + __builtin_ctz(b);
           hp[hits++] = patch;
-          ++count[patch];
         }
       }
     }
@@ -360,13 +353,13 @@ inline bool testBoxVec(const PatchGrid& grid, int col0, int col1, int row0, int 
 // and FMA arithmetic per centre as testBoxVec, lane by lane. A box is 3.3 rows of 3-4 patches on
 // the `cpu` workload, so one tile holds most boxes where testBoxVec took a vector (and a
 // branch) per row. The tile's hits are written compressed at hp[hits] (hp needs 16 entries of
-// slack past the box's cells), each counted in count. With kPrune, a centre also needs
+// slack past the box's cells). With kPrune, a centre also needs
 // depthReaches (testBox); zlo, zhi need 3 entries of slack past the last patch.
 template <bool kPrune>
 inline bool testBoxTiles(const PatchGrid& grid, int col0, int col1, int row0, int row1, float pu,
                          float pv, float quu, float quv, float qvv, float margin,
-                         int* __restrict hp, size_t* hits_io, int* __restrict count,
-                         const float* zlo, const float* zhi, float z, float dz2_max) {
+                         int* __restrict hp, size_t* hits_io, const float* zlo, const float* zhi,
+                         float z, float dz2_max) {
   const int cols = grid.cols;
   const float ps = static_cast<float>(grid.patch_size_px);
   // Lane 4 i + j: row i, column j of the tile.
@@ -429,14 +422,6 @@ inline bool testBoxTiles(const PatchGrid& grid, int col0, int col1, int row0, in
       const __m512i patch = _mm512_add_epi32(_mm512_set1_epi32(base), patch_offset);
       _mm512_storeu_si512(hp + hits, _mm512_maskz_compress_epi32(in, patch));
       hits += static_cast<size_t>(__builtin_popcount(in));
-      // Each tile row's 4 counts with one masked add (count needs 3 entries of slack).
-      const __m128i ones = _mm_set1_epi32(1);
-      for (int i = 0; i < nr; ++i) {
-        __m128i* cp = reinterpret_cast<__m128i*>(count + base + i * cols);
-        const __m128i x = _mm_loadu_si128(cp);
-        _mm_storeu_si128(
-            cp, _mm_mask_add_epi32(x, static_cast<__mmask8>((in >> (4 * i)) & 0xf), x, ones));
-      }
     }
   }
   *hits_io = hits;
@@ -449,17 +434,17 @@ inline bool testBoxTiles(const PatchGrid& grid, int col0, int col1, int row0, in
 template <bool kPrune>
 inline bool testBoxFastest(const PatchGrid& grid, int col0, int col1, int row0, int row1, float pu,
                            float pv, float quu, float quv, float qvv, float margin,
-                           int* __restrict hp, size_t* hits_io, int* __restrict count,
-                           const float* zlo, const float* zhi, float z, float dz2_max) {
+                           int* __restrict hp, size_t* hits_io, const float* zlo, const float* zhi,
+                           float z, float dz2_max) {
 #if defined(GMM_MCL_BOX_TILES)
   return testBoxTiles<kPrune>(grid, col0, col1, row0, row1, pu, pv, quu, quv, qvv, margin, hp,
-                              hits_io, count, zlo, zhi, z, dz2_max);
+                              hits_io, zlo, zhi, z, dz2_max);
 #elif defined(__AVX2__) && defined(__FMA__)
   return testBoxVec<kPrune>(grid, col0, col1, row0, row1, pu, pv, quu, quv, qvv, margin, hp,
-                            hits_io, count, zlo, zhi, z, dz2_max);
+                            hits_io, zlo, zhi, z, dz2_max);
 #else
   return testBox<kPrune>(grid, col0, col1, row0, row1, pu, pv, quu, quv, qvv, margin, hp, hits_io,
-                         count, zlo, zhi, z, dz2_max);
+                         zlo, zhi, z, dz2_max);
 #endif
 }
 
@@ -475,7 +460,7 @@ struct MembershipBuffers {
   std::vector<int> cursor;         // pass 2's next slot per patch
   std::vector<int> in_view;        // [m]: inViewAll
   std::vector<float> depth_reach;  // depth, dz2_max: [2][m]
-  std::vector<int> counts;         // members per patch (+ 8 slack)
+  std::vector<int> counts;         // members per patch
 };
 
 // This thread's buffers, looked up by a call of its own: in a shared library a thread_local's
@@ -586,9 +571,6 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
   // from the vectorised projection; where that could decide differently from projectComponent
   // (P.exact, or a centre within P.margin of the ellipse), the component is redone with
   // projectComponent, so that the table is the brute-force reference's exactly.
-  // Patches per patch, 8 entries of slack for testBoxVec's masked add.
-  counts.assign(static_cast<size_t>(num_patches) + 8, 0);
-  int* count = counts.data();
   // The components to test, ascending: in the view volume (when given), and with a box on the
   // grid or flagged for projectComponent. Listed without a branch per component (a quarter of
   // them drop out, in no pattern the branch predictor learns).
@@ -614,14 +596,11 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
       if (hit_patch.size() < hits + cells) hit_patch.resize(2 * (hits + cells));
       redo = prune ? testBoxFastest<true>(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i],
                                           P.quv[i], P.qvv[i], P.margin[i], hit_patch.data(), &hits,
-                                          count, zlo, zhi, comp_z[i], comp_dz2[i])
+                                          zlo, zhi, comp_z[i], comp_dz2[i])
                    : testBoxFastest<false>(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i],
                                            P.quv[i], P.qvv[i], P.margin[i], hit_patch.data(), &hits,
-                                           count, nullptr, nullptr, 0.f, 0.f);
-      if (redo) {  // undo this component's hits
-        for (size_t k = first; k < hits; ++k) --count[hit_patch[k]];
-        hits = first;
-      }
+                                           nullptr, nullptr, 0.f, 0.f);
+      if (redo) hits = first;  // undo this component's hits
     }
     ProjectedComponent scratch;
     ProjectedComponent& p = projected ? (*projected)[i] : scratch;
@@ -641,10 +620,10 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
       if (hit_patch.size() < hits + cells) hit_patch.resize(2 * (hits + cells));
       if (prune) {
         testBox<true>(grid, e_col0, e_col1, e_row0, e_row1, p.u_px, p.v_px, p.q_uu, p.q_uv, p.q_vv,
-                      -1.f, hit_patch.data(), &hits, count, zlo, zhi, comp_z[i], comp_dz2[i]);
+                      -1.f, hit_patch.data(), &hits, zlo, zhi, comp_z[i], comp_dz2[i]);
       } else {
         testBox<false>(grid, e_col0, e_col1, e_row0, e_row1, p.u_px, p.v_px, p.q_uu, p.q_uv, p.q_vv,
-                       -1.f, hit_patch.data(), &hits, count);
+                       -1.f, hit_patch.data(), &hits);
       }
       if (hits == first) continue;
     } else {
@@ -670,6 +649,12 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
     (*valid)[i] = 1;
   }
   run_begin[num_cand] = static_cast<int>(hits);
+  // Members per patch, counted from the hits in one pass. Counting in the box tests (a masked
+  // load-add-store per tile row, its rows overlapping the previous components' stores by a
+  // few patches) cost 3% more of the membership's time on the `cpu` workload.
+  counts.assign(static_cast<size_t>(num_patches), 0);
+  int* __restrict count = counts.data();
+  for (size_t k = 0; k < hits; ++k) ++count[hit_patch[k]];
   for (int p = 0; p < num_patches; ++p) out->begin[p + 1] = out->begin[p] + count[p];
   out->comps.resize(out->begin[num_patches]);
   // Pass 2: scatter the runs of pass 1 (components ascending within each patch). Each hit's
