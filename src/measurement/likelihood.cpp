@@ -78,14 +78,58 @@ __attribute__((noinline)) void patchMixture(const EvalComponentF* __restrict com
   }
 }
 
-// Points per kernel call: two vectors (a 4x4 patch at stride 8 is one call).
+#if defined(GMM_MCL_SIMD_16)
+#define GMM_MCL_LIKELIHOOD_16 1
+// patchMixture<2> for the 16 points of one 16-lane vector (AVX-512) in one pass: the same
+// exponents lane by lane, exp of every member's, added where patchMixture<2> adds it (the
+// 8-lane halves with a used lane at or above `negligible`; masked adds, so that acc's two halves
+// are patchMixture<2>'s two sums to the bit). Without the second pass and its stores of the
+// exponents, at one instruction where patchMixture<2> takes two: 8-10% less time in the
+// likelihood on the `cpu` workload, though about half the exps add nothing (docs/benchmark.md).
+// used: the lanes holding points.
+__attribute__((noinline)) void patchMixture16(const EvalComponentF* __restrict comps,
+                                              const int* __restrict members, int k, float shift,
+                                              float negligible, const simd::v16f* __restrict x,
+                                              const simd::v16f* __restrict y,
+                                              const simd::v16f* __restrict z, __mmask16 used,
+                                              simd::v16f* __restrict acc) {
+  using simd::splatAs;
+  using simd::v16f;
+  const v16f px = *x, py = *y, pz = *z;
+  const __m512 low = _mm512_set1_ps(negligible);
+  __m512 a = _mm512_setzero_ps();
+  for (int j = 0; j < k; ++j) {
+    const EvalComponentF& e = comps[members[j]];
+    const v16f b = splatAs<v16f>(e.base - shift);
+    const v16f c0 = splatAs<v16f>(e.c[0]), c1 = splatAs<v16f>(e.c[1]);
+    const v16f c2 = splatAs<v16f>(e.c[2]);
+    const v16f u00 = splatAs<v16f>(e.u00), u01 = splatAs<v16f>(e.u01);
+    const v16f u02 = splatAs<v16f>(e.u02), u11 = splatAs<v16f>(e.u11);
+    const v16f u12 = splatAs<v16f>(e.u12), u22 = splatAs<v16f>(e.u22);
+    const v16f y0 = u00 * px + (u01 * py + (u02 * pz + c0));
+    const v16f y1 = u11 * py + (u12 * pz + c1);
+    const v16f y2 = u22 * pz + c2;
+    const v16f t = b - y0 * y0 - y1 * y1 - y2 * y2;
+    // The halves with a lane kept, as arithmetic (GCC branches on ?:, and the outcome is hard
+    // to predict): (x + 255) >> 8 is 1 for x in [1, 255], 0 for x = 0.
+    const unsigned in = _mm512_mask_cmp_ps_mask(used, (__m512)t, low, _CMP_GE_OQ);
+    const unsigned lo = ((in & 0xffu) + 0xffu) >> 8, hi = ((in >> 8) + 0xffu) >> 8;
+    const __mmask16 halves = static_cast<__mmask16>(lo * 0xffu + hi * 0xff00u);
+    a = _mm512_mask_add_ps(a, halves, a, (__m512)simd::expNonPositive16(t));
+  }
+  *acc = (v16f)a;
+}
+#endif
+
+// Points per kernel call: two 8-lane vectors or one 16-lane vector (a 4x4 patch at stride 8 is
+// one call).
 constexpr int kKernelPoints = 16;
 
 // frameLogLikelihood's and noisyEvalComponents' per-thread buffers, looked up by a call of its
 // own (membership.cpp's threadMembershipBuffers says why).
 struct LikelihoodBuffers {
   std::vector<float> points;     // the frame's points in the map frame: x, y, z rows
-  std::vector<float> exponents;  // patchMixture's scratch
+  std::vector<float> exponents;  // patchMixture's scratch (not patchMixture16's)
   std::vector<int> keep;
   std::vector<float> own_soa, form;  // noisyEvalComponents: componentSoA, noisyFormsAll's rows
   std::vector<int> ok;
@@ -258,8 +302,10 @@ FrameLikelihood frameLogLikelihood(const EvalComponentF* eval, const DepthFrame&
   // points so that a call may read past the last patch (the padding lanes are masked out).
   LikelihoodBuffers& buffers = threadLikelihoodBuffers();
   std::vector<float>& buf = buffers.points;
+#if !defined(GMM_MCL_LIKELIHOOD_16)
   std::vector<float>& exponents = buffers.exponents;
   std::vector<int>& keep = buffers.keep;
+#endif
   const size_t stride = static_cast<size_t>(total) + kKernelPoints;
   buf.resize(3 * stride);
   float* __restrict wx = buf.data();
@@ -285,9 +331,14 @@ FrameLikelihood frameLogLikelihood(const EvalComponentF* eval, const DepthFrame&
       wz[i] = wz[0];
     }
   }
+#if defined(GMM_MCL_LIKELIHOOD_16)
+  const simd::v16i lane = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15};
+  simd::v16i hits = {};  // minus the floor hits per lane
+#else
   const v8i lane = {0, 1, 2, 3, 4, 5, 6, 7};
+  v8i hits = simd::splati(0);  // minus the floor hits per lane
+#endif
   v4d lsum = {0.0, 0.0, 0.0, 0.0};  // sum of ln(floor_term + mixture) over pixels
-  v8i hits = simd::splati(0);       // minus the floor hits per lane
   double shifts = 0.0;              // sum of the patches' shifts over their pixels
   double floors = 0.0;              // pixels of patches without components: floor each
   for (int p = 0; p < num_patches; ++p) {
@@ -301,18 +352,42 @@ FrameLikelihood frameLogLikelihood(const EvalComponentF* eval, const DepthFrame&
       continue;
     }
     const int* members = membership.comps.data() + membership.begin[p];
+#if !defined(GMM_MCL_LIKELIHOOD_16)
     if (keep.size() < 2 * static_cast<size_t>(k)) {
       exponents.resize(16 * static_cast<size_t>(k));
       keep.resize(2 * static_cast<size_t>(k));
     }
+#endif
     float shift = floor_log_density;
     for (int j = 0; j < k; ++j) shift = maxf(shift, eval[members[j]].log_norm);
+#if defined(GMM_MCL_LIKELIHOOD_16)
+    const simd::v16f floor_term =
+        simd::splatAs<simd::v16f>(expNonPositive(floor_log_density - shift));
+#else
     const v8f floor_term = simd::splat(expNonPositive(floor_log_density - shift));
+#endif
     const float negligible = floor_log_density - shift - kNegligibleBelowFloor;
     shifts += static_cast<double>(shift) * (e - b);
     out.evaluations += static_cast<long long>(k) * (e - b);
     for (int c = b; c < e; c += kKernelPoints) {
       const int n = std::min(kKernelPoints, e - c);
+#if defined(GMM_MCL_LIKELIHOOD_16)
+      const simd::v16f x = simd::load16(wx + c), y = simd::load16(wy + c);
+      const simd::v16f z = simd::load16(wz + c);
+      const simd::v16i used = lane < n;  // lanes holding this patch's pixels
+      simd::v16f acc;
+      patchMixture16(eval, members, k, shift, negligible, &x, &y, &z,
+                     static_cast<__mmask16>((1u << n) - 1u), &acc);
+      const simd::v16f lv = simd::selectAs<simd::v16f, simd::v16i>(
+          used, simd::logPositive16(floor_term + acc), simd::splatAs<simd::v16f>(0.f));
+      // In patchMixture<2>'s order: the lower 8 lanes, then the upper 8 (zeros when n <= 8,
+      // which leave the sum as it is).
+      v8f half[2];
+      memcpy(half, &lv, sizeof(half));
+      lsum += simd::lowToDouble(half[0]) + simd::highToDouble(half[0]);
+      lsum += simd::lowToDouble(half[1]) + simd::highToDouble(half[1]);
+      hits += used & (acc < floor_term);  // mixture density below exp(floor): -1
+#else
       v8f x[2], y[2], z[2], acc[2];
       const int vectors = n > 8 ? 2 : 1;
       for (int v = 0; v < vectors; ++v) {
@@ -335,11 +410,12 @@ FrameLikelihood frameLogLikelihood(const EvalComponentF* eval, const DepthFrame&
         lsum += simd::lowToDouble(lv) + simd::highToDouble(lv);
         hits += used[v] & (acc[v] < floor_term);  // mixture density below exp(floor): -1
       }
+#endif
     }
   }
   double l = lsum[0] + lsum[1] + lsum[2] + lsum[3];
   int h = 0;
-  for (int i = 0; i < 8; ++i) h -= hits[i];
+  for (size_t i = 0; i < sizeof(hits) / sizeof(hits[0]); ++i) h -= hits[i];
   out.floor_hits += h;
   out.log_likelihood = floors + (shifts + l);
   return out;

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <random>
 
 #include "gmm_mcl/filter/pose.h"
@@ -174,6 +175,35 @@ TEST(LikelihoodTest, VectorExpAndLogAreAccurate) {
   for (int i = 0; i < 8; ++i) EXPECT_GT(e[i], 0.f) << big[i];
   EXPECT_EQ(e[3], 1.f);
 }
+
+#if defined(GMM_MCL_SIMD_16)
+// The AVX-512 kernel's 16-lane exp and ln give the 8-lane ones' bits lane by lane (the CPU
+// likelihood's sums do not depend on which of the two the build uses).
+TEST(LikelihoodTest, SixteenLaneExpAndLogMatchEightLane) {
+  int differ_exp = 0, differ_log = 0, compared = 0;
+  for (float x0 = -90.f; x0 <= 0.f; x0 += 16 * 0.00071f) {
+    alignas(64) float in[16], e16[16], e8[16], l16[16], l8[16], pos[16];
+    for (int i = 0; i < 16; ++i) {
+      in[i] = std::min(0.f, x0 + i * 0.00071f);
+      pos[i] = std::exp(-x0 - i * 0.00071f) * 1e-20f;
+    }
+    simd::store16(e16, simd::expNonPositive16(simd::load16(in)));
+    simd::store16(l16, simd::logPositive16(simd::load16(pos)));
+    for (int h = 0; h < 2; ++h) {
+      simd::store(e8 + 8 * h, simd::expNonPositive8(simd::load(in + 8 * h)));
+      simd::store(l8 + 8 * h, simd::logPositive8(simd::load(pos + 8 * h)));
+    }
+    for (int i = 0; i < 16; ++i) {
+      differ_exp += std::memcmp(&e16[i], &e8[i], sizeof(float)) != 0 ? 1 : 0;
+      differ_log += std::memcmp(&l16[i], &l8[i], sizeof(float)) != 0 ? 1 : 0;
+      ++compared;
+    }
+  }
+  EXPECT_GT(compared, 100000);
+  EXPECT_EQ(differ_exp, 0);
+  EXPECT_EQ(differ_log, 0);
+}
+#endif
 
 }  // namespace
 }  // namespace gmm_mcl

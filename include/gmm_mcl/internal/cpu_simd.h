@@ -1,7 +1,7 @@
 // 8-lane float vectors for the CPU likelihood kernel (GCC / Clang vector extensions: AVX2 with
-// -march=native, pairs of SSE registers otherwise) and the kernel's exp2 and ln on them. Host
-// only. Written with masks and bit operations rather than vector ?: (Clang's C++ lacks it for
-// these types).
+// -march=native, pairs of SSE registers otherwise; 16 lanes for its AVX-512 path) and the kernel's
+// exp2 and ln on them. Host only. Written with masks and bit operations rather than vector ?:
+// (Clang's C++ lacks it for these types).
 #pragma once
 
 #include <stdint.h>
@@ -43,37 +43,82 @@ GMM_MCL_SIMD_INLINE v8f select(v8i mask, v8f a, v8f b) {
   return asFloat((asInt(a) & mask) | (asInt(b) & ~mask));
 }
 
-// exp(x) for x <= 0 on 8 lanes: expNonPositive's clamp (x >= -87: never 0 or a denormal) and
-// range reduction (n = round(x / ln 2), r = x - n ln 2 in two parts), then
-// e^r = 1 + r + r^2 P4(r), P4 a near-minimax fit on |r| <= ln(2) / 2 (3.8e-9 relative in
-// exact arithmetic, one fewer multiply-add than expNonPositive's; test_likelihood measures
-// the float result).
-GMM_MCL_SIMD_INLINE v8f expNonPositive8(v8f x) {
-  const v8f lo = splat(-87.0f);
-  x = select(x < lo, lo, x);
-  const v8f kRound = splat(12582912.0f);  // 1.5 * 2^23: round to nearest
-  const v8f n = (x * 1.44269504088896341f + kRound) - kRound;
-  const v8f r = (x - n * 0.693359375f) + n * 2.12194440e-4f;
-  v8f y = splat(1.381461275741458e-3f);
+#if defined(__AVX512F__)
+// 16-lane vectors: the kernel's AVX-512 path (likelihood.cpp), one register per 16 points.
+#define GMM_MCL_SIMD_16 1
+typedef float v16f __attribute__((vector_size(64)));
+typedef int32_t v16i __attribute__((vector_size(64)));
+GMM_MCL_SIMD_INLINE v16f load16(const float* p) {
+  v16f v;
+  memcpy(&v, p, sizeof(v));  // unaligned
+  return v;
+}
+GMM_MCL_SIMD_INLINE void store16(float* p, v16f v) { memcpy(p, &v, sizeof(v)); }
+#endif
+
+// x in every lane of the float vector F (an initializer list: GCC turns a loop over the lanes
+// into one masked broadcast per lane).
+template <typename F>
+F splatAs(float x);
+template <>
+GMM_MCL_SIMD_INLINE v8f splatAs<v8f>(float x) {
+  return splat(x);
+}
+#if defined(GMM_MCL_SIMD_16)
+template <>
+GMM_MCL_SIMD_INLINE v16f splatAs<v16f>(float x) {
+  return v16f{x, x, x, x, x, x, x, x, x, x, x, x, x, x, x, x};
+}
+#endif
+// mask ? a : b per lane, for the float vector F and the int vector I of its lane count.
+template <typename F, typename I>
+GMM_MCL_SIMD_INLINE F selectAs(I mask, F a, F b) {
+  return (F)(((I)a & mask) | ((I)b & ~mask));
+}
+
+// exp(x) for x <= 0 lane by lane (F, I: a float vector and the int vector of its lane count):
+// expNonPositive's clamp (x >= -87: never 0 or a denormal) and range reduction (n = round(x /
+// ln 2), r = x - n ln 2 in two parts), then e^r = 1 + r + r^2 P4(r), P4 a near-minimax fit on
+// |r| <= ln(2) / 2 (3.8e-9 relative in exact arithmetic, one fewer multiply-add than
+// expNonPositive's; test_likelihood measures the float result). The same bits per lane at any
+// lane count.
+template <typename F, typename I>
+GMM_MCL_SIMD_INLINE F expNonPositiveLanes(F x) {
+  const F lo = splatAs<F>(-87.0f);
+  x = selectAs<F, I>(x < lo, lo, x);
+  const F kRound = splatAs<F>(12582912.0f);  // 1.5 * 2^23: round to nearest
+  const F n = (x * 1.44269504088896341f + kRound) - kRound;
+  const F r = (x - n * 0.693359375f) + n * 2.12194440e-4f;
+  F y = splatAs<F>(1.381461275741458e-3f);
   y = y * r + 8.368710055947304e-3f;
   y = y * r + 4.166838899254799e-2f;
   y = y * r + 1.666652113199234e-1f;
   y = y * r + 4.999999403953552e-1f;
   y = y * (r * r) + r + 1.0f;
-  const v8i e = (__builtin_convertvector(n, v8i) + 127) << 23;
-  return y * asFloat(e);
+  const I e = (__builtin_convertvector(n, I) + 127) << 23;
+  return y * (F)e;
 }
+GMM_MCL_SIMD_INLINE v8f expNonPositive8(v8f x) { return expNonPositiveLanes<v8f, v8i>(x); }
+#if defined(GMM_MCL_SIMD_16)
+GMM_MCL_SIMD_INLINE v16f expNonPositive16(v16f x) { return expNonPositiveLanes<v16f, v16i>(x); }
+#endif
 
-// ln(x) for positive normal finite x: logPositive (fast_math.h) on 8 lanes, the same arithmetic.
-GMM_MCL_SIMD_INLINE v8f logPositive8(v8f x) {
-  const v8i bits = asInt(x);
-  v8i e = ((bits >> 23) & 0xff) - 126;  // x = m 2^e, m in [0.5, 1)
-  v8f m = asFloat((bits & 0x007fffff) | 0x3f000000);
-  const v8i low = m < splat(0.70710678118654752f);  // all ones where m < sqrt(1/2)
-  e = e + low;                                      // e - 1 there
-  m = (m + asFloat(asInt(m) & low)) - 1.0f;         // 2m - 1 there, else m - 1
-  return logFromReduced(m, __builtin_convertvector(e, v8f));
+// ln(x) for positive normal finite x lane by lane: logPositive (fast_math.h), the same
+// arithmetic.
+template <typename F, typename I>
+GMM_MCL_SIMD_INLINE F logPositiveLanes(F x) {
+  const I bits = (I)x;
+  I e = ((bits >> 23) & 0xff) - 126;  // x = m 2^e, m in [0.5, 1)
+  F m = (F)((bits & 0x007fffff) | 0x3f000000);
+  const I low = m < splatAs<F>(0.70710678118654752f);  // all ones where m < sqrt(1/2)
+  e = e + low;                                         // e - 1 there
+  m = (m + (F)((I)m & low)) - 1.0f;                    // 2m - 1 there, else m - 1
+  return logFromReduced(m, __builtin_convertvector(e, F));
 }
+GMM_MCL_SIMD_INLINE v8f logPositive8(v8f x) { return logPositiveLanes<v8f, v8i>(x); }
+#if defined(GMM_MCL_SIMD_16)
+GMM_MCL_SIMD_INLINE v16f logPositive16(v16f x) { return logPositiveLanes<v16f, v16i>(x); }
+#endif
 
 // True when some lane of the mask is set.
 GMM_MCL_SIMD_INLINE bool any(v8i mask) {
