@@ -455,8 +455,7 @@ struct MembershipBuffers {
   std::vector<int> soa_i;          // ProjectedSoA ints: [6][m]
   std::vector<int> hit_patch;      // pass 1's patches, in component order
   std::vector<int> candidates;     // the components pass 1 tests, ascending
-  std::vector<int> run_begin;      // [candidates + 1]: candidate j's run in hit_patch
-  std::vector<int> hit_comp;       // pass 2: each hit's component (+ 16 slack)
+  std::vector<int> hit_comp;       // pass 1's components, one per hit (+ 16 slack)
   std::vector<int> cursor;         // pass 2's next slot per patch
   std::vector<int> in_view;        // [m]: inViewAll
   std::vector<float> depth_reach;  // depth, dz2_max: [2][m]
@@ -523,7 +522,6 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
   std::vector<int>& soa_i = buffers.soa_i;
   std::vector<int>& hit_patch = buffers.hit_patch;
   std::vector<int>& candidates = buffers.candidates;
-  std::vector<int>& run_begin = buffers.run_begin;
   std::vector<int>& hit_comp = buffers.hit_comp;
   std::vector<int>& cursor = buffers.cursor;
   std::vector<int>& in_view = buffers.in_view;
@@ -580,25 +578,38 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
     cand[num_cand] = i;
     num_cand += (reach ? in_view[i] : 1) & (box | (P.exact[i] != 0 ? 1 : 0));
   }
-  run_begin.resize(static_cast<size_t>(num_cand) + 1);
+  // Each hit's component, written beside its patch after the component's box test: 16 at once
+  // (the next component's overwrite those beyond its hits), the rest one by one (rare). Pass 2
+  // reads them; a loop over the components' runs afterwards cost 2% of the update.
+  auto note_component = [&](size_t from, size_t to, int comp) {
+    int* __restrict hc = hit_comp.data();
+    for (int k = 0; k < 16; ++k) hc[from + k] = comp;
+    for (size_t k = from + 16; k < to; ++k) hc[k] = comp;
+  };
   size_t hits = 0;
   for (int j = 0; j < num_cand; ++j) {
     const int i = cand[j];
-    run_begin[j] = static_cast<int>(hits);
     const bool exact = P.exact[i] != 0;
     const int col0 = P.col0[i], col1 = P.col1[i], row0 = P.row0[i], row1 = P.row1[i];
     const size_t first = hits;
     bool redo = exact;
     if (!exact) {
       const size_t cells = static_cast<size_t>(row1 - row0 + 1) * (col1 - col0 + 1) + 16;
-      if (hit_patch.size() < hits + cells) hit_patch.resize(2 * (hits + cells));
+      if (hit_patch.size() < hits + cells) {
+        hit_patch.resize(2 * (hits + cells));
+        hit_comp.resize(hit_patch.size());
+      }
       redo = prune ? testBoxFastest<true>(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i],
                                           P.quv[i], P.qvv[i], P.margin[i], hit_patch.data(), &hits,
                                           zlo, zhi, comp_z[i], comp_dz2[i])
                    : testBoxFastest<false>(grid, col0, col1, row0, row1, P.u[i], P.v[i], P.quu[i],
                                            P.quv[i], P.qvv[i], P.margin[i], hit_patch.data(), &hits,
                                            nullptr, nullptr, 0.f, 0.f);
-      if (redo) hits = first;  // undo this component's hits
+      if (redo) {
+        hits = first;  // undo this component's hits
+      } else {
+        note_component(first, hits, i);
+      }
     }
     ProjectedComponent scratch;
     ProjectedComponent& p = projected ? (*projected)[i] : scratch;
@@ -614,8 +625,11 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
       const int e_row1 =
           std::min(grid.rows - 1, static_cast<int>(std::floor((p.v_px + p.half_h_px - c0) / ps)));
       if (e_col0 > e_col1 || e_row0 > e_row1) continue;
-      const size_t cells = static_cast<size_t>(e_row1 - e_row0 + 1) * (e_col1 - e_col0 + 1);
-      if (hit_patch.size() < hits + cells) hit_patch.resize(2 * (hits + cells));
+      const size_t cells = static_cast<size_t>(e_row1 - e_row0 + 1) * (e_col1 - e_col0 + 1) + 16;
+      if (hit_patch.size() < hits + cells) {
+        hit_patch.resize(2 * (hits + cells));
+        hit_comp.resize(hit_patch.size());
+      }
       if (prune) {
         testBox<true>(grid, e_col0, e_col1, e_row0, e_row1, p.u_px, p.v_px, p.q_uu, p.q_uv, p.q_vv,
                       -1.f, hit_patch.data(), &hits, zlo, zhi, comp_z[i], comp_dz2[i]);
@@ -623,6 +637,7 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
         testBox<false>(grid, e_col0, e_col1, e_row0, e_row1, p.u_px, p.v_px, p.q_uu, p.q_uv, p.q_vv,
                        -1.f, hit_patch.data(), &hits);
       }
+      note_component(first, hits, i);
       if (hits == first) continue;
     } else {
       if (hits == first) continue;
@@ -646,7 +661,6 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
     }
     (*valid)[i] = 1;
   }
-  run_begin[num_cand] = static_cast<int>(hits);
   // Members per patch, counted from the hits in one pass into begin[patch + 1] (zero from the
   // start), then summed in place. Counting in the box tests (a masked load-add-store per tile
   // row, its rows overlapping the previous components' stores by a few patches) cost 3% more of
@@ -655,19 +669,11 @@ void computeMembership(const std::vector<ComponentF>& components, const RigidTra
   for (size_t k = 0; k < hits; ++k) ++begin[hit_patch[k] + 1];
   for (int p = 0; p < num_patches; ++p) begin[p + 1] += begin[p];
   out->comps.resize(out->begin[num_patches]);
-  // Pass 2: scatter the runs of pass 1 (components ascending within each patch). Each hit's
-  // component first (hit_comp), so that the scatter is one loop over the hits: a loop per
-  // component, whose trip count the branch predictor cannot know, took a quarter of
-  // computeMembership's time.
+  // Pass 2: scatter pass 1's hits by patch (components ascending within each patch), one loop
+  // over the hits: a loop per component, whose trip count the branch predictor cannot know, took
+  // a quarter of computeMembership's time.
   const size_t total_hits = hits;
-  hit_comp.resize(total_hits + 16);
-  int* __restrict hc = hit_comp.data();
-  const int* __restrict rb = run_begin.data();
-  for (int j = 0; j < num_cand; ++j) {  // 16 entries from each run's start; the next overwrites
-    const int b = rb[j], len = rb[j + 1] - b, i = cand[j];
-    for (int k = 0; k < 16; ++k) hc[b + k] = i;
-    for (int k = 16; k < len; ++k) hc[b + k] = i;  // a run of more than 16 patches (rare)
-  }
+  const int* __restrict hc = hit_comp.data();
   cursor.assign(out->begin.begin(), out->begin.end() - 1);
   int* __restrict cur = cursor.data();
   int* __restrict dst = out->comps.data();
