@@ -83,11 +83,10 @@ __attribute__((noinline)) void patchMixture(const EvalComponentF* __restrict com
 // patchMixture<2> for the 16 points of one 16-lane vector (AVX-512) in one pass: the same
 // exponents lane by lane, exp of every member's, added where patchMixture<2> adds it (the
 // 8-lane halves with a used lane at or above `negligible`; masked adds, so that acc's two halves
-// are patchMixture<2>'s two sums to the bit). Without the second pass and its stores of the
-// exponents, at one instruction where patchMixture<2> takes two: 8-10% less time in the
-// likelihood on the `cpu` workload, though about half the exps add nothing (docs/benchmark.md).
-// used: the lanes holding points. Inlined into frameLogLikelihood: 6% less time in the
-// likelihood than as a call per patch.
+// are patchMixture<2>'s two sums to the bit). On the `cpu` workload (docs/benchmark.md) 16 lanes
+// in two passes took 8% less time in the likelihood than patchMixture<2>, and one pass, without
+// the stores of the exponents, 4% less again, though about half its exps add nothing; inlined
+// into frameLogLikelihood, 6% less than as a call per patch. used: the lanes holding points.
 inline void patchMixture16(const EvalComponentF* __restrict comps, const int* __restrict members,
                            int k, float shift, float negligible, const simd::v16f* __restrict x,
                            const simd::v16f* __restrict y, const simd::v16f* __restrict z,
