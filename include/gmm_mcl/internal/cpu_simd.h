@@ -38,10 +38,6 @@ GMM_MCL_SIMD_INLINE v8f load(const float* p) {
 GMM_MCL_SIMD_INLINE void store(float* p, v8f v) { memcpy(p, &v, sizeof(v)); }
 GMM_MCL_SIMD_INLINE v8i asInt(v8f v) { return (v8i)v; }
 GMM_MCL_SIMD_INLINE v8f asFloat(v8i v) { return (v8f)v; }
-// mask ? a : b per lane (mask lanes all ones or all zeros).
-GMM_MCL_SIMD_INLINE v8f select(v8i mask, v8f a, v8f b) {
-  return asFloat((asInt(a) & mask) | (asInt(b) & ~mask));
-}
 
 #if defined(__AVX512F__)
 // 16-lane vectors: the kernel's AVX-512 path (likelihood.cpp), one register per 16 points.
@@ -70,11 +66,13 @@ GMM_MCL_SIMD_INLINE v16f splatAs<v16f>(float x) {
   return v16f{x, x, x, x, x, x, x, x, x, x, x, x, x, x, x, x};
 }
 #endif
-// mask ? a : b per lane, for the float vector F and the int vector I of its lane count.
+// mask ? a : b per lane (mask lanes all ones or all zeros), for the float vector F and the int
+// vector I of its lane count.
 template <typename F, typename I>
 GMM_MCL_SIMD_INLINE F selectAs(I mask, F a, F b) {
   return (F)(((I)a & mask) | ((I)b & ~mask));
 }
+GMM_MCL_SIMD_INLINE v8f select(v8i mask, v8f a, v8f b) { return selectAs<v8f, v8i>(mask, a, b); }
 
 // exp(x) for x <= 0 lane by lane (F, I: a float vector and the int vector of its lane count):
 // expNonPositive's clamp (x >= -87: never 0 or a denormal) and range reduction (n = round(x /
